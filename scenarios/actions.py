@@ -1,0 +1,120 @@
+"""Scenario action policies pi(sigma, t) for ``run_scenario`` (paper Alg. 1).
+
+Each policy maps a batch of states and the runs' own streams to actions (B, m). Random
+policies draw from each run's stream at counter ``t``, so a run's actions depend only on
+its key (seed, index), never on its batch-mates.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from farm.streams import PURPOSE_ACTION, RunStreams
+from scenarios.base import Scenario
+
+
+class ActionPolicy:
+    deterministic: bool = False
+    description: str = ""
+
+    def __call__(self, scenario: Scenario, states: np.ndarray, t: int, streams: RunStreams) -> np.ndarray:
+        raise NotImplementedError
+
+
+@dataclass
+class UniformActions(ActionPolicy):
+    """u ~ U(Gamma), i.i.d. over steps and runs."""
+
+    description: str = "u ~ U(Gamma)"
+
+    def __call__(self, scenario, states, t, streams):
+        u = streams.uniform(t, PURPOSE_ACTION, scenario.m)
+        return scenario.action_lower + (scenario.action_upper - scenario.action_lower) * u
+
+
+@dataclass
+class AdversarialActions(ActionPolicy):
+    """u ~ U(Gamma*), Gamma* the scenario's finite adversarial set (Definition 7)."""
+
+    description: str = "u ~ U(Gamma*)"
+    deterministic: bool = False  # True when Gamma* is a single action
+
+    def __call__(self, scenario, states, t, streams):
+        options = scenario.adversarial_actions
+        if len(options) == 1:
+            return np.broadcast_to(options[0], (len(states), scenario.m))
+        pick = np.minimum((streams.uniform(t, PURPOSE_ACTION, 1)[:, 0] * len(options)).astype(int), len(options) - 1)
+        return options[pick]
+
+
+@dataclass
+class ConstantActions(ActionPolicy):
+    value: tuple[float, ...] = ()
+    deterministic: bool = True
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        return f"u = {list(self.value)} (constant)"
+
+    def __call__(self, scenario, states, t, streams):
+        return np.broadcast_to(np.asarray(self.value, dtype=float), (len(states), scenario.m))
+
+
+@dataclass
+class FeedbackActions(ActionPolicy):
+    """A deterministic feedback policy u = pi(sigma) (paper Problem 2), loaded from
+    ``package.module:function``; the function maps (B, n) states to (B, m) actions."""
+
+    target: str = ""
+    deterministic: bool = True
+
+    def __post_init__(self):
+        self._fn = load_object(self.target, "actions.policy")
+
+    @property
+    def description(self) -> str:  # type: ignore[override]
+        return f"u = pi(sigma), pi = {self.target}"
+
+    def __call__(self, scenario, states, t, streams):
+        u = np.asarray(self._fn(states), dtype=float)
+        return np.clip(u.reshape(len(states), scenario.m), scenario.action_lower, scenario.action_upper)
+
+
+def load_object(target: str, field: str):
+    """Import ``package.module:attr``; a clear error naming ``field`` otherwise."""
+    module_name, sep, attr = target.partition(":")
+    if not sep or not module_name or not attr:
+        raise ValueError(f"{field}: expected 'package.module:Name', got {target!r}")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise ValueError(f"{field}: cannot import module {module_name!r} ({exc})") from None
+    try:
+        return getattr(module, attr)
+    except AttributeError:
+        raise ValueError(f"{field}: module {module_name!r} has no attribute {attr!r}") from None
+
+
+def make_action_policy(mode: str, scenario: Scenario, value=None, policy: str | None = None) -> ActionPolicy:
+    if mode == "uniform":
+        return UniformActions()
+    if mode == "adversarial":
+        return AdversarialActions(deterministic=len(scenario.adversarial_actions) == 1)
+    if mode == "constant":
+        if value is None:
+            raise ValueError("actions.value: required for mode = 'constant'")
+        vals = tuple(float(v) for v in np.atleast_1d(value))
+        if len(vals) != scenario.m:
+            raise ValueError(f"actions.value: expected {scenario.m} numbers ({', '.join(scenario.action_names)})")
+        for v, lo, hi, name in zip(vals, scenario.action_lower, scenario.action_upper, scenario.action_names):
+            if not lo <= v <= hi:
+                raise ValueError(f"actions.value: {name} = {v} outside Gamma; allowed range [{lo:g}, {hi:g}]")
+        return ConstantActions(vals)
+    if mode == "feedback":
+        if not policy:
+            raise ValueError("actions.policy: required for mode = 'feedback' ('package.module:function')")
+        return FeedbackActions(policy)
+    raise ValueError(f"actions.mode: unknown mode {mode!r}; allowed: uniform, adversarial, constant, feedback")

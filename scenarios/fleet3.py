@@ -1,0 +1,50 @@
+"""``fleet3`` (5-D): lead (1), SV (0) in the middle, follower (2), one lane, 5 m cars.
+State ``(v0, v1, v2, p10, p20)``: speeds [m/s]; p10 = lead minus SV position, p20 =
+follower minus SV position, front to front [m]. Bumper gaps: p10 - 5 and -p20 - 5."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from scenarios.base import Scenario
+from scenarios.kinematics import advance, disturb
+from scenarios.policies import BRAKE_ACCEL, sv_policy as lookup_sv_policy
+
+VEHICLE_LENGTH = 5.0  # [m]
+
+
+class Fleet3(Scenario):
+    name = "fleet3"
+    state_names = ("v0", "v1", "v2", "p10", "p20")
+    lower = np.array([0.0, 0.0, 0.0, 5.0, -25.0])
+    upper = np.array([6.0, 6.0, 6.0, 25.0, -5.0])
+    failure_sides = {"p10": False, "p20": True}  # p10 < 5 (lead contact), p20 > -5 (follower)
+    action_names = ("u1", "u2")
+    action_lower = np.array([-5.0, -7.0])
+    action_upper = np.array([3.0, -3.0])  # the follower never accelerates
+    adversarial_actions = np.array([[-5.0, -3.0]])  # lead brakes hardest, follower least
+    noise_width = 3
+
+    def __init__(self, sv_policy: str = "idm", failure_facets=None, disturbance: float = 0.0):
+        super().__init__(failure_facets, disturbance)
+        self.sv_policy_name = sv_policy
+        self._policy = lookup_sv_policy(sv_policy)
+
+    def step(self, states, actions, noise):
+        v0, v1, v2 = states[:, 0], states[:, 1], states[:, 2]
+        p10, p20 = states[:, 3], states[:, 4]
+        a0 = self._policy(v0, v1, p10 - VEHICLE_LENGTH)  # the SV sees the lead only
+        a1, a2 = actions[:, 0], actions[:, 1]
+        if noise is not None:
+            a0 = disturb(a0, noise[:, 0], self.disturbance)
+            a1 = disturb(a1, noise[:, 1], self.disturbance)
+            a2 = disturb(a2, noise[:, 2], self.disturbance)
+        v0n, x0 = advance(v0, a0, self.dt)
+        v1n, x1 = advance(v1, a1, self.dt)
+        v2n, x2 = advance(v2, a2, self.dt)
+        return np.stack([v0n, v1n, v2n, p10 + x1 - x0, p20 + x2 - x0]).T  # column-contiguous
+
+    def step_bound(self) -> float:
+        a_max = max(abs(BRAKE_ACCEL), 7.0) + self.disturbance
+        v_max = float(self.upper[0])
+        return max(a_max * self.dt, v_max * self.dt + 0.5 * a_max * self.dt**2)

@@ -1,0 +1,130 @@
+"""``run_scenario`` (paper Alg. 1) for a batch of runs, with classification.
+
+Every step's new states are classified continue / truncated / failure (failure wins);
+a run ends at its first non-continue state or after K states (the start counts as the
+first). The returned trajectories hold every state of every run, the terminal one
+included, so a run can be checked and replayed state by state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from farm.streams import PURPOSE_DISTURBANCE, RunStreams
+from scenarios.actions import ActionPolicy
+from scenarios.base import CONTINUE, FAILURE, HORIZON, Scenario
+
+
+class ScenarioError(RuntimeError):
+    """A scenario produced something no verdict can be drawn from (NaN, wrong shape)."""
+
+
+@dataclass
+class RunBatch:
+    """Results of a batch of runs.
+
+    indices       (B,) uint64 global sample indices (the runs' stream keys with the seed)
+    trajectories  (K, B, n) states; entries past a run's length are meaningless
+    lengths       (B,) int32 number of states in each run (start included, >= 1)
+    outcomes      (B,) int8 FAILURE / TRUNCATED / HORIZON
+    """
+
+    indices: np.ndarray
+    trajectories: np.ndarray
+    lengths: np.ndarray
+    outcomes: np.ndarray
+
+    @property
+    def starts(self) -> np.ndarray:
+        return self.trajectories[0]
+
+    @property
+    def steps(self) -> int:
+        return int(self.lengths.sum() - len(self.lengths))
+
+    def __len__(self) -> int:
+        return len(self.indices)
+
+    def trajectory(self, row: int) -> np.ndarray:
+        """(length, n) states of one run."""
+        return self.trajectories[: self.lengths[row], row]
+
+    def take(self, rows) -> "RunBatch":
+        rows = np.asarray(rows)
+        k = int(self.lengths[rows].max()) if len(rows) else 1
+        return RunBatch(self.indices[rows], self.trajectories[:k, rows], self.lengths[rows], self.outcomes[rows])
+
+
+def run_scenario(
+    scenario: Scenario,
+    starts: np.ndarray,
+    horizon: int,
+    policy: ActionPolicy,
+    streams: RunStreams,
+) -> RunBatch:
+    """Run a batch from ``starts`` (B, n) for up to ``horizon`` states each."""
+    starts = np.asarray(starts, dtype=float)
+    batch, n = starts.shape
+    if n != scenario.n:
+        raise ScenarioError(f"start states have {n} columns, scenario {scenario.name!r} has {scenario.n}")
+    if horizon < 2:
+        raise ValueError(f"horizon: K must be >= 2, got {horizon}")
+    # Stored as (K, n, B) so that each step writes n contiguous rows; exposed as (K, B, n).
+    store = np.empty((horizon, n, batch))
+    store[0] = starts.T
+    lengths = np.full(batch, horizon, dtype=np.int32)
+    outcomes = np.full(batch, HORIZON, dtype=np.int8)
+    disturbed = scenario.disturbance > 0.0 and scenario.noise_width > 0
+    rows = np.arange(batch)  # batch rows still being stepped (some may have ended)
+    running = np.ones(batch, dtype=bool)  # ... of which these have not ended
+    full = True  # rows == arange(batch)
+    row_streams = streams
+    states = starts
+    for t in range(1, horizon):
+        actions = policy(scenario, states, t, row_streams)
+        noise = row_streams.uniform(t, PURPOSE_DISTURBANCE, scenario.noise_width) if disturbed else None
+        nxt = scenario.step(states, actions, noise)
+        if nxt.shape != states.shape:
+            raise ScenarioError(f"scenario {scenario.name!r} step returned shape {nxt.shape}, expected {states.shape}")
+        status = scenario.classify(nxt)
+        if full:
+            store[t] = nxt.T
+        else:
+            store[t][:, rows] = nxt.T
+        ended = running & (status != CONTINUE)
+        if not np.isfinite(nxt).all():  # one reduction; the per-row search only on error
+            bad = ~np.isfinite(nxt).all(axis=1) & running
+            if bad.any():
+                _raise_bad_state(scenario, nxt, rows, bad, streams, starts, t)
+        if ended.any():
+            done = rows[ended]
+            outcomes[done] = status[ended]
+            lengths[done] = t + 1
+            running &= ~ended
+            alive = int(running.sum())
+            if alive == 0:
+                break
+            # Ended rows keep being stepped (cheaper than a gather every step) until they
+            # are a quarter of the rows: then compact.
+            if alive < 0.75 * len(rows):
+                rows, nxt = rows[running], nxt[running]
+                row_streams = row_streams.subset(running)
+                running = np.ones(len(rows), dtype=bool)
+                full = False
+        states = nxt
+    return RunBatch(streams.indices, store.transpose(0, 2, 1), lengths, outcomes)
+
+
+def _raise_bad_state(scenario, nxt, rows, bad, streams, starts, t):
+    row = int(np.nonzero(bad)[0][0])
+    run = int(rows[row])
+    raise ScenarioError(
+        f"scenario {scenario.name!r} produced a non-finite state at step {t} of sample index "
+        f"{int(streams.indices[run])} (start state {starts[run].tolist()}): {nxt[row].tolist()}"
+    )
+
+
+def failed(batch: RunBatch) -> np.ndarray:
+    return batch.outcomes == FAILURE
