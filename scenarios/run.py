@@ -64,13 +64,19 @@ def run_scenario(
     policy: ActionPolicy,
     streams: RunStreams,
 ) -> RunBatch:
-    """Run a batch from ``starts`` (B, n) for up to ``horizon`` states each."""
+    """Run a batch from ``starts`` (B, n) for up to ``horizon`` states each.
+
+    A back end whose SV keeps internal state (a real simulator) provides its own
+    ``rollout`` with these semantics; the functional ``step`` loop below is for the rest."""
+    if horizon < 2:
+        raise ValueError(f"horizon: K must be >= 2, got {horizon}")
+    rollout = getattr(scenario, "rollout", None)
+    if rollout is not None:
+        return rollout(np.asarray(starts, dtype=float), horizon, policy, streams)
     starts = np.asarray(starts, dtype=float)
     batch, n = starts.shape
     if n != scenario.n:
         raise ScenarioError(f"start states have {n} columns, scenario {scenario.name!r} has {scenario.n}")
-    if horizon < 2:
-        raise ValueError(f"horizon: K must be >= 2, got {horizon}")
     # Stored as (K, n, B) so that each step writes n contiguous rows; exposed as (K, B, n).
     store = np.empty((horizon, n, batch))
     store[0] = starts.T

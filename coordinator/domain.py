@@ -1,0 +1,195 @@
+"""The claimed domain Phi of a validation: a box inside Sigma, optionally cut by linear
+constraints a . sigma <= b, or a set written by quantification (union of l-inf boxes).
+
+Sampling is i.i.d. uniform in Phi (or in its boundary band, Theorem 3), drawn from each
+run's own stream by rejection, so the sample of run i depends on (seed, i) alone.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from coordinator.covering import Lattice
+from coordinator.spatial import PointIndex
+from farm.streams import PURPOSE_START, RunStreams
+from scenarios.base import FACET_TOLERANCE, Scenario
+
+MAX_REJECTION_ROUNDS = 256
+
+
+class DomainError(ValueError):
+    pass
+
+
+@dataclass
+class Domain:
+    scenario: Scenario
+    lo: np.ndarray  # (n,) bounding box of Phi
+    hi: np.ndarray
+    cuts_a: np.ndarray  # (c, n): Phi = {lo <= sigma <= hi, cuts_a @ sigma <= cuts_b}
+    cuts_b: np.ndarray  # (c,)
+    set_centres: np.ndarray | None = None  # or the union of boxes centre +- set_half_width
+    set_half_width: float = 0.0
+
+    # -- construction -------------------------------------------------------------------
+    @staticmethod
+    def from_config(scenario: Scenario, section: dict) -> "Domain":
+        names = scenario.state_names
+        if section.get("domain_set"):
+            if section.get("domain") or section.get("constraints"):
+                raise DomainError("validate.domain_set: give either domain_set or domain/constraints, not both")
+            from coordinator.results import read_safe_set
+
+            centres, hw = read_safe_set(section["domain_set"], names)
+            if len(centres) == 0:
+                raise DomainError(f"validate.domain_set: {section['domain_set']} holds no boxes")
+            return Domain(scenario, np.maximum(centres.min(0) - hw, scenario.lower),
+                          np.minimum(centres.max(0) + hw, scenario.upper),
+                          np.zeros((0, scenario.n)), np.zeros(0), centres, hw)
+        lo, hi = scenario.lower.copy(), scenario.upper.copy()
+        for name, bounds in (section.get("domain") or {}).items():
+            if name not in names:
+                raise DomainError(f"validate.domain.{name}: unknown state variable; allowed: {', '.join(names)}")
+            i = names.index(name)
+            if (not isinstance(bounds, list) or len(bounds) != 2
+                    or not all(isinstance(b, (int, float)) and not isinstance(b, bool) for b in bounds)):
+                raise DomainError(f"validate.domain.{name}: expected [low, high], got {bounds!r}")
+            a, b = float(bounds[0]), float(bounds[1])
+            if not (scenario.lower[i] <= a < b <= scenario.upper[i]):
+                raise DomainError(f"validate.domain.{name}: [{a:g}, {b:g}] must be an interval inside Sigma; "
+                                  f"allowed {scenario.lower[i]:g} <= low < high <= {scenario.upper[i]:g}")
+            lo[i], hi[i] = a, b
+        rows, rhs = [], []
+        for k, cut in enumerate(section.get("constraints") or []):
+            field = f"validate.constraints[{k}]"
+            if not isinstance(cut, dict) or set(cut) != {"a", "b"} or not isinstance(cut["a"], dict):
+                raise DomainError(f"{field}: expected {{ a = {{ <state> = coefficient, ... }}, b = number }}")
+            row = np.zeros(scenario.n)
+            for name, coef in cut["a"].items():
+                if name not in names:
+                    raise DomainError(f"{field}.a.{name}: unknown state variable; allowed: {', '.join(names)}")
+                row[names.index(name)] = float(coef)
+            if not np.any(row):
+                raise DomainError(f"{field}.a: all coefficients are zero")
+            rows.append(row)
+            rhs.append(float(cut["b"]))
+        dom = Domain(scenario, lo, hi, np.array(rows).reshape(-1, scenario.n), np.array(rhs))
+        probe = dom.lattice(min(hi - lo) / 20)
+        if len(probe) == 0:
+            raise DomainError("validate.constraints: the constraints leave an (almost) empty domain")
+        return dom
+
+    # -- geometry -------------------------------------------------------------------------
+    @property
+    def is_set(self) -> bool:
+        return self.set_centres is not None
+
+    def _set_index(self) -> PointIndex:
+        idx = getattr(self, "_index", None)
+        if idx is None:
+            idx = PointIndex(self.scenario.n, 2 * self.set_half_width, self.lo)
+            idx.insert(self.set_centres)
+            self._index = idx
+        return idx
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        if self.is_set:
+            return self._set_index().any_within(points, self.set_half_width)
+        tol = FACET_TOLERANCE
+        inside = ((points >= self.lo - tol) & (points <= self.hi + tol)).all(axis=1)
+        if len(self.cuts_b):
+            inside &= (points @ self.cuts_a.T <= self.cuts_b + tol).all(axis=1)
+        return inside
+
+    def band_distance(self, points: np.ndarray) -> np.ndarray:
+        """l-inf distance to the part of the boundary of Phi a trajectory can leave through
+        without ending quietly: faces on a truncating facet of Sigma are left out, since
+        leaving there is a truncation, not a violation."""
+        if self.is_set:
+            raise DomainError("validate.boundary: not supported with validate.domain_set; use a box domain")
+        sc = self.scenario
+        dist = np.full(len(points), np.inf)
+        for (facet, failure) in sc.facets():
+            i = facet.axis
+            bound = self.hi[i] if facet.upper else self.lo[i]
+            on_sigma = bound == (sc.upper[i] if facet.upper else sc.lower[i])
+            if on_sigma and not failure:
+                continue
+            d = (bound - points[:, i]) if facet.upper else (points[:, i] - bound)
+            dist = np.minimum(dist, d)
+        if len(self.cuts_b):
+            d = (self.cuts_b - points @ self.cuts_a.T) / np.abs(self.cuts_a).sum(axis=1)
+            dist = np.minimum(dist, d.min(axis=1))
+        return dist
+
+    def volume(self) -> float:
+        if self.is_set:
+            from coordinator.volume import union_volume
+
+            return union_volume(self.set_centres, self.set_half_width)
+        box = float(np.prod(self.hi - self.lo))
+        if not len(self.cuts_b):
+            return box
+        probe = self.lattice(min(self.hi - self.lo) / 40)  # midpoint rule over the box
+        full = Lattice.tiling(self.lo, self.hi, min(self.hi - self.lo) / 40).box_centres(min(self.hi - self.lo) / 40)
+        return box * len(probe) / len(full)
+
+    def lattice(self, delta: float, band: float | None = None) -> np.ndarray:
+        """delta-covering centres of Phi (Definition 1): the tiling of its bounding box,
+        kept where the centre lies in Phi (and in the band, if given)."""
+        centres = Lattice.tiling(self.lo, self.hi, delta).box_centres(delta)
+        keep = self.contains(centres)
+        if band is not None:
+            keep &= self.band_distance(centres) <= band
+        return centres[keep]
+
+    # -- sampling ---------------------------------------------------------------------------
+    def sample(self, streams: RunStreams, band: float | None = None) -> np.ndarray:
+        """i.i.d. uniform in Phi (or its band): rejection from the bounding box, attempt k
+        of run i using draw k of its start stream. For a set domain a box is picked
+        uniformly and a point accepted with probability 1/(boxes covering it), which is
+        exactly uniform on the union."""
+        n = self.scenario.n
+        out = np.full((len(streams), n), np.nan)
+        todo = np.arange(len(streams))
+        for attempt in range(MAX_REJECTION_ROUNDS):
+            if len(todo) == 0:
+                return out
+            sub = streams.subset(todo)
+            if self.is_set:
+                u = sub.uniform(attempt, PURPOSE_START, n + 2)
+                box = np.minimum((u[:, 0] * len(self.set_centres)).astype(np.int64), len(self.set_centres) - 1)
+                pts = self.set_centres[box] + self.set_half_width * (2 * u[:, 1 : n + 1] - 1)
+                pts = np.clip(pts, self.scenario.lower, self.scenario.upper)
+                ok = u[:, n + 1] * self._cover_count(pts) <= 1.0
+            else:
+                u = sub.uniform(attempt, PURPOSE_START, n)
+                pts = self.lo + (self.hi - self.lo) * u
+                ok = self.contains(pts)
+                if band is not None:
+                    ok &= self.band_distance(pts) <= band
+            out[todo[ok]] = pts[ok]
+            todo = todo[~ok]
+        raise DomainError("validate.domain: rejection sampling accepts too rarely (the domain or its band is "
+                          "a tiny part of its bounding box); enlarge it or drop validate.boundary")
+
+    def _cover_count(self, pts: np.ndarray) -> np.ndarray:
+        from scipy.spatial import cKDTree
+
+        tree = getattr(self, "_tree", None)
+        if tree is None:
+            tree = self._tree = cKDTree(self.set_centres)
+        hits = tree.query_ball_point(pts, self.set_half_width + 1e-12, p=np.inf, return_length=True)
+        return np.maximum(hits, 1)
+
+    def describe(self) -> str:
+        if self.is_set:
+            return f"a union of {len(self.set_centres)} boxes of half-width {self.set_half_width:g}"
+        names = self.scenario.state_names
+        parts = [f"{nm} in [{a:g}, {b:g}]" for nm, a, b in zip(names, self.lo, self.hi)]
+        for row, b in zip(self.cuts_a, self.cuts_b):
+            terms = " + ".join(f"{c:g}*{nm}" for c, nm in zip(row, names) if c)
+            parts.append(f"{terms} <= {b:g}")
+        return ", ".join(parts)

@@ -1,0 +1,174 @@
+"""Batched l-infinity proximity queries over a growing point set: a hashed cell grid.
+
+Points live in cells of side ``cell`` (anchored at ``origin``); a chained hash table maps
+a cell to the points in it. "Is there an alive point within r of q" (r <= cell/2) looks
+at most 2 cells per axis, and since lattice centres sit at cell centres, almost every
+query is settled by its home cell. Hash collisions only lengthen chains: every candidate
+is checked by its true distance, so answers are exact.
+
+Everything is vectorized over query batches; insertion is vectorized over point batches;
+removal is a flag (chains are rebuilt when the table grows or the cell size changes).
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+_P = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
+               0xD6E8FEB86659FD93, 0xFF51AFD7ED558CCD, 0xC4CEB9FE1A85EC53,
+               0x2545F4914F6CDD1D, 0x9FB21C651E98DF25], dtype=np.uint64)
+TOLERANCE = 1e-9  # closed boxes, decided as exact arithmetic would on grid boundaries
+
+
+class PointIndex:
+    """Points (N, n) with alive flags, hashed by cell. ``cell`` must be >= 2 * radius of
+    every ``any_within`` query."""
+
+    def __init__(self, n: int, cell: float, origin, capacity: int = 1024):
+        self.n = n
+        self.cell = float(cell)
+        self.origin = np.asarray(origin, dtype=float)
+        capacity = max(16, int(capacity))
+        self.points = np.empty((capacity, n))
+        self.alive = np.zeros(capacity, dtype=bool)
+        self.next = np.full(capacity, -1, dtype=np.int64)
+        self.count = 0
+        self._heads = np.full(64, -1, dtype=np.int64)
+
+    # -- hashing ----------------------------------------------------------------------
+    def _cells(self, pts: np.ndarray) -> np.ndarray:
+        return np.floor((pts - self.origin) / self.cell).astype(np.int64)
+
+    def _bucket(self, cells: np.ndarray) -> np.ndarray:
+        with np.errstate(over="ignore"):
+            h = (cells.astype(np.uint64) * _P[: cells.shape[1]]).sum(axis=1, dtype=np.uint64)
+            h ^= h >> np.uint64(31)
+            h *= np.uint64(0xBF58476D1CE4E5B9)
+            h ^= h >> np.uint64(29)
+        return (h & np.uint64(len(self._heads) - 1)).astype(np.int64)
+
+    def _link(self, ids: np.ndarray) -> None:
+        """Push points ``ids`` onto the chains of their buckets (vectorized)."""
+        if len(ids) == 0:
+            return
+        buckets = self._bucket(self._cells(self.points[ids]))
+        order = np.argsort(buckets, kind="stable")
+        ids, buckets = ids[order], buckets[order]
+        first = np.ones(len(ids), dtype=bool)
+        first[1:] = buckets[1:] != buckets[:-1]
+        # within a bucket group, each point links to the previous one; the first links
+        # to the old head; the last becomes the new head
+        prev = np.empty(len(ids), dtype=np.int64)
+        prev[1:] = ids[:-1]
+        prev[first] = self._heads[buckets[first]]
+        self.next[ids] = prev
+        last = np.ones(len(ids), dtype=bool)
+        last[:-1] = buckets[:-1] != buckets[1:]
+        self._heads[buckets[last]] = ids[last]
+
+    def _rehash(self, buckets: int) -> None:
+        self._heads = np.full(buckets, -1, dtype=np.int64)
+        self.next[: self.count] = -1
+        self._link(np.nonzero(self.alive[: self.count])[0])
+
+    # -- mutation -----------------------------------------------------------------------
+    def insert(self, pts: np.ndarray) -> np.ndarray:
+        pts = np.atleast_2d(np.asarray(pts, dtype=float))
+        k = len(pts)
+        if self.count + k > len(self.points):
+            cap = max(2 * len(self.points), self.count + k)
+            self.points = np.resize(self.points, (cap, self.n))
+            self.alive = np.concatenate([self.alive, np.zeros(cap - len(self.alive), dtype=bool)])
+            self.next = np.concatenate([self.next, np.full(cap - len(self.next), -1, dtype=np.int64)])
+        ids = np.arange(self.count, self.count + k)
+        self.points[ids] = pts
+        self.alive[ids] = True
+        self.count += k
+        if self.count > len(self._heads) // 2:
+            self._rehash(1 << int(np.ceil(np.log2(4 * self.count))))
+        else:
+            self._link(ids)
+        return ids
+
+    def kill(self, ids) -> None:
+        self.alive[np.asarray(ids, dtype=np.int64)] = False
+
+    def recell(self, cell: float) -> None:
+        """Change the cell size (when delta shrinks) and rebuild the chains."""
+        self.cell = float(cell)
+        self._rehash(len(self._heads))
+
+    # -- queries ------------------------------------------------------------------------
+    def alive_ids(self) -> np.ndarray:
+        return np.nonzero(self.alive[: self.count])[0]
+
+    @property
+    def alive_count(self) -> int:
+        return int(self.alive[: self.count].sum())
+
+    def alive_points(self) -> np.ndarray:
+        return self.points[self.alive_ids()]
+
+    def any_within(self, queries: np.ndarray, radius: float) -> np.ndarray:
+        """(B, n) -> (B,) bool: is some alive point within l-inf distance ``radius``?"""
+        q = np.atleast_2d(np.asarray(queries, dtype=float))
+        hit = np.zeros(len(q), dtype=bool)
+        if self.count == 0 or len(q) == 0:
+            return hit
+        r = radius + TOLERANCE
+        rel = (q - self.origin) / self.cell
+        home = np.floor(rel).astype(np.int64)
+        lo = np.floor(rel - r / self.cell).astype(np.int64)
+        hi = np.floor(rel + r / self.cell).astype(np.int64)
+        todo = np.arange(len(q))
+        self._scan(q, home, todo, r, hit)
+        todo = np.nonzero(~hit)[0]
+        if len(todo) == 0:
+            return hit
+        # The other cells the query ball touches: per axis either the home cell or the one
+        # neighbour on the side the ball crosses.
+        side = np.where(lo[todo] < home[todo], lo[todo], hi[todo])
+        crosses = side != home[todo]
+        for pattern in itertools.product((False, True), repeat=self.n):
+            if not any(pattern):
+                continue
+            pat = np.array(pattern)
+            sel = todo[(crosses[:, pat].all(axis=1)) & ~hit[todo]]
+            if len(sel) == 0:
+                continue
+            cells = home[sel].copy()
+            rows = np.searchsorted(todo, sel)
+            cells[:, pat] = side[rows][:, pat]
+            self._scan(q, cells, sel, r, hit)
+        return hit
+
+    def _scan(self, q, cells, sel, r, hit) -> None:
+        """Walk the chains of ``cells`` (row i: the cell for query ``sel[i]``), setting ``hit``."""
+        cur = self._heads[self._bucket(cells)]
+        sel = sel.copy()
+        while len(sel):
+            live = cur >= 0
+            sel, cur = sel[live], cur[live]
+            if len(sel) == 0:
+                break
+            d = np.abs(self.points[cur] - q[sel]).max(axis=1)
+            found = (d <= r) & self.alive[cur]
+            hit[sel[found]] = True
+            keep = ~found
+            sel, cur = sel[keep], self.next[cur[keep]]
+
+    # -- persistence (plain arrays, no pickle) -------------------------------------------
+    def state(self) -> dict:
+        return {"points": self.points[: self.count].copy(), "alive": self.alive[: self.count].copy(),
+                "cell": np.array(self.cell), "origin": self.origin.copy()}
+
+    @classmethod
+    def from_state(cls, state: dict) -> "PointIndex":
+        pts = state["points"]
+        idx = cls(pts.shape[1], float(state["cell"]), state["origin"], capacity=2 * len(pts) + 16)
+        if len(pts):
+            idx.insert(pts)
+            idx.alive[: len(pts)] = state["alive"]
+        return idx

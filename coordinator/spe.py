@@ -1,0 +1,250 @@
+"""QNT^SPE (paper Alg. 8): synchronous pruning and exploration, with prioritized
+sampling and experience replay (Sec. 4.4).
+
+The algorithm state is explicit (``SPE`` holds arrays, no hidden globals) and is
+driven ask/tell-style by ``coordinator.campaign``:
+
+    draw(streams)                 start vertices for a batch, from the state as it is now
+    scan(batch, rows, ids)        offset of the first run in ``rows`` that changes the state
+    apply(batch, row, id)         apply that run's change (prune or explore)
+    record(batch, rows, ids)      keep committed runs' states for experience replay
+    end_round()                   delta decay (lines 25-27); False after the last round
+
+A run *changes the state* when it fails (line 9: prune reachable(sigma), add sigma to
+PhiBar) or visits a state sigma' with d(sigma', Phi_delta) > delta and d(sigma', PhiBar)
+> delta (line 15, checked on sigma' as shared/spec/algorithms.md decides).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from coordinator.covering import Lattice
+from coordinator.graph import ExplorationForest
+from coordinator.runs import first_true_per_run, visited_states
+from coordinator.spatial import PointIndex
+from farm.streams import PURPOSE_START, RunStreams
+from scenarios.base import FAILURE, Scenario
+from scenarios.run import RunBatch
+
+ALPHAS = {"identity": lambda x: x, "square": np.square, "sqrt": np.sqrt}
+
+
+@dataclass(frozen=True)
+class SPESettings:
+    delta0: float = 2.0
+    gamma: float = 0.5
+    delta_min: float = 0.5
+    prioritized: bool = True
+    alpha: str = "identity"
+    replay: bool = True
+    replay_capacity: int = 20_000_000
+    reachable: str = "undirected"
+
+
+def greedy_uncovered(points: np.ndarray, delta: float) -> np.ndarray:
+    """Indices of ``points`` kept when adding them in order and skipping any point
+    within l-inf ``delta`` of one already kept (line 15 applied point by point)."""
+    kept: list[int] = []
+    covered = np.zeros(len(points), dtype=bool)
+    for i in range(len(points)):
+        if covered[i]:
+            continue
+        kept.append(i)
+        covered[i:] |= np.abs(points[i:] - points[i]).max(axis=1) <= delta + 1e-9
+    return np.asarray(kept, dtype=np.int64)
+
+
+class SPE:
+    name = "spe"
+    decays = True
+
+    def __init__(self, scenario: Scenario, settings: SPESettings):
+        self.scenario = scenario
+        self.settings = settings
+        n = scenario.n
+        self.lattice = Lattice.tiling(scenario.lower, scenario.upper, settings.delta0)
+        self.delta = settings.delta0
+        self.vertices = PointIndex(n, 2 * self.delta, self.lattice.anchor)
+        self.failures = PointIndex(n, 2 * self.delta, self.lattice.anchor)
+        self.graph = ExplorationForest()
+        self._add_roots(self.lattice.box_centres(self.delta))
+        self.version = 0
+        self.round = 0
+        self._replay_states: list[np.ndarray] = []
+        self._replay_parents: list[np.ndarray] = []
+        self._replay_size = 0
+        self._priority: tuple[int, np.ndarray, np.ndarray] | None = None
+
+    # -- helpers --------------------------------------------------------------------------
+    def _add_roots(self, centres: np.ndarray) -> None:
+        self.vertices.insert(centres)
+        self.graph.add_roots(len(centres))
+
+    @property
+    def final_round(self) -> bool:
+        return self.delta <= self.settings.delta_min * (1 + 1e-12)
+
+    def _weights(self, ids: np.ndarray) -> np.ndarray | None:
+        """Prioritized sampling: rho_i ~ alpha(d* - d_i), d_i = d(sigma_i, PhiBar)."""
+        if not self.settings.prioritized or self.failures.count == 0:
+            return None
+        if self._priority is not None and self._priority[0] == self.version:
+            return self._priority[2]
+        tree = cKDTree(self.failures.points[: self.failures.count])
+        dist, _ = tree.query(self.vertices.points[ids], p=np.inf)
+        weights = ALPHAS[self.settings.alpha](dist.max() - dist)
+        if not weights.sum() > 0:  # all equidistant: rho is uniform
+            weights = None
+        self._priority = (self.version, ids, weights)
+        return weights
+
+    def sampling_description(self) -> str:
+        if self.settings.prioritized and self.failures.count:
+            return (f"start states drawn over the alive centres with probability "
+                    f"alpha(d* - d_i), alpha = {self.settings.alpha}, d_i = d(sigma_i, PhiBar)")
+        return "start states uniform over the alive centres"
+
+    # -- ask ----------------------------------------------------------------------------
+    def draw(self, streams: RunStreams) -> tuple[np.ndarray, np.ndarray]:
+        ids = self.vertices.alive_ids()
+        if len(ids) == 0:
+            raise EmptySetError("the safe set is empty: every centre was pruned")
+        u = streams.uniform(0, PURPOSE_START, 1)[:, 0]
+        weights = self._weights(ids)
+        if weights is None:
+            pick = np.minimum((u * len(ids)).astype(np.int64), len(ids) - 1)
+        else:
+            cdf = np.cumsum(weights)
+            pick = np.minimum(np.searchsorted(cdf, u * cdf[-1], side="right"), len(ids) - 1)
+        chosen = ids[pick]
+        return self.vertices.points[chosen].copy(), chosen
+
+    # -- tell ---------------------------------------------------------------------------
+    def scan(self, batch: RunBatch, rows: np.ndarray, start_ids: np.ndarray):
+        """-> (offset of the first state-changing run in ``rows`` or len(rows),
+        (offset,) bool: quiet runs that left Phi_delta within delta of PhiBar)."""
+        fail = batch.outcomes[rows] == FAILURE
+        states, pos = visited_states(batch, rows)
+        covered = self.vertices.any_within(states, self.delta)
+        uncovered = np.nonzero(~covered)[0]
+        near = np.zeros(len(states), dtype=bool)
+        if len(uncovered):
+            near[uncovered] = self.failures.any_within(states[uncovered], self.delta)
+        explore = ~covered & ~near
+        change = fail | first_true_per_run(explore, pos, len(rows))
+        offset = int(np.argmax(change)) if change.any() else len(rows)
+        escaped = first_true_per_run(~covered & near, pos, len(rows))[:offset]
+        return offset, escaped
+
+    def apply(self, batch: RunBatch, row: int, start_id: int) -> str:
+        """Apply the change of run ``row``; returns "pruned" or "explored"."""
+        self.version += 1
+        if batch.outcomes[row] == FAILURE:
+            # A failing run's explored states would be pruned with sigma at once (they are
+            # in reachable(sigma)), so only sigma enters PhiBar and its tree is pruned.
+            self.failures.insert(batch.trajectories[0, row][None, :])
+            self.vertices.kill(self.graph.reachable(int(start_id), self.settings.reachable))
+            return "pruned"
+        states, _ = visited_states(batch, np.array([row]))
+        new = ~self.vertices.any_within(states, self.delta)
+        new[new] = ~self.failures.any_within(states[new], self.delta)
+        candidates = states[new]
+        kept = candidates[greedy_uncovered(candidates, self.delta)]
+        self.vertices.insert(kept)
+        self.graph.add_children(int(start_id), len(kept))
+        return "explored"
+
+    def record(self, batch: RunBatch, rows: np.ndarray, start_ids: np.ndarray) -> None:
+        """Keep the states of committed, non-failing runs for experience replay."""
+        if not self.settings.replay or self._replay_size >= self.settings.replay_capacity:
+            return
+        ok = rows[batch.outcomes[rows] != FAILURE]
+        if len(ok) == 0:
+            return
+        states, pos = visited_states(batch, ok)
+        room = self.settings.replay_capacity - self._replay_size
+        states, pos = states[:room], pos[:room]
+        self._replay_states.append(states)
+        self._replay_parents.append(start_ids[np.searchsorted(rows, ok)][pos])
+        self._replay_size += len(states)
+
+    # -- round end ---------------------------------------------------------------------
+    def end_round(self) -> bool:
+        if self.final_round:
+            return False
+        new_delta = max(self.settings.gamma * self.delta, self.settings.delta_min)
+        centres = self.vertices.alive_points()
+        children = self.lattice.children(centres, self.delta, new_delta)
+        self.delta = new_delta
+        self.vertices.recell(2 * new_delta)
+        self.failures.recell(2 * new_delta)
+        if len(children):
+            children = children[~self.failures.any_within(children, new_delta)]
+        self._add_roots(children)
+        self.round += 1
+        self.version += 1
+        if self.settings.replay:
+            self._replay()
+        return True
+
+    def _replay(self) -> int:
+        """Experience replay: re-apply line 15 to every stored state at the new delta."""
+        if not self._replay_states:
+            return 0
+        states = np.concatenate(self._replay_states)
+        parents = np.concatenate(self._replay_parents)
+        new = ~self.vertices.any_within(states, self.delta)
+        new[new] = ~self.failures.any_within(states[new], self.delta)
+        states, parents = states[new], parents[new]
+        added = 0
+        chunk = 4096
+        for lo in range(0, len(states), chunk):
+            part, part_parents = states[lo : lo + chunk], parents[lo : lo + chunk]
+            if added:  # points added by earlier chunks may cover these
+                fresh = ~self.vertices.any_within(part, self.delta)
+                part, part_parents = part[fresh], part_parents[fresh]
+            kept = greedy_uncovered(part, self.delta)
+            self.vertices.insert(part[kept])
+            for parent in part_parents[kept]:
+                self.graph.add_children(int(parent), 1)
+            added += len(kept)
+        return added
+
+    # -- output ---------------------------------------------------------------------------
+    def result(self) -> tuple[np.ndarray, float]:
+        return self.vertices.alive_points(), self.delta
+
+    def counts(self) -> dict:
+        return {"boxes": self.vertices.alive_count, "vertices": self.vertices.count,
+                "failures": self.failures.count, "delta": self.delta, "round": self.round}
+
+    # -- persistence --------------------------------------------------------------------
+    def state(self) -> dict:
+        out = {f"vertices.{k}": v for k, v in self.vertices.state().items()}
+        out.update({f"failures.{k}": v for k, v in self.failures.state().items()})
+        out["graph.parent"] = self.graph.parent.copy()
+        out["scalars"] = np.array([self.delta, self.round, self.version], dtype=float)
+        out["replay.states"] = (np.concatenate(self._replay_states) if self._replay_states
+                                else np.empty((0, self.scenario.n)))
+        out["replay.parents"] = (np.concatenate(self._replay_parents) if self._replay_parents
+                                 else np.empty(0, dtype=np.int64))
+        return out
+
+    def load_state(self, state: dict) -> None:
+        self.vertices = PointIndex.from_state({k[9:]: v for k, v in state.items() if k.startswith("vertices.")})
+        self.failures = PointIndex.from_state({k[9:]: v for k, v in state.items() if k.startswith("failures.")})
+        self.graph = ExplorationForest.from_state({"parent": state["graph.parent"]})
+        delta, rnd, version = state["scalars"]
+        self.delta, self.round, self.version = float(delta), int(rnd), int(version)
+        self._replay_states = [state["replay.states"]] if len(state["replay.states"]) else []
+        self._replay_parents = [state["replay.parents"]] if len(state["replay.parents"]) else []
+        self._replay_size = len(state["replay.states"])
+        self._priority = None
+
+
+class EmptySetError(RuntimeError):
+    """Every candidate was pruned: the quantified safe set is empty."""
