@@ -32,6 +32,8 @@ class Domain:
     cuts_b: np.ndarray  # (c,)
     set_centres: np.ndarray | None = None  # or the union of boxes centre +- set_half_width
     set_half_width: float = 0.0
+    predicate: object = None  # and, optionally, a membership function (B, n) -> (B,) bool
+    predicate_name: str = ""
 
     # -- construction -------------------------------------------------------------------
     @staticmethod
@@ -76,6 +78,11 @@ class Domain:
             rows.append(row)
             rhs.append(float(cut["b"]))
         dom = Domain(scenario, lo, hi, np.array(rows).reshape(-1, scenario.n), np.array(rhs))
+        if section.get("domain_predicate"):
+            from scenarios.actions import load_object
+
+            dom.predicate = load_object(section["domain_predicate"], "validate.domain_predicate")
+            dom.predicate_name = section["domain_predicate"]
         probe = dom.lattice(min(hi - lo) / 20)
         if len(probe) == 0:
             raise DomainError("validate.constraints: the constraints leave an (almost) empty domain")
@@ -101,14 +108,17 @@ class Domain:
         inside = ((points >= self.lo - tol) & (points <= self.hi + tol)).all(axis=1)
         if len(self.cuts_b):
             inside &= (points @ self.cuts_a.T <= self.cuts_b + tol).all(axis=1)
+        if self.predicate is not None and inside.any():
+            inside[inside] = np.asarray(self.predicate(points[inside]), dtype=bool)
         return inside
 
     def band_distance(self, points: np.ndarray) -> np.ndarray:
         """l-inf distance to the part of the boundary of Phi a trajectory can leave through
         without ending quietly: faces on a truncating facet of Sigma are left out, since
         leaving there is a truncation, not a violation."""
-        if self.is_set:
-            raise DomainError("validate.boundary: not supported with validate.domain_set; use a box domain")
+        if self.is_set or self.predicate is not None:
+            raise DomainError("validate.boundary: needs a box domain (with linear constraints); not supported "
+                              "with validate.domain_set or validate.domain_predicate")
         sc = self.scenario
         dist = np.full(len(points), np.inf)
         for (facet, failure) in sc.facets():
@@ -130,7 +140,7 @@ class Domain:
 
             return union_volume(self.set_centres, self.set_half_width)
         box = float(np.prod(self.hi - self.lo))
-        if not len(self.cuts_b):
+        if not len(self.cuts_b) and self.predicate is None:
             return box
         probe = self.lattice(min(self.hi - self.lo) / 40)  # midpoint rule over the box
         full = Lattice.tiling(self.lo, self.hi, min(self.hi - self.lo) / 40).box_centres(min(self.hi - self.lo) / 40)
@@ -192,4 +202,6 @@ class Domain:
         for row, b in zip(self.cuts_a, self.cuts_b):
             terms = " + ".join(f"{c:g}*{nm}" for c, nm in zip(row, names) if c)
             parts.append(f"{terms} <= {b:g}")
+        if self.predicate is not None:
+            parts.append(f"{self.predicate_name}(sigma) true")
         return ", ".join(parts)

@@ -72,9 +72,13 @@ class Checker:
             self.cover.insert(p.centres)
 
     def inside(self, states: np.ndarray) -> np.ndarray:
+        inside = self.domain.contains(states)
         if self.plan.algorithm == "eps":
-            return self.domain.contains(states)
-        return self.cover.any_within(states, self.delta)
+            return inside
+        # Definition 1 needs Phi_delta to contain Phi; centres kept inside a cut or a set
+        # domain may leave slivers of Phi uncovered near its faces, so Phi counts too.
+        inside[~inside] = self.cover.any_within(states[~inside], self.delta)
+        return inside
 
     def violations(self, batch) -> tuple[np.ndarray, np.ndarray]:
         """(B,) bool violated, (B,) int step of the first violating state (or -1)."""

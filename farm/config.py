@@ -128,6 +128,7 @@ SCHEMA: dict[str, dict[str, Field]] = {
         "domain": Field(None, optional(table)),
         "constraints": Field(None, anything),
         "domain_set": Field(None, optional(string)),
+        "domain_predicate": Field(None, optional(string)),
     },
     "quantify": {
         "algorithm": Field("spe", choice("spe", "ae", "delta-pruning", "vs")),

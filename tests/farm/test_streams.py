@@ -1,0 +1,32 @@
+import subprocess
+import sys
+
+import numpy as np
+from scipy import stats
+
+from farm.streams import PURPOSE_ACTION, PURPOSE_START, RunStreams
+
+
+def test_draws_depend_on_seed_and_index_only():
+    a = RunStreams.of(7, np.arange(1000)).uniform(3, PURPOSE_ACTION, 2)
+    b = RunStreams.of(7, np.arange(500, 1000)).uniform(3, PURPOSE_ACTION, 2)
+    np.testing.assert_array_equal(a[500:], b)
+    assert not np.array_equal(a, RunStreams.of(8, np.arange(1000)).uniform(3, PURPOSE_ACTION, 2))
+
+
+def test_draws_are_uniform_and_uncorrelated_across_counters_purposes_and_indices():
+    s = RunStreams.of(0, np.arange(200_000))
+    u = s.uniform(0, PURPOSE_START, 2)
+    assert stats.kstest(u[:, 0], "uniform").pvalue > 1e-3
+    assert stats.kstest(u[:, 1], "uniform").pvalue > 1e-3
+    v = s.uniform(1, PURPOSE_START, 1)[:, 0]
+    w = s.uniform(0, PURPOSE_ACTION, 1)[:, 0]
+    for x, y in [(u[:, 0], u[:, 1]), (u[:, 0], v), (u[:, 0], w), (u[:-1, 0], u[1:, 0])]:
+        assert abs(np.corrcoef(x, y)[0, 1]) < 0.01
+
+
+def test_same_stream_in_a_fresh_process():
+    code = ("import numpy as np; from farm.streams import RunStreams; "
+            "print(repr(RunStreams.of(123, [5, 2**40]).uniform(9, 2, 3).tolist()))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert eval(out) == RunStreams.of(123, [5, 2**40]).uniform(9, 2, 3).tolist()

@@ -1,0 +1,66 @@
+import numpy as np
+import pytest
+
+from farm.streams import RunStreams
+from scenarios import make_scenario
+from scenarios.actions import make_action_policy
+from scenarios.base import FAILURE, HORIZON, TRUNCATED, Scenario
+from scenarios.run import ScenarioError, run_scenario
+
+
+def test_run_ends_at_first_non_continue_state_and_counts_the_start():
+    sc = make_scenario("lead-follow", sv_policy="brake")
+    starts = np.array([[20.0, 0.0, 1.0],    # fast SV right behind a standing lead: fails
+                       [0.0, 20.0, 69.0],   # lead drives away: gap passes 70, truncated
+                       [0.0, 0.0, 30.0]])   # nothing moves: full horizon
+    batch = run_scenario(sc, starts, 10, make_action_policy("adversarial", sc), RunStreams.of(0, [0, 1, 2]))
+    assert batch.outcomes.tolist() == [FAILURE, TRUNCATED, HORIZON]
+    assert batch.lengths[2] == 10
+    assert batch.trajectory(0)[-1, 2] < 0 and batch.trajectory(0)[-2, 2] >= 0
+    assert batch.trajectory(1)[-1, 2] > 70
+    np.testing.assert_array_equal(batch.trajectories[0], starts)
+
+
+def test_a_run_depends_on_its_key_only_not_on_its_batch():
+    sc = make_scenario("lead-follow", sv_policy="idm", disturbance=0.3)
+    pol = make_action_policy("uniform", sc)
+    rng = np.random.default_rng(1)
+    starts = sc.lower + (sc.upper - sc.lower) * rng.random((50, 3))
+    full = run_scenario(sc, starts, 30, pol, RunStreams.of(9, np.arange(100, 150)))
+    alone = run_scenario(sc, starts[17:18], 30, pol, RunStreams.of(9, [117]))
+    np.testing.assert_array_equal(full.trajectory(17), alone.trajectory(0))
+    other_seed = run_scenario(sc, starts[17:18], 30, pol, RunStreams.of(10, [117]))
+    assert not np.array_equal(other_seed.trajectory(0), alone.trajectory(0))
+
+
+class NaNScenario(Scenario):
+    name = "nan"
+    state_names = ("a", "b")
+    lower = np.array([0.0, 0.0])
+    upper = np.array([1.0, 1.0])
+    failure_sides = {"a": False}
+    action_names = ("u",)
+    action_lower = np.array([0.0])
+    action_upper = np.array([1.0])
+    adversarial_actions = np.array([[1.0]])
+
+    def __init__(self, sv_policy="none", failure_facets=None, disturbance=0.0):
+        super().__init__(failure_facets, disturbance)
+
+    def step(self, states, actions, noise):
+        out = states.copy()
+        out[states[:, 0] > 0.5, 1] = np.nan
+        return out
+
+
+def test_user_scenario_from_module_path_and_nan_is_reported_with_the_sample_index():
+    sc = make_scenario("test_run:NaNScenario")
+    assert sc.state_names == ("a", "b")
+    starts = np.array([[0.1, 0.1], [0.9, 0.1]])
+    with pytest.raises(ScenarioError, match=r"sample index 8 \(start state \[0.9, 0.1\]\)"):
+        run_scenario(sc, starts, 5, make_action_policy("uniform", sc), RunStreams.of(0, [7, 8]))
+
+
+def test_unknown_scenario_names_the_field():
+    with pytest.raises(ValueError, match="scenario.name: unknown scenario 'lead-folow'"):
+        make_scenario("lead-folow")
