@@ -19,7 +19,7 @@ import numpy as np
 from farm.streams import RunStreams
 from scenarios import make_scenario
 from scenarios.actions import make_action_policy
-from scenarios.run import RunBatch, run_scenario
+from scenarios.run import RunBatch, ScenarioError, run_scenario
 
 
 @dataclass(frozen=True)
@@ -44,9 +44,29 @@ def build_simulator(spec: SimSpec):
 
 def simulate(scenario, policy, spec: SimSpec, first_index: int, starts: np.ndarray) -> RunBatch:
     indices = np.arange(first_index, first_index + len(starts), dtype=np.uint64)
-    batch = run_scenario(scenario, starts, spec.horizon, policy, RunStreams.of(spec.seed, indices))
+    try:
+        batch = run_scenario(scenario, starts, spec.horizon, policy, RunStreams.of(spec.seed, indices))
+    except ScenarioError:
+        raise
+    except Exception as exc:  # a user scenario raised: name the run, not just the batch
+        raise _culprit(scenario, policy, spec, indices, starts, exc) from None
     keep = int(batch.lengths.max())  # ship only the rows some run used
     return RunBatch(batch.indices, np.ascontiguousarray(batch.trajectories[:keep]), batch.lengths, batch.outcomes)
+
+
+def _culprit(scenario, policy, spec, indices, starts, exc) -> ScenarioError:
+    """Bisect the batch (runs depend on their own key only) down to the first run that
+    raises on its own."""
+    lo, hi = 0, len(starts)
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        try:
+            run_scenario(scenario, starts[lo:mid], spec.horizon, policy, RunStreams.of(spec.seed, indices[lo:mid]))
+            lo = mid
+        except Exception:  # noqa: BLE001 - any error narrows the search
+            hi = mid
+    return ScenarioError(f"scenario {scenario.name!r} raised {type(exc).__name__}: {exc} on sample index "
+                         f"{int(indices[lo])} (start state {starts[lo].tolist()})")
 
 
 class LocalExecutor:

@@ -1,0 +1,109 @@
+"""The parallel contract (shared/spec/algorithms.md) with real Ray actors."""
+
+import os
+import signal
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from coordinator.covering import n_eps
+from farm import config as config_mod
+from farm.quantify import run
+
+
+def contract_config(executor="local", workers=2, **quantify):
+    raw = {"scenario": {"name": "lead-follow", "sv_policy": "idm"}, "actions": {"mode": "uniform"},
+           "quantify": {"delta0": 4.0, "delta_min": 2.0, "epsilon": 0.005, "beta": 0.1, "horizon": 30, **quantify},
+           "farm": {"executor": executor, "workers": workers, "batch_size": 128, "pipeline_depth": 3, "seed": 11}}
+    return config_mod.normalize(raw)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    return run(contract_config(), tmp_path_factory.mktemp("ref") / "c", resume=False)
+
+
+@pytest.mark.parametrize("workers", [1, 2, 4])
+def test_ray_gives_the_in_process_result_bit_for_bit(ray_local, reference, tmp_path, workers):
+    summary = run(contract_config("ray", workers), tmp_path / "c", resume=False)
+    assert summary["result_hash"] == reference["result_hash"]
+    assert summary["runs_committed"] == reference["runs_committed"]
+    assert summary["runs_simulated"] >= summary["runs_committed"]
+
+
+def test_n_eps_rule_is_exact_in_the_committed_record(reference, tmp_path):
+    out = tmp_path / "c"
+    summary = run(contract_config(), out, resume=False)
+    ledger = pq.read_table(out / "ledger").to_pandas().sort_values("sample_index")
+    idx = ledger["sample_index"].to_numpy()
+    np.testing.assert_array_equal(idx, np.arange(len(idx)))  # none missing, none twice
+    assert len(idx) == summary["runs_committed"]
+    need = n_eps(0.005, 0.1)
+    changed = ledger["changed"].to_numpy()
+    counted = ledger["counted"].to_numpy()
+    for end in summary["round_ends"]:
+        tail = slice(end - need, end)
+        assert counted[tail].all() and not changed[tail].any()  # N_eps quiet, current-state runs
+        assert changed[end - need - 1] or not counted[end - need - 1]  # ... and not one more
+    # a run counts only when drawn after the last change: never right after a change
+    # while older draws are still being committed
+    assert not counted[np.nonzero(changed)[0] + 1].all()
+    # runs dropped at round ends were simulated and are accounted
+    assert summary["runs_simulated"] == summary["runs_committed"] + summary["runs_dropped"]
+
+
+def test_a_killed_worker_costs_time_not_results(ray_local, reference, tmp_path):
+    from farm import quantify
+
+    killed = []
+    original = quantify.Part.run
+
+    def run_and_kill(self, *args, **kwargs):
+        from farm import ray_executor
+
+        make = ray_executor.make_executor
+
+        def make_and_arm(*a, **k):
+            ex = make(*a, **k)
+            pids = ex.pids()
+            result = ex.result
+
+            def result_then_kill(handle):
+                batch = result(handle)
+                if not killed:
+                    os.kill(pids[0], signal.SIGKILL)
+                    killed.append(pids[0])
+                return batch
+
+            ex.result = result_then_kill
+            return ex
+
+        quantify.make_executor = make_and_arm
+        try:
+            return original(self, *args, **kwargs)
+        finally:
+            quantify.make_executor = make
+
+    quantify.Part.run = run_and_kill
+    try:
+        summary = run(contract_config("ray", 2), tmp_path / "c", resume=False)
+    finally:
+        quantify.Part.run = original
+    assert killed
+    assert summary["result_hash"] == reference["result_hash"]
+
+
+def test_an_exception_in_a_scenario_names_the_sample_and_does_not_hang(ray_local, tmp_path):
+    from farm.ray_executor import RayExecutor, WorkerError
+    from farm.executors import SimSpec
+
+    spec = SimSpec({"name": "raising_scenario:Raising", "sv_policy": "none"}, {"mode": "uniform"}, 10, 0)
+    ex = RayExecutor(spec, 2, "local", max_retries=1)
+    try:
+        starts = np.tile([[0.2, 0.2]], (64, 1))
+        starts[37] = [0.9, 0.9]
+        with pytest.raises(WorkerError, match=r"ValueError: boom.*sample index 1037 \(start state \[0.9, 0.9\]\)"):
+            ex.result(ex.submit(1000, starts))
+    finally:
+        ex.close()
