@@ -132,6 +132,9 @@ class Part:
                             seed=farm["seed"], on_batch=on_batch)
         if resume and (self.dir / "checkpoint.npz").exists():
             self.restore(campaign)
+        elif resume and any((self.dir / "ledger").glob("segment-*.parquet")):
+            raise CampaignError(f"{self.dir}: ledger segments exist but checkpoint.npz is missing; refusing to "
+                                f"restart the campaign from scratch over them")
         previous = signal.getsignal(signal.SIGTERM)
         signal.signal(signal.SIGTERM, lambda *_: campaign.stop())
         try:

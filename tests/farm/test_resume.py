@@ -1,0 +1,114 @@
+"""Checkpoint and resume with real processes, real SIGKILLs and real files."""
+
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+CONFIG = """
+[scenario]
+name = "lead-follow"
+sv_policy = "idm"
+[actions]
+mode = "uniform"
+[quantify]
+delta0 = 4.0
+delta_min = 1.0
+epsilon = 0.002
+horizon = 40
+[farm]
+executor = "local"
+batch_size = 256
+pipeline_depth = 2
+seed = 5
+"""
+
+
+def cli(*args, **kw):
+    return subprocess.run([sys.executable, "-m", "farm", *args], capture_output=True, text=True, **kw)
+
+
+def ledger_indices(directory):
+    return np.sort(pq.read_table(directory / "ledger").column("sample_index").to_numpy())
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    d = tmp_path_factory.mktemp("whole")
+    (d / "c.toml").write_text(CONFIG)
+    r = cli("quantify", str(d / "c.toml"), "--out", str(d / "out"))
+    assert r.returncode == 0, r.stderr
+    return json.loads((d / "out" / "summary.json").read_text()), ledger_indices(d / "out")
+
+
+@pytest.mark.slow
+def test_sigkill_at_random_moments_then_resume_reaches_the_same_result(tmp_path, uninterrupted):
+    summary, indices = uninterrupted
+    (tmp_path / "c.toml").write_text(CONFIG)
+    out = tmp_path / "out"
+    rng = random.Random(1)
+    args = ["quantify", str(tmp_path / "c.toml"), "--out", str(out), "--checkpoint-every", "0"]
+    kills = 0
+    for attempt in range(8):
+        proc = subprocess.Popen([sys.executable, "-m", "farm", *args], stdout=subprocess.DEVNULL,
+                                stderr=subprocess.PIPE, text=True)
+        time.sleep(rng.uniform(1.5, 4.0))
+        if proc.poll() is not None:
+            assert proc.returncode == 0, proc.stderr.read()
+            break
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+        kills += 1
+        args = ["resume", str(out), "--checkpoint-every", "0"]
+    else:
+        r = cli(*args)
+        assert r.returncode == 0, r.stderr
+    assert kills >= 2
+    resumed = json.loads((out / "summary.json").read_text())
+    assert resumed["result_hash"] == summary["result_hash"]
+    np.testing.assert_array_equal(ledger_indices(out), indices)  # none missing, none twice
+
+
+def test_refuses_non_empty_directory_and_changed_config(tmp_path, uninterrupted):
+    (tmp_path / "c.toml").write_text(CONFIG)
+    out = tmp_path / "out"
+    assert cli("quantify", str(tmp_path / "c.toml"), "--out", str(out)).returncode == 0
+    before = (out / "summary.json").read_bytes()
+    r = cli("quantify", str(tmp_path / "c.toml"), "--out", str(out))
+    assert r.returncode == 2 and "not empty" in r.stderr and "--resume" in r.stderr
+    (tmp_path / "d.toml").write_text(CONFIG.replace("epsilon = 0.002", "epsilon = 0.003"))
+    r = cli("quantify", str(tmp_path / "d.toml"), "--out", str(out), "--resume")
+    assert r.returncode == 2 and "quantify.epsilon" in r.stderr
+    (tmp_path / "e.toml").write_text(CONFIG.replace('executor = "local"', 'executor = "local"\nworkers = 7'))
+    assert cli("quantify", str(tmp_path / "e.toml"), "--out", str(out), "--resume").returncode == 0
+    assert (out / "summary.json").read_bytes() != b"" and before
+
+
+@pytest.mark.parametrize("damage", ["truncate_checkpoint", "garbage_checkpoint", "truncate_segment",
+                                    "drop_checkpoint"])
+def test_damaged_campaign_files_give_a_clear_error_and_touch_nothing(tmp_path, damage):
+    (tmp_path / "c.toml").write_text(CONFIG)
+    out = tmp_path / "out"
+    assert cli("quantify", str(tmp_path / "c.toml"), "--out", str(out)).returncode == 0
+    ckpt = out / "checkpoint.npz"
+    seg = sorted((out / "ledger").glob("segment-*.parquet"))[0]
+    if damage == "truncate_checkpoint":
+        ckpt.write_bytes(ckpt.read_bytes()[: ckpt.stat().st_size // 2])
+    elif damage == "garbage_checkpoint":
+        ckpt.write_bytes(b"not a checkpoint")
+    elif damage == "truncate_segment":
+        seg.write_bytes(seg.read_bytes()[:100])
+    else:
+        ckpt.unlink()
+    snapshot = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    r = cli("resume", str(out))
+    assert r.returncode == 2, r.stderr
+    assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == snapshot
