@@ -141,7 +141,8 @@ class DeltaPruning(_IndexState):
         self.round = 0
         self.version = 0
         lattice = Lattice.tiling(scenario.lower, scenario.upper, self.delta)
-        self.vertices = PointIndex(scenario.n, 2 * self.delta, lattice.anchor)
+        self.vertices = PointIndex(scenario.n, 2 * self.delta, lattice.anchor,
+                                   bounds=(scenario.lower, scenario.upper))
         self.vertices.insert(lattice.box_centres(self.delta))
 
     def draw(self, streams):

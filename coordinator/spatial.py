@@ -8,6 +8,11 @@ is checked by its true distance, so answers are exact.
 
 Everything is vectorized over query batches; insertion is vectorized over point batches;
 removal is a flag (chains are rebuilt when the table grows or the cell size changes).
+
+Fast path: when the index is given ``bounds`` and the cells over them number at most
+``DENSE_LIMIT``, a dense array counts the alive points sitting exactly at each cell's
+centre. Such a point covers its whole cell, so a query in that cell is answered by one
+array lookup; only the rest walk the hash chains.
 """
 
 from __future__ import annotations
@@ -20,13 +25,14 @@ _P = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
                0xD6E8FEB86659FD93, 0xFF51AFD7ED558CCD, 0xC4CEB9FE1A85EC53,
                0x2545F4914F6CDD1D, 0x9FB21C651E98DF25], dtype=np.uint64)
 TOLERANCE = 1e-9  # closed boxes, decided as exact arithmetic would on grid boundaries
+DENSE_LIMIT = 1 << 25  # cells; 32 Mi int32 counters = 128 MiB at most
 
 
 class PointIndex:
     """Points (N, n) with alive flags, hashed by cell. ``cell`` must be >= 2 * radius of
     every ``any_within`` query."""
 
-    def __init__(self, n: int, cell: float, origin, capacity: int = 1024):
+    def __init__(self, n: int, cell: float, origin, capacity: int = 1024, bounds=None):
         self.n = n
         self.cell = float(cell)
         self.origin = np.asarray(origin, dtype=float)
@@ -36,6 +42,41 @@ class PointIndex:
         self.next = np.full(capacity, -1, dtype=np.int64)
         self.count = 0
         self._heads = np.full(64, -1, dtype=np.int64)
+        self.bounds = None if bounds is None else (np.asarray(bounds[0], float), np.asarray(bounds[1], float))
+        self._dense = None
+        self._centre_cell = np.full(capacity, -1, dtype=np.int64)  # flat dense cell if at a centre
+        self._build_dense()
+
+    # -- dense fast path --------------------------------------------------------------------
+    def _build_dense(self) -> None:
+        self._dense = None
+        if self.bounds is None:
+            return
+        # one empty cell of margin on each side: a query outside is clipped into the
+        # margin (count 0) and falls through to the exact chain walk
+        shape = np.floor((self.bounds[1] - self.origin) / self.cell).astype(np.int64) + 3
+        if np.any(shape <= 2) or np.prod(shape.astype(float)) > DENSE_LIMIT:
+            return
+        self._shape = shape
+        self._strides = np.cumprod(np.concatenate([shape[1:], [1]])[::-1])[::-1].astype(np.int64)
+        self._dense = np.zeros(int(np.prod(shape)), dtype=np.int32)
+        ids = np.arange(self.count)
+        self._centre_cell[: self.count] = self._centre_cells(self.points[: self.count])
+        live = ids[self.alive[: self.count] & (self._centre_cell[: self.count] >= 0)]
+        np.add.at(self._dense, self._centre_cell[live], 1)
+
+    def _flat(self, cells: np.ndarray) -> np.ndarray:
+        """Flat dense index of integer cells (clipped into the margin when outside)."""
+        return np.clip(cells + 1, 0, self._shape - 1) @ self._strides
+
+    def _centre_cells(self, pts: np.ndarray) -> np.ndarray:
+        rel = (pts - self.origin) / self.cell
+        cells = np.floor(rel).astype(np.int64)
+        at_centre = (np.abs(rel - cells - 0.5) <= 1e-9).all(axis=1)
+        at_centre &= ((cells >= 0) & (cells + 1 < self._shape - 1)).all(axis=1)
+        flat = self._flat(cells)
+        flat[~at_centre] = -1
+        return flat
 
     # -- hashing ----------------------------------------------------------------------
     def _cells(self, pts: np.ndarray) -> np.ndarray:
@@ -82,10 +123,16 @@ class PointIndex:
             self.points = np.resize(self.points, (cap, self.n))
             self.alive = np.concatenate([self.alive, np.zeros(cap - len(self.alive), dtype=bool)])
             self.next = np.concatenate([self.next, np.full(cap - len(self.next), -1, dtype=np.int64)])
+            self._centre_cell = np.concatenate([self._centre_cell, np.full(cap - len(self._centre_cell), -1,
+                                                                            dtype=np.int64)])
         ids = np.arange(self.count, self.count + k)
         self.points[ids] = pts
         self.alive[ids] = True
         self.count += k
+        if self._dense is not None:
+            cells = self._centre_cells(pts)
+            self._centre_cell[ids] = cells
+            np.add.at(self._dense, cells[cells >= 0], 1)
         if self.count > len(self._heads) // 2:
             self._rehash(1 << int(np.ceil(np.log2(4 * self.count))))
         else:
@@ -93,12 +140,17 @@ class PointIndex:
         return ids
 
     def kill(self, ids) -> None:
-        self.alive[np.asarray(ids, dtype=np.int64)] = False
+        ids = np.unique(np.asarray(ids, dtype=np.int64))
+        if self._dense is not None:
+            dying = ids[self.alive[ids] & (self._centre_cell[ids] >= 0)]
+            np.subtract.at(self._dense, self._centre_cell[dying], 1)
+        self.alive[ids] = False
 
     def recell(self, cell: float) -> None:
         """Change the cell size (when delta shrinks) and rebuild the chains."""
         self.cell = float(cell)
         self._rehash(len(self._heads))
+        self._build_dense()
 
     # -- queries ------------------------------------------------------------------------
     def alive_ids(self) -> np.ndarray:
@@ -118,19 +170,28 @@ class PointIndex:
         if self.count == 0 or len(q) == 0:
             return hit
         r = radius + TOLERANCE
-        rel = (q - self.origin) / self.cell
+        rel = q - self.origin
+        rel *= 1.0 / self.cell
         home = np.floor(rel).astype(np.int64)
-        lo = np.floor(rel - r / self.cell).astype(np.int64)
-        hi = np.floor(rel + r / self.cell).astype(np.int64)
-        todo = np.arange(len(q))
-        self._scan(q, home, todo, r, hit)
-        todo = np.nonzero(~hit)[0]
+        todo = None
+        if self._dense is not None and radius >= self.cell / 2 - 1e-12:
+            hit = self._dense[self._flat(home)] > 0
+            todo = np.flatnonzero(~hit)
+            if len(todo) == 0:
+                return hit
+        if todo is None:
+            todo = np.arange(len(q))
+        self._scan(q, home[todo], todo, r, hit)
+        todo = todo[~hit[todo]]
         if len(todo) == 0:
             return hit
+        lo = np.floor(rel[todo] - r / self.cell).astype(np.int64)
+        hi = np.floor(rel[todo] + r / self.cell).astype(np.int64)
+        home_t = home[todo]
         # The other cells the query ball touches: per axis either the home cell or the one
         # neighbour on the side the ball crosses.
-        side = np.where(lo[todo] < home[todo], lo[todo], hi[todo])
-        crosses = side != home[todo]
+        side = np.where(lo < home_t, lo, hi)
+        crosses = side != home_t
         for pattern in itertools.product((False, True), repeat=self.n):
             if not any(pattern):
                 continue
@@ -138,8 +199,8 @@ class PointIndex:
             sel = todo[(crosses[:, pat].all(axis=1)) & ~hit[todo]]
             if len(sel) == 0:
                 continue
-            cells = home[sel].copy()
             rows = np.searchsorted(todo, sel)
+            cells = home_t[rows].copy()
             cells[:, pat] = side[rows][:, pat]
             self._scan(q, cells, sel, r, hit)
         return hit
@@ -161,14 +222,19 @@ class PointIndex:
 
     # -- persistence (plain arrays, no pickle) -------------------------------------------
     def state(self) -> dict:
-        return {"points": self.points[: self.count].copy(), "alive": self.alive[: self.count].copy(),
-                "cell": np.array(self.cell), "origin": self.origin.copy()}
+        out = {"points": self.points[: self.count].copy(), "alive": self.alive[: self.count].copy(),
+               "cell": np.array(self.cell), "origin": self.origin.copy()}
+        if self.bounds is not None:
+            out["bounds"] = np.stack(self.bounds)
+        return out
 
     @classmethod
     def from_state(cls, state: dict) -> "PointIndex":
         pts = state["points"]
-        idx = cls(pts.shape[1], float(state["cell"]), state["origin"], capacity=2 * len(pts) + 16)
+        bounds = state.get("bounds")
+        idx = cls(pts.shape[1], float(state["cell"]), state["origin"], capacity=2 * len(pts) + 16,
+                  bounds=None if bounds is None else (bounds[0], bounds[1]))
         if len(pts):
             idx.insert(pts)
-            idx.alive[: len(pts)] = state["alive"]
+            idx.kill(np.nonzero(~state["alive"])[0])
         return idx

@@ -68,7 +68,8 @@ class SPE:
         n = scenario.n
         self.lattice = Lattice.tiling(scenario.lower, scenario.upper, settings.delta0)
         self.delta = settings.delta0
-        self.vertices = PointIndex(n, 2 * self.delta, self.lattice.anchor)
+        bounds = (scenario.lower, scenario.upper)
+        self.vertices = PointIndex(n, 2 * self.delta, self.lattice.anchor, bounds=bounds)
         self.failures = PointIndex(n, 2 * self.delta, self.lattice.anchor)
         self.graph = ExplorationForest()
         self._add_roots(self.lattice.box_centres(self.delta))
@@ -78,6 +79,7 @@ class SPE:
         self._replay_parents: list[np.ndarray] = []
         self._replay_size = 0
         self._priority: tuple[int, np.ndarray, np.ndarray] | None = None
+        self._dist: tuple[np.ndarray, int, int] | None = None  # (distances, vertices, failures) seen
 
     # -- helpers --------------------------------------------------------------------------
     def _add_roots(self, centres: np.ndarray) -> None:
@@ -94,13 +96,35 @@ class SPE:
             return None
         if self._priority is not None and self._priority[0] == self.version:
             return self._priority[2]
-        tree = cKDTree(self.failures.points[: self.failures.count])
-        dist, _ = tree.query(self.vertices.points[ids], p=np.inf)
+        dist = self._failure_distances()[ids]
         weights = ALPHAS[self.settings.alpha](dist.max() - dist)
         if not weights.sum() > 0:  # all equidistant: rho is uniform
             weights = None
         self._priority = (self.version, ids, weights)
         return weights
+
+    def _failure_distances(self) -> np.ndarray:
+        """d(sigma_i, PhiBar) for every vertex id, kept up to date incrementally: a new
+        failure lowers every distance in one vectorized pass (failures are few), a new
+        vertex asks a KD-tree of the failures (vertices come in bulk)."""
+        nv, nf = self.vertices.count, self.failures.count
+        pts, fails = self.vertices.points, self.failures.points
+        dist, seen_v, seen_f = self._dist if self._dist is not None else (np.empty(0), 0, 0)
+        if seen_f == 0:
+            seen_v = 0  # nothing known yet: every vertex is new
+        if nf > seen_f and seen_v:
+            new_f = fails[seen_f:nf]
+            if len(new_f) > 32:
+                d_new, _ = cKDTree(new_f).query(pts[:seen_v], p=np.inf)
+                np.minimum(dist[:seen_v], d_new, out=dist[:seen_v])
+            else:
+                for f in new_f:
+                    np.minimum(dist[:seen_v], np.abs(pts[:seen_v] - f).max(axis=1), out=dist[:seen_v])
+        if nv > seen_v:
+            d_new, _ = cKDTree(fails[:nf]).query(pts[seen_v:nv], p=np.inf)
+            dist = np.concatenate([dist[:seen_v], d_new])
+        self._dist = (dist, nv, nf)
+        return dist
 
     def sampling_description(self) -> str:
         if self.settings.prioritized and self.failures.count:
@@ -244,6 +268,7 @@ class SPE:
         self._replay_parents = [state["replay.parents"]] if len(state["replay.parents"]) else []
         self._replay_size = len(state["replay.states"])
         self._priority = None
+        self._dist = None
 
 
 class EmptySetError(RuntimeError):

@@ -68,7 +68,8 @@ class Checker:
     def __init__(self, domain: Domain, p: ValidationPlan, delta: float):
         self.domain, self.plan, self.delta = domain, p, delta
         if p.centres is not None:
-            self.cover = PointIndex(domain.scenario.n, 2 * delta, domain.lo)
+            self.cover = PointIndex(domain.scenario.n, 2 * delta, domain.lo - delta,
+                                    bounds=(domain.lo, domain.hi))
             self.cover.insert(p.centres)
 
     def inside(self, states: np.ndarray) -> np.ndarray:

@@ -39,10 +39,15 @@ class Fleet3(Scenario):
             a0 = disturb(a0, noise[:, 0], self.disturbance)
             a1 = disturb(a1, noise[:, 1], self.disturbance)
             a2 = disturb(a2, noise[:, 2], self.disturbance)
-        v0n, x0 = advance(v0, a0, self.dt)
-        v1n, x1 = advance(v1, a1, self.dt)
-        v2n, x2 = advance(v2, a2, self.dt)
-        return np.stack([v0n, v1n, v2n, p10 + x1 - x0, p20 + x2 - x0]).T  # column-contiguous
+        nxt = np.empty((5, len(states)))  # rows written in place; returned as a (B, 5) view
+        _, x0 = advance(v0, a0, self.dt, out=nxt[0])
+        _, x1 = advance(v1, a1, self.dt, out=nxt[1])
+        _, x2 = advance(v2, a2, self.dt, out=nxt[2])
+        np.subtract(x1, x0, out=nxt[3])
+        nxt[3] += p10
+        np.subtract(x2, x0, out=nxt[4])
+        nxt[4] += p20
+        return nxt.T
 
     def step_bound(self) -> float:
         a_max = max(abs(BRAKE_ACCEL), 7.0) + self.disturbance

@@ -35,12 +35,12 @@ class LeadFollow(Scenario):
         if noise is not None:
             a0 = disturb(a0, noise[:, 0], self.disturbance)
             a1 = disturb(a1, noise[:, 1], self.disturbance)
-        v0n, x0 = advance(v0, a0, self.dt)
-        v1n, x1 = advance(v1, a1, self.dt)
-        gap = x1
-        gap -= x0
-        gap += p10
-        return np.stack([v0n, v1n, gap]).T  # (B, n) view of column-contiguous rows
+        nxt = np.empty((3, len(states)))  # rows written in place; returned as a (B, 3) view
+        _, x0 = advance(v0, a0, self.dt, out=nxt[0])
+        _, x1 = advance(v1, a1, self.dt, out=nxt[1])
+        np.subtract(x1, x0, out=nxt[2])
+        nxt[2] += p10
+        return nxt.T
 
     def step_bound(self) -> float:
         a_max = max(abs(BRAKE_ACCEL), 5.0, 3.0) + self.disturbance

@@ -33,18 +33,19 @@ def idm(v0: np.ndarray, v1: np.ndarray, gap: np.ndarray) -> np.ndarray:
     s_star *= v0
     np.maximum(s_star, 0.0, out=s_star)
     s_star += IDM_S0
-    positive = gap > 0.0
-    ratio_gap = s_star
-    ratio_gap /= np.where(positive, gap, 1.0)
+    contact = np.flatnonzero(gap <= 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):  # s <= 0 rows are overwritten below
+        ratio_gap = np.divide(s_star, gap, out=s_star)
     ratio_gap *= ratio_gap
     speed_term = v0 * (1.0 / IDM_V_DES)
     speed_term *= speed_term
     speed_term *= speed_term  # exponent 4
-    accel = 1.0 - speed_term
+    accel = np.subtract(1.0, speed_term, out=speed_term)
     accel -= ratio_gap
     accel *= IDM_A
     np.clip(accel, IDM_MIN, IDM_MAX, out=accel)
-    accel[~positive] = IDM_MIN
+    if len(contact):
+        accel[contact] = IDM_MIN  # never divide by zero: a non-positive gap brakes fully
     return accel
 
 

@@ -28,3 +28,29 @@ def test_state_round_trip():
     idx.kill([0])
     back = PointIndex.from_state(idx.state())
     assert back.any_within(np.array([[0.5, 0.5], [3.2, 3.2]]), 0.5).tolist() == [False, True]
+
+
+def test_dense_fast_path_agrees_with_the_chains():
+    from coordinator.covering import Lattice
+
+    rng = np.random.default_rng(3)
+    lo, hi = np.zeros(3), np.array([20.0, 20.0, 70.0])
+    lat = Lattice.tiling(lo, hi, 1.0)
+    centres = lat.box_centres(1.0)
+    dense = PointIndex(3, 2.0, lat.anchor, bounds=(lo, hi))
+    plain = PointIndex(3, 2.0, lat.anchor)
+    extra = lo + (hi - lo) * rng.random((300, 3))
+    doomed = rng.choice(len(centres) + len(extra), 2000, replace=False)
+    for idx in (dense, plain):
+        idx.insert(centres)
+        idx.insert(extra)
+        idx.kill(doomed)
+        idx.kill([0, 0, 1])  # killing twice must not double count
+    assert dense._dense is not None
+    q = lo - 1 + (hi - lo + 2) * rng.random((50000, 3))
+    np.testing.assert_array_equal(dense.any_within(q, 1.0), plain.any_within(q, 1.0))
+    back = PointIndex.from_state(dense.state())
+    np.testing.assert_array_equal(back.any_within(q, 1.0), plain.any_within(q, 1.0))
+    dense.recell(1.0)
+    plain.recell(1.0)
+    np.testing.assert_array_equal(dense.any_within(q, 0.5), plain.any_within(q, 0.5))

@@ -1,0 +1,97 @@
+"""Coordinator throughput.
+
+1. Trajectory-state queries/s of the spatial index (is this state covered by an alive
+   box? is it within delta of PhiBar?) at 1e3, 1e4, 1e5 and 1e6 boxes, on lead-follow's
+   state space with lattice-plus-explored boxes and trajectory-like query points.
+2. A real SPE campaign (lead-follow idm, Gamma*, delta 2 -> 0.25): coordinator time
+   (draw + scan + apply + decay, simulation excluded) against committed runs, and the
+   log-log slope of total coordinator time against runs (1 = linear).
+
+    python benchmarks/bench_coordinator.py
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from coordinator.covering import Lattice
+from coordinator.spatial import PointIndex
+
+TARGET_QPS = 5e6
+TARGET_SLOPE = 1.15
+
+
+def index_of_size(boxes: int, rng) -> tuple[PointIndex, float]:
+    lo, hi = np.array([0.0, 0.0, 0.0]), np.array([20.0, 20.0, 70.0])
+    delta = (np.prod(hi - lo) / boxes) ** (1 / 3) / 2
+    lattice = Lattice.tiling(lo, hi, delta)
+    centres = lattice.box_centres(delta)
+    index = PointIndex(3, 2 * delta, lattice.anchor, bounds=(lo, hi))
+    index.insert(centres[: int(0.9 * boxes)])
+    index.insert(lo + (hi - lo) * rng.random((boxes - int(0.9 * boxes), 3)))  # explored points
+    index.kill(rng.choice(index.count, size=index.count // 20, replace=False))  # pruned
+    return index, delta
+
+
+def query_rate(boxes: int, queries: int = 400_000) -> float:
+    rng = np.random.default_rng(boxes)
+    index, delta = index_of_size(boxes, rng)
+    q = np.array([0, 0, 0]) + np.array([20, 20, 70]) * rng.random((queries, 3))
+    index.any_within(q[:1000], delta)
+    t0 = time.perf_counter()
+    index.any_within(q, delta)
+    return queries / (time.perf_counter() - t0)
+
+
+def campaign_scaling() -> tuple[list[tuple[int, float]], float]:
+    from coordinator.campaign import Campaign
+    from coordinator.covering import n_eps
+    from coordinator.spe import SPE, SPESettings
+    from farm.executors import LocalExecutor, SimSpec
+    from scenarios import make_scenario
+
+    sc = make_scenario("lead-follow", sv_policy="idm")
+    algo = SPE(sc, SPESettings(delta0=2.0, delta_min=0.25))
+    executor = LocalExecutor(SimSpec({"name": "lead-follow", "sv_policy": "idm"}, {"mode": "adversarial"}, 50, 0))
+    sim_time = [0.0]
+    result = executor.result
+
+    def timed_result(handle):
+        t0 = time.perf_counter()
+        out = result(handle)
+        sim_time[0] += time.perf_counter() - t0
+        return out
+
+    executor.result = timed_result
+    points = []
+    t_start = time.perf_counter()
+
+    def on_batch(c):
+        points.append((c.counters.committed, time.perf_counter() - t_start - sim_time[0]))
+
+    Campaign(algo, executor, n_eps=n_eps(0.001, 0.1), budget=2_000_000, batch_size=1024, pipeline_depth=2,
+             seed=0, on_batch=on_batch).run()
+    runs = np.array([p[0] for p in points], dtype=float)
+    secs = np.array([p[1] for p in points])
+    keep = runs >= runs[-1] / 30  # fit the part where fixed start-up costs are negligible
+    slope = float(np.polyfit(np.log(runs[keep]), np.log(secs[keep]), 1)[0])
+    marks = [points[int(i)] for i in np.linspace(0, len(points) - 1, 6)]
+    return marks, slope
+
+
+def main() -> None:
+    for boxes in (10**3, 10**4, 10**5, 10**6):
+        rate = query_rate(boxes)
+        print(f"spatial index, {boxes:>9,} boxes: {rate:.3g} trajectory-state queries/s "
+              f"(target {TARGET_QPS:.0e}: {rate / TARGET_QPS:.2f}x)")
+    marks, slope = campaign_scaling()
+    for runs, secs in marks:
+        print(f"  SPE coordinator time after {runs:>9,} committed runs: {secs:7.2f} s")
+    print(f"SPE coordinator: log-log slope of total time against committed runs: {slope:.3f} "
+          f"(target <= {TARGET_SLOPE}); {marks[-1][0] / marks[-1][1]:,.0f} committed runs/s of coordinator time")
+
+
+if __name__ == "__main__":
+    main()
