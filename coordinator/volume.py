@@ -28,7 +28,9 @@ def _origin(centres: np.ndarray, h: float) -> np.ndarray:
     return origin
 
 
-def union_volume(centres: np.ndarray, h: float, origin=None) -> float:
+def union_volume(centres: np.ndarray, h: float, origin=None, bounds=None) -> float:
+    """Exact volume of the union of boxes centre +- h, clipped to ``bounds`` (lo, hi)
+    when given: the safe set lives in Sigma, boxes may overhang it."""
     centres = np.asarray(centres, dtype=float)
     if len(centres) == 0:
         return 0.0
@@ -39,6 +41,12 @@ def union_volume(centres: np.ndarray, h: float, origin=None) -> float:
     rel = (lo - origin) / side
     base = np.floor(rel + 1e-9).astype(np.int64)
     aligned = (np.abs(rel - np.round(rel)) < 1e-9).all(axis=1)
+    if bounds is not None:
+        blo, bhi = (np.asarray(b, dtype=float) for b in bounds)
+        aligned &= ((lo >= blo - 1e-12) & (hi <= bhi + 1e-12)).all(axis=1)  # only unclipped boxes fill a cell
+        lo, hi = np.maximum(lo, blo), np.minimum(hi, bhi)
+        keep = (hi - lo > 1e-12).all(axis=1)
+        lo, hi, base, aligned, rel = lo[keep], hi[keep], base[keep], aligned[keep], rel[keep]
     full_cells = {tuple(c) for c in np.round(rel[aligned]).astype(np.int64)}
     # every (box, cell) piece with the cell not full
     pieces: dict[tuple, list[int]] = {}
@@ -73,15 +81,25 @@ def _compressed_union(lo: np.ndarray, hi: np.ndarray) -> float:
     return float((cell_volume * covered).sum())
 
 
-def hull_volume(centres: np.ndarray, h: float) -> float:
+def hull_volume(centres: np.ndarray, h: float, bounds=None) -> float:
+    """Convex-hull volume of the union of boxes (clipped to ``bounds`` when given). Only
+    boxes centred on the hull of the centres, or clipped by the bounds, can contribute
+    hull vertices, so only their corners are handed to qhull."""
     centres = np.asarray(centres, dtype=float)
     if len(centres) == 0:
         return 0.0
     n = centres.shape[1]
     try:
-        hull_points = centres[ConvexHull(centres).vertices] if len(centres) > n else centres
+        on_hull = np.zeros(len(centres), dtype=bool)
+        on_hull[ConvexHull(centres).vertices if len(centres) > n else slice(None)] = True
     except QhullError:  # flat set of centres: every centre may be on the hull
-        hull_points = centres
+        on_hull = np.ones(len(centres), dtype=bool)
     corners = np.array(list(itertools.product((-h, h), repeat=n)))
-    points = (hull_points[:, None, :] + corners[None, :, :]).reshape(-1, n)
+    if bounds is not None:
+        blo, bhi = (np.asarray(b, dtype=float) for b in bounds)
+        on_hull |= ((centres - h < blo) | (centres + h > bhi)).any(axis=1)
+        points = (centres[on_hull][:, None, :] + corners[None, :, :]).reshape(-1, n)
+        points = np.unique(np.clip(points, blo, bhi), axis=0)
+    else:
+        points = (centres[on_hull][:, None, :] + corners[None, :, :]).reshape(-1, n)
     return float(ConvexHull(points).volume)

@@ -182,6 +182,7 @@ def finish(cfg: dict, out: Path, parts: dict[str, tuple[Part, Campaign]]) -> dic
     c = campaign.counters
     chash = config_mod.config_hash(cfg)
     rhash = result_hash(centres, h)
+    bounds = (scenario.lower, scenario.upper)
     summary = {
         "scenario": cfg["scenario"]["name"],
         "sv_policy": cfg["scenario"]["sv_policy"],
@@ -198,9 +199,8 @@ def finish(cfg: dict, out: Path, parts: dict[str, tuple[Part, Campaign]]) -> dic
         "runs_dropped": sum(p[1].counters.runs_dropped for p in parts.values()),
         "steps_simulated": sum(p[1].counters.steps_simulated for p in parts.values()),
         "boxes": int(len(centres)),
-        "volume_union": union_volume(centres, h, origin=getattr(part.algorithm, "lattice", None) and
-                                     part.algorithm.lattice.anchor),
-        "volume_hull": hull_volume(centres, h),
+        "volume_union": union_volume(centres, h, bounds=bounds),
+        "volume_hull": hull_volume(centres, h, bounds=bounds),
         "volume_sigma": scenario.volume,
         "seed": cfg["farm"]["seed"],
         "config_hash": chash,
@@ -216,8 +216,8 @@ def finish(cfg: dict, out: Path, parts: dict[str, tuple[Part, Campaign]]) -> dic
         if label == "total":
             continue
         sc, sh = side_part.algorithm.result()
-        summary[f"volume_{label}_side"] = union_volume(sc, sh)
-        summary[f"volume_hull_{label}_side"] = hull_volume(sc, sh)
+        summary[f"volume_{label}_side"] = union_volume(sc, sh, bounds=bounds)
+        summary[f"volume_hull_{label}_side"] = hull_volume(sc, sh, bounds=bounds)
         summary[f"result_hash_{label}_side"] = result_hash(sc[np.lexsort(sc.T[::-1])], sh)
         summary[f"guarantee_{label}_side"] = guarantee_sentence(cfg, side_campaign, side_part.n_eps,
                                                                 side_part.policy.description, sh)

@@ -36,3 +36,21 @@ def test_halving_delta_splits_each_box_into_its_2n_children():
     kids = lat.children(parent, 2.0, 1.0)
     assert len(kids) == 8
     assert np.abs(kids - parent).max() == pytest.approx(1.0)
+
+
+def test_union_and_hull_volumes_exact_and_clipped():
+    from coordinator.volume import hull_volume, union_volume
+
+    grid = np.stack(np.meshgrid(np.arange(4), np.arange(3), indexing="ij"), -1).reshape(-1, 2) + 0.5
+    assert union_volume(grid, 0.5) == pytest.approx(12.0)
+    assert hull_volume(grid, 0.5) == pytest.approx(12.0)
+    overlapping = np.array([[0.0, 0.0], [0.5, 0.5], [3.0, 3.0]])  # 1 + 1 - 0.25 + 1
+    assert union_volume(overlapping, 0.5) == pytest.approx(2.75)
+    # clipped to [0, 4] x [0, 3]: the first box shrinks to [0, .5]^2, inside the second
+    # box [0, 1]^2; the third keeps [2.5, 3.5] x [2.5, 3]
+    assert union_volume(overlapping, 0.5, bounds=([0, 0], [4, 3])) == pytest.approx(1.0 + 0.5)
+    rng = np.random.default_rng(0)
+    c = rng.random((300, 3)) * 10
+    mc = rng.random((300_000, 3)) * 11 - 0.5
+    inside = (np.abs(mc[:, None, :] - c[None, :60, :]).max(axis=2) <= 0.5).any(axis=1)
+    assert union_volume(c[:60], 0.5) == pytest.approx(inside.mean() * 11**3, rel=0.03)
