@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import time
 
 import numpy as np
 
@@ -33,10 +34,18 @@ def _actor_class():
         def __init__(self, spec: dict):
             self.spec = SimSpec(**spec)
             self.scenario, self.policy = build_simulator(self.spec)
+            self.busy_s = 0.0
+            self.tasks = 0
 
         def run(self, first_index: int, starts: np.ndarray):
+            t0 = time.perf_counter()
             b = simulate(self.scenario, self.policy, self.spec, first_index, starts)
+            self.busy_s += time.perf_counter() - t0
+            self.tasks += 1
             return b.indices, b.trajectories, b.lengths, b.outcomes
+
+        def stats(self) -> dict:
+            return {"busy_s": self.busy_s, "tasks": self.tasks, "pid": os.getpid()}
 
         def pid(self) -> int:
             return os.getpid()
@@ -81,6 +90,10 @@ class RayExecutor:
 
     def pids(self) -> list[int]:
         return self.ray.get([a.pid.remote() for a in self.actors])
+
+    def worker_stats(self) -> list[dict]:
+        """Busy seconds and tasks per actor (for idle-fraction measurements)."""
+        return self.ray.get([a.stats.remote() for a in self.actors])
 
     def submit(self, first_index: int, starts: np.ndarray) -> int:
         chunks = np.array_split(np.arange(len(starts)), min(self.workers, len(starts)))

@@ -1,0 +1,22 @@
+"""Run every benchmark in turn; each prints its own figure.
+
+    python benchmarks/run_all.py
+"""
+
+import os
+import subprocess
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+BENCHMARKS = ["bench_numpy.py", "bench_coordinator.py", "bench_campaign.py", "bench_ray.py", "bench_sumo.py"]
+
+if __name__ == "__main__":
+    failed = []
+    for name in BENCHMARKS:
+        path = os.path.join(HERE, name)
+        if not os.path.exists(path):
+            continue
+        print(f"== {name}", flush=True)
+        if subprocess.run([sys.executable, path]).returncode != 0:
+            failed.append(name)
+    sys.exit(1 if failed else 0)
