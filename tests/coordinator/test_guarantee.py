@@ -1,0 +1,17 @@
+"""Lemma 2 in practice: a domain that is not eps-almost invariant is certified at most
+beta of the time (experiments/guarantee_check.py, 300 independent seeds)."""
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "experiments"))
+
+from guarantee_check import BETA, EPS, experiment  # noqa: E402
+
+
+def test_false_certification_rate_is_at_most_beta():
+    r = experiment(seeds=300, b=4.0)
+    assert r["true_violation_rate"] > EPS  # the domain really is not eps-almost invariant
+    assert r["false_certification_rate"] <= BETA
+    lo, hi = r["ci95"]
+    assert lo <= r["predicted_false_certification"] <= hi  # (1 - p)^N, as the proof says
