@@ -51,6 +51,7 @@ class Counters:
     converged: bool = False  # the last round ended by the N_eps rule
     round_ends: list = field(default_factory=list)  # committed count at each round end
     elapsed_s: float = 0.0
+    recorded: int = 0  # runs handed to the recorder so far
 
 
 @dataclass
@@ -92,7 +93,8 @@ class Campaign:
     or ``budget`` runs are committed."""
 
     def __init__(self, algorithm, executor, *, n_eps: int, budget: int, batch_size: int,
-                 pipeline_depth: int, seed: int, on_batch: Callable[["Campaign"], None] | None = None):
+                 pipeline_depth: int, seed: int, on_batch: Callable[["Campaign"], None] | None = None,
+                 record_limit: int = 0):
         self.algorithm = algorithm
         self.executor = executor
         self.n_eps = n_eps
@@ -105,6 +107,8 @@ class Campaign:
         self.log = CommitLog()
         self.pending: deque[Pending] = deque()
         self.final_distribution = ""
+        self.record_limit = record_limit
+        self.recordings: list[dict] = []  # runs to record, since the last flush
         self._stop = False
 
     # -- drawing ------------------------------------------------------------------------
@@ -147,6 +151,7 @@ class Campaign:
             if offset < len(rows):
                 row = int(rows[offset])
                 algo.apply(batch, row, int(p.start_ids[row]))
+                self._maybe_record(batch, row)
                 c.quiet = 0
                 c.escaped_in_streak = 0
                 c.changes += 1
@@ -161,6 +166,18 @@ class Campaign:
             if c.committed >= self.budget:
                 return False
         return False
+
+    def _maybe_record(self, batch, row: int) -> None:
+        """Keep the trajectory of a state-changing failure for the MCAP recording (the
+        runs worth looking at), up to ``record_limit`` per campaign."""
+        from scenarios.base import FAILURE, OUTCOME_NAMES
+
+        c = self.counters
+        if c.recorded >= self.record_limit or batch.outcomes[row] != FAILURE:
+            return
+        self.recordings.append({"sample_index": int(batch.indices[row]), "trajectory": batch.trajectory(row).copy(),
+                                "outcome": OUTCOME_NAMES[int(batch.outcomes[row])]})
+        c.recorded += 1
 
     def _commit_quiet(self, batch, p, rows, counted, escaped) -> None:
         if len(rows) == 0:

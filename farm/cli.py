@@ -69,6 +69,7 @@ def cmd_validate(args) -> int:
             "counterexample": result["counterexample"], "scenario_farm_version": __version__}
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
+        write_json(out / "config.json", {"config": cfg, "config_hash": cert["config_hash"]})
         write_json(out / "certificate.json", cert)
         if result["counterexample"] and cfg["record"]["counterexamples"]:
             from farm.replay import record_counterexample

@@ -95,6 +95,19 @@ class Part:
 
     def checkpoint(self, campaign: Campaign) -> None:
         self.ledger.append(campaign.log.take())
+        if campaign.recordings:
+            from farm.recording import write_recording
+
+            rec_dir = self.dir / "recordings"
+            rec_dir.mkdir(exist_ok=True)
+            # named by the ledger segment they go with (just written), so that resume can drop
+            # recordings of a checkpoint that never completed
+            write_recording(rec_dir / f"runs-{self.ledger.segments - 1:06d}.mcap", scenario_name=self.scenario.name,
+                            state_names=list(self.scenario.state_names), dt=self.scenario.dt,
+                            runs=campaign.recordings,
+                            metadata={"config_hash": self.config_hash, "seed": str(self.cfg["farm"]["seed"]),
+                                      "part": self.label, "scenario_farm_version": __version__})
+            campaign.recordings = []
         arrays = {f"algo.{k}": v for k, v in self.algorithm.state().items()}
         arrays.update(campaign.pending_state())
         meta = {"config_hash": self.config_hash, "algorithm": self.algorithm.name, "part": self.label,
@@ -129,7 +142,8 @@ class Part:
 
         campaign = Campaign(self.algorithm, executor, n_eps=self.n_eps, budget=self.cfg["quantify"]["budget"],
                             batch_size=farm["batch_size"], pipeline_depth=farm["pipeline_depth"],
-                            seed=farm["seed"], on_batch=on_batch)
+                            seed=farm["seed"], on_batch=on_batch,
+                            record_limit=self.cfg["record"]["quantify_runs"])
         if resume and (self.dir / "checkpoint.npz").exists():
             self.restore(campaign)
         elif resume and any((self.dir / "ledger").glob("segment-*.parquet")):

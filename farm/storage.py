@@ -116,6 +116,11 @@ class Ledger:
                 m = SEGMENT.search(path.name)
                 if (m and int(m.group(1)) >= segments) or path.name.endswith(".tmp"):
                     path.unlink()
+        recordings = self.dir.parent / "recordings"
+        if recordings.exists():  # recordings flushed with a later, lost checkpoint
+            for path in recordings.glob("runs-*.mcap"):
+                if int(path.stem.split("-")[1]) >= segments:
+                    path.unlink()
         self.segments, self.rows = segments, rows
 
 

@@ -1,0 +1,101 @@
+"""Re-run a committed run from its stream key and check it against what was recorded.
+
+`scenario-farm replay DIR --sample N`: in a quantification campaign, the ledger row of
+sample N (start state, outcome, steps) and, if the run was recorded, its MCAP trajectory;
+in a validation directory, the counterexample of certificate.json.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pyarrow.dataset as ds
+
+from farm.executors import SimSpec, build_simulator
+from farm.streams import RunStreams
+from scenarios.base import OUTCOME_NAMES
+from scenarios.run import run_scenario
+
+
+def rerun(scenario, policy, horizon: int, seed: int, index: int, start: np.ndarray):
+    batch = run_scenario(scenario, start[None, :], horizon, policy, RunStreams.of(seed, [index]))
+    return batch.trajectory(0), OUTCOME_NAMES[int(batch.outcomes[0])]
+
+
+def record_counterexample(path: Path, scenario, cert: dict) -> None:
+    from farm.recording import write_recording
+
+    ce = cert["counterexample"]
+    write_recording(path, scenario_name=scenario.name, state_names=list(scenario.state_names), dt=scenario.dt,
+                    runs=[{"sample_index": ce["sample_index"], "trajectory": np.array(ce["trajectory"]),
+                           "outcome": ce["outcome"]}],
+                    metadata={"config_hash": cert["config_hash"], "seed": str(cert["seed"]),
+                              "kind": "validation counterexample", "reason": ce["reason"],
+                              "scenario_farm_version": cert["scenario_farm_version"]})
+
+
+def _recorded(directory: Path, index: int):
+    from farm.recording import read_recording
+
+    for path in sorted((directory / "recordings").glob("*.mcap")) + sorted(directory.glob("*.mcap")):
+        rec = read_recording(path)
+        if index in rec["runs"]:
+            return path, rec["runs"][index]
+    return None, None
+
+
+def replay(directory: Path, index: int) -> tuple[bool, str]:
+    directory = Path(directory)
+    if (directory / "certificate.json").exists():
+        return _replay_counterexample(directory, index)
+    from farm.quantify import load_frozen_config
+
+    cfg = load_frozen_config(directory)
+    rows = ds.dataset(directory / "ledger").to_table(filter=ds.field("sample_index") == index).to_pylist()
+    if not rows:
+        raise ValueError(f"{directory}: sample {index} is not in the ledger (not committed)")
+    row = rows[0]
+    spec = SimSpec(dict(cfg["scenario"]), dict(cfg["actions"]), cfg["quantify"]["horizon"], cfg["farm"]["seed"])
+    scenario, policy = build_simulator(spec)
+    start = np.array([row[name] for name in scenario.state_names])
+    traj, outcome = rerun(scenario, policy, spec.horizon, spec.seed, index, start)
+    checks = [("outcome", outcome == row["outcome"], f"{outcome} (ledger: {row['outcome']})"),
+              ("steps", len(traj) - 1 == row["steps"], f"{len(traj) - 1} (ledger: {row['steps']})")]
+    path, recorded = _recorded(directory, index)
+    if recorded is not None:
+        same = recorded["trajectory"].shape == traj.shape and np.array_equal(recorded["trajectory"], traj)
+        checks.append(("trajectory", same, f"{len(traj)} states, identical to {path.name}" if same else
+                       f"differs from {path.name}"))
+    ok = all(c[1] for c in checks)
+    lines = [f"sample {index} (stream key seed={spec.seed}, index={index}) from "
+             f"{dict(zip(scenario.state_names, start.tolist()))}:"]
+    lines += [f"  {'ok  ' if good else 'DIFF'} {name}: {text}" for name, good, text in checks]
+    lines.append("replay matches the record" if ok else "replay does NOT match the record")
+    return ok, "\n".join(lines)
+
+
+def _replay_counterexample(directory: Path, index: int) -> tuple[bool, str]:
+    cert = json.loads((directory / "certificate.json").read_text())
+    ce = cert.get("counterexample")
+    if not ce or ce["sample_index"] != index:
+        raise ValueError(f"{directory}: certificate.json holds no counterexample with sample index {index}")
+    cfg = json.loads((directory / "config.json").read_text())["config"]
+    spec = SimSpec(dict(cfg["scenario"]), dict(cfg["actions"]), cfg["validate"]["horizon"], cfg["farm"]["seed"])
+    scenario, policy = build_simulator(spec)
+    start = np.array([ce["start_state"][name] for name in scenario.state_names])
+    traj, outcome = rerun(scenario, policy, spec.horizon, spec.seed, index, start)
+    expected = np.array(ce["trajectory"])
+    k = ce["violating_step"]
+    same = len(traj) > k and np.array_equal(traj[: k + 1], expected)
+    checks = [("trajectory", same, f"identical up to the violating step {k}" if same else "differs")]
+    path, recorded = _recorded(directory, index)
+    if recorded is not None:
+        rec_same = np.array_equal(recorded["trajectory"], expected)
+        checks.append(("recording", rec_same, f"{path.name} holds the same {len(expected)} states"))
+    ok = all(c[1] for c in checks)
+    lines = [f"counterexample sample {index} (stream key seed={spec.seed}, index={index}): {ce['reason']}"]
+    lines += [f"  {'ok  ' if good else 'DIFF'} {name}: {text}" for name, good, text in checks]
+    lines.append("replay reproduces the counterexample" if ok else "replay does NOT reproduce the counterexample")
+    return ok, "\n".join(lines)
