@@ -227,6 +227,8 @@ class VanillaSampling(_IndexState):
 def make_algorithm(name: str, scenario: Scenario, settings: SPESettings, seed: int):
     from coordinator.spe import SPE
 
+    if settings.boundary and name != "spe":
+        raise ValueError(f"quantify.boundary: the boundary band is an SPE option; allowed with algorithm = 'spe'")
     if name == "spe":
         return SPE(scenario, settings)
     return {"ae": AdaptiveExploration, "delta-pruning": DeltaPruning, "vs": VanillaSampling}[name](

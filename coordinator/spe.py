@@ -43,6 +43,7 @@ class SPESettings:
     replay: bool = True
     replay_capacity: int = 20_000_000
     reachable: str = "undirected"
+    boundary: bool = False
 
 
 def greedy_uncovered(points: np.ndarray, delta: float) -> np.ndarray:
@@ -126,17 +127,37 @@ class SPE:
         self._dist = (dist, nv, nf)
         return dist
 
+    def _band(self, ids: np.ndarray) -> np.ndarray:
+        """Theorem 3 for the quantified set: the alive centres whose boxes come within
+        sigma-bar of the set's boundary toward failure. SPE's covering starts as all of
+        Sigma, so that boundary is made of pruned regions (within delta of PhiBar) and
+        of Sigma's failure facets; truncating facets are not of concern."""
+        reach = self.scenario.step_bound() + self.delta
+        pts = self.vertices.points[ids]
+        near = np.zeros(len(ids), dtype=bool)
+        for facet, failure in self.scenario.facets():
+            if failure:
+                near |= np.abs(pts[:, facet.axis] - facet.bound) <= reach
+        if self.failures.count:
+            near |= self._failure_distances()[ids] <= reach + self.delta
+        return ids[near] if near.any() else ids
+
     def sampling_description(self) -> str:
+        where = (f"the alive centres within sigma-bar + delta = {self.scenario.step_bound() + self.delta:g} of the "
+                 f"set's boundary (PhiBar and failure facets, Theorem 3)" if self.settings.boundary
+                 else "the alive centres")
         if self.settings.prioritized and self.failures.count:
-            return (f"start states drawn over the alive centres with probability "
+            return (f"start states drawn over {where} with probability "
                     f"alpha(d* - d_i), alpha = {self.settings.alpha}, d_i = d(sigma_i, PhiBar)")
-        return "start states uniform over the alive centres"
+        return f"start states uniform over {where}"
 
     # -- ask ----------------------------------------------------------------------------
     def draw(self, streams: RunStreams) -> tuple[np.ndarray, np.ndarray]:
         ids = self.vertices.alive_ids()
         if len(ids) == 0:
             raise EmptySetError("the safe set is empty: every centre was pruned")
+        if self.settings.boundary:
+            ids = self._band(ids)
         u = streams.uniform(0, PURPOSE_START, 1)[:, 0]
         weights = self._weights(ids)
         if weights is None:

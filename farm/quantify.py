@@ -34,7 +34,7 @@ SIDES = {"fleet3": {"lead": ["p10"], "rear": ["p20"]}}
 def settings_of(q: dict) -> SPESettings:
     return SPESettings(delta0=q["delta0"], gamma=q["gamma"], delta_min=q["delta_min"],
                        prioritized=q["prioritized"], alpha=q["alpha"], replay=q["replay"],
-                       replay_capacity=q["replay_capacity"], reachable=q["reachable"])
+                       replay_capacity=q["replay_capacity"], reachable=q["reachable"], boundary=q["boundary"])
 
 
 def spec_of(cfg: dict, failure_facets=None) -> SimSpec:
