@@ -103,3 +103,20 @@ def hull_volume(centres: np.ndarray, h: float, bounds=None) -> float:
     else:
         points = (centres[on_hull][:, None, :] + corners[None, :, :]).reshape(-1, n)
     return float(ConvexHull(points).volume)
+
+
+def raster_iou(a: tuple[np.ndarray, float], b: tuple[np.ndarray, float], lower, upper, points_per_axis: int = 60):
+    """IoU of two unions of boxes, measured on a regular grid of cell midpoints over
+    [lower, upper] (exact membership at each point)."""
+    from coordinator.spatial import PointIndex
+
+    lower, upper = np.asarray(lower, float), np.asarray(upper, float)
+    axes = [lo + (hi - lo) * (np.arange(points_per_axis) + 0.5) / points_per_axis for lo, hi in zip(lower, upper)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(lower))
+    inside = []
+    for centres, h in (a, b):
+        index = PointIndex(len(lower), 2 * h, lower)
+        index.insert(centres)
+        inside.append(index.any_within(grid, h))
+    union = (inside[0] | inside[1]).sum()
+    return float((inside[0] & inside[1]).sum() / union) if union else 1.0

@@ -1,0 +1,48 @@
+"""The SUMO back end through the whole farm: Ray actors each holding one libsumo."""
+
+import pytest
+
+from coordinator.results import read_safe_set
+from coordinator.volume import raster_iou
+from farm import config as config_mod
+from farm.quantify import run
+from scenarios.lead_follow import LeadFollow
+from scenarios.policies import IDM_A, IDM_B, IDM_DELTA, IDM_MIN, IDM_S0, IDM_T, IDM_V_DES
+
+pytest.importorskip("libsumo")
+
+KRAUSS = {"car_follow_model": "Krauss", "params": {"sigma": 0.0, "accel": 2.6, "decel": 4.5, "tau": 1.0}}
+IDM_MATCHED = {"car_follow_model": "IDM", "params": {
+    "accel": IDM_A, "decel": IDM_B, "tau": IDM_T, "minGap": IDM_S0, "maxSpeed": IDM_V_DES,
+    "delta": float(IDM_DELTA), "emergencyDecel": -IDM_MIN}}
+
+
+def sumo_config(executor="local", workers=1, sumo=KRAUSS, actions="uniform", **quantify):
+    q = {"delta0": 4.0, "delta_min": 2.0, "epsilon": 0.005, "beta": 0.1, "horizon": 40, **quantify}
+    return config_mod.normalize({
+        "scenario": {"name": "lead-follow", "backend": "sumo", "sv_policy": "sumo", "sumo": sumo},
+        "actions": {"mode": actions}, "quantify": q,
+        "farm": {"executor": executor, "workers": workers, "batch_size": 256, "seed": 2}})
+
+
+def test_parallel_contract_holds_on_sumo(ray_local, tmp_path):
+    local = run(sumo_config(), tmp_path / "local", resume=False)
+    for workers in (1, 2):
+        ray = run(sumo_config("ray", workers), tmp_path / f"ray{workers}", resume=False)
+        assert ray["result_hash"] == local["result_hash"]
+        assert ray["runs_committed"] == local["runs_committed"]
+
+
+def test_sumo_idm_and_numpy_idm_quantify_the_same_set(tmp_path):
+    sumo = run(sumo_config(sumo=IDM_MATCHED, actions="adversarial", delta0=2.0, delta_min=1.0, horizon=50),
+               tmp_path / "sumo", resume=False)
+    numpy_cfg = config_mod.normalize({
+        "scenario": {"name": "lead-follow", "sv_policy": "idm"}, "actions": {"mode": "adversarial"},
+        "quantify": {"delta0": 2.0, "delta_min": 1.0, "epsilon": 0.005, "beta": 0.1, "horizon": 50},
+        "farm": {"executor": "local", "batch_size": 256, "seed": 2}})
+    ref = run(numpy_cfg, tmp_path / "numpy", resume=False)
+    names = LeadFollow.state_names
+    a = read_safe_set(tmp_path / "sumo" / "safe_set.parquet", names)
+    b = read_safe_set(tmp_path / "numpy" / "safe_set.parquet", names)
+    iou = raster_iou(a, b, LeadFollow.lower, LeadFollow.upper)
+    assert iou >= 0.9, (iou, sumo["volume_union"], ref["volume_union"])
