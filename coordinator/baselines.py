@@ -58,6 +58,25 @@ class _IndexState:
     def record(self, batch, rows, start_ids) -> None:
         pass
 
+    def draw(self, streams):
+        ids = self.vertices.alive_ids()
+        if len(ids) == 0:
+            raise EmptySetError("the safe set is empty: every centre was pruned")
+        chosen = _uniform_pick(ids, streams)
+        return self.vertices.points[chosen].copy(), chosen
+
+    def _first_leaving(self, batch: RunBatch, rows, counts=None):
+        """Offset of the first run that fails or visits a state outside the covering
+        (``counts`` masks runs whose change would be a no-op)."""
+        fail = batch.outcomes[rows] == FAILURE
+        states, pos = visited_states(batch, rows)
+        left = ~self.vertices.any_within(states, self.delta)
+        change = fail | first_true_per_run(left, pos, len(rows))
+        if counts is not None:
+            change &= counts
+        offset = int(np.argmax(change)) if change.any() else len(rows)
+        return offset, np.zeros(offset, dtype=bool)
+
     def sampling_description(self) -> str:
         return "start states uniform over the alive centres"
 
@@ -87,17 +106,8 @@ class AdaptiveExploration(_IndexState):
     def final_round(self) -> bool:
         return self.delta <= self.settings.delta_min * (1 + 1e-12)
 
-    def draw(self, streams):
-        chosen = _uniform_pick(self.vertices.alive_ids(), streams)
-        return self.vertices.points[chosen].copy(), chosen
-
     def scan(self, batch: RunBatch, rows, start_ids):
-        fail = batch.outcomes[rows] == FAILURE
-        states, pos = visited_states(batch, rows)
-        explore = ~self.vertices.any_within(states, self.delta)
-        change = fail | first_true_per_run(explore, pos, len(rows))
-        offset = int(np.argmax(change)) if change.any() else len(rows)
-        return offset, np.zeros(offset, dtype=bool)
+        return self._first_leaving(batch, rows)  # a failure restarts, a new state explores
 
     def apply(self, batch: RunBatch, row: int, start_id: int) -> str:
         self.version += 1
@@ -145,21 +155,9 @@ class DeltaPruning(_IndexState):
                                    bounds=(scenario.lower, scenario.upper))
         self.vertices.insert(lattice.box_centres(self.delta))
 
-    def draw(self, streams):
-        ids = self.vertices.alive_ids()
-        if len(ids) == 0:
-            raise EmptySetError("the safe set is empty: every centre was pruned")
-        chosen = _uniform_pick(ids, streams)
-        return self.vertices.points[chosen].copy(), chosen
-
     def scan(self, batch, rows, start_ids):
-        fail = batch.outcomes[rows] == FAILURE
-        states, pos = visited_states(batch, rows)
-        left = ~self.vertices.any_within(states, self.delta)
-        alive = self.vertices.alive[start_ids]  # a stale draw's centre may be pruned already
-        change = (fail | first_true_per_run(left, pos, len(rows))) & alive
-        offset = int(np.argmax(change)) if change.any() else len(rows)
-        return offset, np.zeros(offset, dtype=bool)
+        # a stale draw's centre may be pruned already: pruning it again changes nothing
+        return self._first_leaving(batch, rows, counts=self.vertices.alive[start_ids])
 
     def apply(self, batch, row, start_id) -> str:
         self.version += 1
@@ -197,17 +195,8 @@ class VanillaSampling(_IndexState):
         self.vertices.insert(lattice.box_centres(self.delta))
         self.attempts += 1
 
-    def draw(self, streams):
-        chosen = _uniform_pick(self.vertices.alive_ids(), streams)
-        return self.vertices.points[chosen].copy(), chosen
-
     def scan(self, batch, rows, start_ids):
-        fail = batch.outcomes[rows] == FAILURE
-        states, pos = visited_states(batch, rows)
-        left = ~self.vertices.any_within(states, self.delta)
-        change = fail | first_true_per_run(left, pos, len(rows))
-        offset = int(np.argmax(change)) if change.any() else len(rows)
-        return offset, np.zeros(offset, dtype=bool)
+        return self._first_leaving(batch, rows)  # VAL^eps-delta on the current box
 
     def apply(self, batch, row, start_id) -> str:
         self.version += 1

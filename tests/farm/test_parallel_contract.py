@@ -98,7 +98,7 @@ def test_an_exception_in_a_scenario_names_the_sample_and_does_not_hang(ray_local
     from farm.ray_executor import RayExecutor, WorkerError
     from farm.executors import SimSpec
 
-    spec = SimSpec({"name": "raising_scenario:Raising", "sv_policy": "none"}, {"mode": "uniform"}, 10, 0)
+    spec = SimSpec({"name": "user_scenarios:Raising", "sv_policy": "none"}, {"mode": "uniform"}, 10, 0)
     ex = RayExecutor(spec, 2, "local", max_retries=1)
     try:
         starts = np.tile([[0.2, 0.2]], (64, 1))

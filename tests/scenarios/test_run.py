@@ -4,7 +4,7 @@ import pytest
 from farm.streams import RunStreams
 from scenarios import make_scenario
 from scenarios.actions import make_action_policy
-from scenarios.base import FAILURE, HORIZON, TRUNCATED, Scenario
+from scenarios.base import FAILURE, HORIZON, TRUNCATED
 from scenarios.run import ScenarioError, run_scenario
 
 
@@ -33,28 +33,8 @@ def test_a_run_depends_on_its_key_only_not_on_its_batch():
     assert not np.array_equal(other_seed.trajectory(0), alone.trajectory(0))
 
 
-class NaNScenario(Scenario):
-    name = "nan"
-    state_names = ("a", "b")
-    lower = np.array([0.0, 0.0])
-    upper = np.array([1.0, 1.0])
-    failure_sides = {"a": False}
-    action_names = ("u",)
-    action_lower = np.array([0.0])
-    action_upper = np.array([1.0])
-    adversarial_actions = np.array([[1.0]])
-
-    def __init__(self, sv_policy="none", failure_facets=None, disturbance=0.0):
-        super().__init__(failure_facets, disturbance)
-
-    def step(self, states, actions, noise):
-        out = states.copy()
-        out[states[:, 0] > 0.5, 1] = np.nan
-        return out
-
-
 def test_user_scenario_from_module_path_and_nan_is_reported_with_the_sample_index():
-    sc = make_scenario("test_run:NaNScenario")
+    sc = make_scenario("user_scenarios:NaNScenario")
     assert sc.state_names == ("a", "b")
     starts = np.array([[0.1, 0.1], [0.9, 0.1]])
     with pytest.raises(ScenarioError, match=r"sample index 8 \(start state \[0.9, 0.1\]\)"):

@@ -1,0 +1,43 @@
+"""User scenarios loaded by 'package.module:Class' in tests: broken on purpose."""
+
+import numpy as np
+
+from scenarios.base import Scenario
+
+
+class UnitSquare(Scenario):
+    """A 2-D box whose step is left to the subclasses."""
+
+    state_names = ("a", "b")
+    lower = np.array([0.0, 0.0])
+    upper = np.array([1.0, 1.0])
+    failure_sides = {"a": False}
+    action_names = ("u",)
+    action_lower = np.array([0.0])
+    action_upper = np.array([1.0])
+    adversarial_actions = np.array([[1.0]])
+
+    def __init__(self, sv_policy="none", failure_facets=None, disturbance=0.0):
+        super().__init__(failure_facets, disturbance)
+
+
+class NaNScenario(UnitSquare):
+    """Produces NaN for states with a > 0.5."""
+
+    name = "nan"
+
+    def step(self, states, actions, noise):
+        out = states.copy()
+        out[states[:, 0] > 0.5, 1] = np.nan
+        return out
+
+
+class Raising(UnitSquare):
+    """Raises for any batch holding a state with a > 0.5 (the farm's error path)."""
+
+    name = "raising"
+
+    def step(self, states, actions, noise):
+        if (states[:, 0] > 0.5).any():
+            raise ValueError("boom")
+        return states
