@@ -27,3 +27,28 @@ def test_fleet3_brake_larger_lead_side_smaller_rear_side_and_total(tmp_path):
     assert brake["volume_lead_side"] > idm["volume_lead_side"]
     assert brake["volume_rear_side"] < idm["volume_rear_side"]
     assert brake["volume_union"] < idm["volume_union"]  # "and the smaller total"
+
+
+def test_lead_follow_brake_matches_the_exact_safe_set(tmp_path):
+    """Against the closed-form set {min future gap under Gamma* >= 0} on a fine grid:
+    almost no unsafe volume claimed safe, and the sets nearly coincide."""
+    import numpy as np
+
+    from coordinator.results import read_safe_set
+    from coordinator.spatial import PointIndex
+    from invariant_sets import min_future_gap_brake
+    from scenarios.lead_follow import LeadFollow
+
+    campaign(tmp_path, "lead-follow", "brake", delta0=2.0, delta_min=0.5)
+    centres, h = read_safe_set(tmp_path / "lead-follow-brake" / "safe_set.parquet", LeadFollow.state_names)
+    axes = [np.linspace(lo, hi, k) for lo, hi, k in zip(LeadFollow.lower, LeadFollow.upper, (81, 81, 281))]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    truth = min_future_gap_brake(grid) >= -1e-9
+    index = PointIndex(3, 2 * h, LeadFollow.lower)
+    index.insert(centres)
+    claimed = index.any_within(grid, h)
+    precision = (claimed & truth).sum() / claimed.sum()
+    iou = (claimed & truth).sum() / (claimed | truth).sum()
+    print(f"precision {precision:.4f}, IoU {iou:.4f}")
+    assert precision >= 0.99
+    assert iou >= 0.95
