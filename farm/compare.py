@@ -1,0 +1,92 @@
+"""`scenario-farm compare DIR`: a quantified set against the model-based reference.
+
+Prints IoU, precision, recall and the l-inf Hausdorff distance, writes compare.json and
+plots/compare.png (2-D slices: claimed but unsafe in red, safe but not claimed in blue).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from coordinator.reference import claimed, compare_boxes, falsify, grid, reference_safe
+from coordinator.results import read_safe_set, write_json
+from farm.executors import build_simulator
+
+
+def compare(directory: Path, grid: int | None = None) -> str:
+    from farm.quantify import load_frozen_config, spec_of
+
+    directory = Path(directory)
+    cfg = load_frozen_config(directory)
+    if cfg["scenario"]["backend"] != "numpy":
+        raise ValueError("compare: the model-based reference needs known dynamics (scenario.backend = 'numpy')")
+    scenario, _ = build_simulator(spec_of(cfg))
+    centres, h = read_safe_set(directory / "safe_set.parquet", scenario.state_names)
+    points = _grid(scenario, grid)
+    truth = reference_safe(scenario, points)
+    metrics = compare_boxes(scenario, centres, h, truth=truth, grid_points_per_axis=_k(scenario, grid))
+    notes = []
+    if cfg["actions"]["mode"] != "adversarial" and scenario.name != "toy" and cfg["scenario"]["sv_policy"] != "brake":
+        sample = points[truth][:: max(1, int(truth.sum()) // 20000)]
+        broken = falsify(scenario, sample)
+        metrics["falsified_reference_points"] = [broken, int(len(sample))]
+        notes.append(f"reference = worst case under Gamma*; random action sequences broke {broken} of "
+                     f"{len(sample)} sampled reference-safe points")
+    write_json(directory / "compare.json", metrics)
+    _plot(directory / "plots" / "compare.png", scenario, centres, h, cfg)
+    lines = [f"{directory}: {len(centres)} boxes (half-width {h:g}) against the model-based reference on "
+             f"{metrics['grid_points']:,} grid points",
+             f"  IoU {metrics['iou']:.4f}  precision {metrics['precision']:.4f}  recall {metrics['recall']:.4f}  "
+             f"Hausdorff (l-inf) {metrics['hausdorff']:.3g}",
+             f"  claimed volume {metrics['claimed_volume']:.6g}, reference volume {metrics['reference_volume']:.6g}"]
+    lines += [f"  {n}" for n in notes]
+    lines.append(f"  wrote {directory / 'compare.json'} and {directory / 'plots' / 'compare.png'}")
+    return "\n".join(lines)
+
+
+def _k(scenario, k):
+    return k or int(round(1.5e6 ** (1 / scenario.n)))
+
+
+def _grid(scenario, k):
+    return grid(scenario, _k(scenario, k))
+
+
+def _plot(path: Path, scenario, centres, h, cfg) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    lo, hi = scenario.lower, scenario.upper
+    x, y = 0, (3 if scenario.name == "fleet3" else scenario.n - 1)
+    varied = 1 if scenario.n > 2 else None
+    levels = np.linspace(lo[varied], hi[varied], 4) if varied is not None else [None]
+    fig, axs = plt.subplots(1, len(levels), figsize=(4.2 * len(levels), 4), squeeze=False)
+    for ax, level in zip(axs[0], levels):
+        xs, ys = np.linspace(lo[x], hi[x], 150), np.linspace(lo[y], hi[y], 150)
+        gx, gy = np.meshgrid(xs, ys, indexing="ij")
+        pts = np.tile((lo + hi) / 2, (gx.size, 1))
+        pts[:, x], pts[:, y] = gx.ravel(), gy.ravel()
+        if varied is not None:
+            pts[:, varied] = level
+        truth = reference_safe(scenario, pts).reshape(gx.shape)
+        got = claimed(scenario, centres, h, pts).reshape(gx.shape)
+        img = np.zeros(gx.shape + (3,)) + 1.0
+        img[truth & got] = (0.75, 0.9, 0.75)
+        img[got & ~truth] = (0.85, 0.1, 0.1)
+        img[truth & ~got] = (0.2, 0.35, 0.9)
+        ax.imshow(np.transpose(img, (1, 0, 2)), origin="lower", aspect="auto", extent=(lo[x], hi[x], lo[y], hi[y]))
+        ax.set_xlabel(scenario.state_names[x])
+        ax.set_ylabel(scenario.state_names[y])
+        if varied is not None:
+            ax.set_title(f"{scenario.state_names[varied]} = {level:.3g}", fontsize=9)
+    fig.suptitle(f"{cfg['scenario']['name']} / {cfg['scenario']['sv_policy']}: green agree, red claimed but unsafe, "
+                 f"blue safe but not claimed", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

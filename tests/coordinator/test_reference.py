@@ -1,0 +1,51 @@
+import json
+import subprocess
+import sys
+
+import numpy as np
+
+from coordinator.reference import compare_boxes, falsify, grid, reference_safe, safe_under_adversary
+from invariant_sets import min_future_gap_brake
+from scenarios import make_scenario
+from scenarios.toy import Toy
+
+
+def test_toy_reference_is_its_closed_form():
+    sc = make_scenario("toy", sv_policy="none")
+    pts = grid(sc, 101)
+    np.testing.assert_array_equal(reference_safe(sc, pts), Toy.safe(pts))
+
+
+def test_brake_reference_is_the_min_future_gap_set_and_survives_falsification():
+    sc = make_scenario("lead-follow", sv_policy="brake")
+    pts = sc.lower + (sc.upper - sc.lower) * np.random.default_rng(0).random((20000, 3))
+    safe = safe_under_adversary(sc, pts)
+    np.testing.assert_array_equal(safe, min_future_gap_brake(pts) >= -1e-9)
+    assert safe_under_adversary(sc, np.array([[0.0, 0.0, 0.5], [20.0, 0.0, 1.0]])).tolist() == [True, False]
+    assert falsify(sc, pts[safe][:3000]) == 0  # Gamma* is the worst case for brake
+
+
+def test_compare_scores_a_perfect_and_a_shifted_set():
+    sc = make_scenario("toy", sv_policy="none")
+    centres = np.stack(np.meshgrid(np.arange(1.25, 4.0, 0.5), np.arange(0.25, 10.0, 0.5), indexing="ij"),
+                       -1).reshape(-1, 2)
+    perfect = compare_boxes(sc, centres, 0.25, grid_points_per_axis=200)
+    assert perfect["precision"] == 1.0 and perfect["hausdorff"] < 0.1
+    assert 0.45 < perfect["iou"] < 0.55  # one of the two wells
+    shifted = compare_boxes(sc, centres + [0.5, 0.0], 0.25, grid_points_per_axis=200)
+    assert shifted["iou"] < perfect["iou"] and shifted["precision"] < 1.0
+
+
+def test_compare_cli_on_a_campaign(tmp_path):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('[scenario]\nname = "lead-follow"\nsv_policy = "brake"\n[actions]\nmode = "adversarial"\n'
+                   '[quantify]\ndelta0 = 2.0\ndelta_min = 1.0\n[farm]\nexecutor = "local"\n')
+    out = tmp_path / "q"
+    assert subprocess.run([sys.executable, "-m", "farm", "quantify", str(cfg), "--out", str(out)],
+                          capture_output=True).returncode == 0
+    r = subprocess.run([sys.executable, "-m", "farm", "compare", str(out), "--grid", "60"], capture_output=True,
+                       text=True)
+    assert r.returncode == 0, r.stderr
+    metrics = json.loads((out / "compare.json").read_text())
+    assert metrics["precision"] >= 0.98 and metrics["iou"] >= 0.95
+    assert (out / "plots" / "compare.png").exists()
