@@ -27,11 +27,13 @@ def test_brake_reference_is_the_min_future_gap_set_and_survives_falsification():
 
 def test_compare_scores_a_perfect_and_a_shifted_set():
     sc = make_scenario("toy", sv_policy="none")
-    centres = np.stack(np.meshgrid(np.arange(1.25, 4.0, 0.5), np.arange(0.25, 10.0, 0.5), indexing="ij"),
-                       -1).reshape(-1, 2)
+    xs = np.concatenate([np.arange(1.25, 4.0, 0.5), np.arange(6.25, 9.0, 0.5)])
+    centres = np.stack(np.meshgrid(xs, np.arange(0.25, 10.0, 0.5), indexing="ij"), -1).reshape(-1, 2)
     perfect = compare_boxes(sc, centres, 0.25, grid_points_per_axis=200)
-    assert perfect["precision"] == 1.0 and perfect["hausdorff"] < 0.1
-    assert 0.45 < perfect["iou"] < 0.55  # one of the two wells
+    assert perfect["iou"] == 1.0 and perfect["hausdorff"] < 0.1
+    one_well = compare_boxes(sc, centres[centres[:, 0] < 5], 0.25, grid_points_per_axis=200)
+    assert one_well["precision"] == 1.0 and 0.45 < one_well["iou"] < 0.55
+    assert abs(one_well["hausdorff"] - 5.0) < 0.1  # the missed well is 5 away from the found one
     shifted = compare_boxes(sc, centres + [0.5, 0.0], 0.25, grid_points_per_axis=200)
     assert shifted["iou"] < perfect["iou"] and shifted["precision"] < 1.0
 
