@@ -1,0 +1,94 @@
+"""Validation on the farm's executors, on set domains, and the status/progress displays."""
+
+import io
+import json
+import subprocess
+import sys
+
+import numpy as np
+
+from coordinator.domain import Domain
+from coordinator.validation import plan, validate
+from farm.executors import LocalExecutor, SimSpec, build_simulator
+from farm.progress import Progress
+from farm.ray_executor import RayExecutor
+
+SPEC = SimSpec({"name": "lead-follow", "sv_policy": "idm"}, {"mode": "uniform"}, 50, 3)
+
+
+def verdicts(executor, section):
+    scenario, _ = build_simulator(SPEC)
+    domain = Domain.from_config(scenario, section)
+    p = plan(domain, "eps-delta", 0.001, 0.01, 1.0, False, False)
+    return validate(domain, p, executor, seed=3, delta=1.0, batch_size=300, pipeline_depth=2)
+
+
+def test_validation_on_ray_gives_the_in_process_verdict(ray_local):
+    section = {"domain": {"p10": [30.0, 70.0]}}
+    local = verdicts(LocalExecutor(SPEC), section)
+    ray_ex = RayExecutor(SPEC, 2, "local")
+    try:
+        ray = verdicts(ray_ex, section)
+    finally:
+        ray_ex.close()
+    assert local["verdict"] == ray["verdict"] == "counterexample"
+    assert local["counterexample"] == ray["counterexample"] and local["n_run"] == ray["n_run"]
+
+
+def test_a_quantified_set_validates_as_a_domain(tmp_path):
+    cfg = tmp_path / "q.toml"
+    cfg.write_text('[scenario]\nname = "toy"\nsv_policy = "none"\n[actions]\nmode = "uniform"\n'
+                   '[quantify]\ndelta0 = 1.0\ndelta_min = 0.25\nepsilon = 0.01\nhorizon = 20\n'
+                   '[farm]\nexecutor = "local"\n')
+    assert subprocess.run([sys.executable, "-m", "farm", "quantify", str(cfg), "--out", str(tmp_path / "q")],
+                          capture_output=True).returncode == 0
+    v = tmp_path / "v.toml"
+    v.write_text(f'[scenario]\nname = "toy"\nsv_policy = "none"\n[actions]\nmode = "uniform"\n'
+                 f'[validate]\nalgorithm = "eps-delta"\ndelta = 0.25\nepsilon = 0.01\n'
+                 f'domain_set = "{tmp_path / "q" / "safe_set.parquet"}"\n')
+    r = subprocess.run([sys.executable, "-m", "farm", "validate", str(v), "--json"], capture_output=True, text=True)
+    cert = json.loads(r.stdout)
+    # SPE's set is the two wells up to delta: the boxes overhanging a well by up to delta
+    # are not invariant, so a counterexample is the right answer, and it must start in an
+    # overhang (x outside the wells), never inside a well
+    if cert["verdict"] == "counterexample":
+        x = cert["counterexample"]["start_state"]["x"]
+        assert not (1.0 <= x <= 4.0 or 6.0 <= x <= 9.0)
+    assert r.returncode in (0, 1) and "union of" in cert["domain"]
+
+
+def test_status_reports_a_killed_campaign_as_stopped(tmp_path):
+    import os
+    import signal
+    import time
+
+    cfg = tmp_path / "q.toml"
+    cfg.write_text('[scenario]\nname = "lead-follow"\nsv_policy = "idm"\n[actions]\nmode = "uniform"\n'
+                   '[quantify]\ndelta0 = 2.0\ndelta_min = 0.25\n[farm]\nexecutor = "local"\n')
+    out = tmp_path / "q"
+    proc = subprocess.Popen([sys.executable, "-m", "farm", "quantify", str(cfg), "--out", str(out),
+                             "--checkpoint-every", "0"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 60
+    while not (out / "status.json").exists() and time.time() < deadline:
+        time.sleep(0.2)
+    running = subprocess.run([sys.executable, "-m", "farm", "status", str(out)], capture_output=True, text=True)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert "running (pid" in running.stdout and "N_eps" not in running.stderr
+    stopped = subprocess.run([sys.executable, "-m", "farm", "status", str(out)], capture_output=True, text=True)
+    assert "stopped (process gone" in stopped.stdout and "runs_committed" in stopped.stdout
+
+
+def test_progress_line_on_a_terminal_and_silence_otherwise():
+    from coordinator.campaign import Campaign
+    from coordinator.spe import SPE, SPESettings
+    from scenarios import make_scenario
+
+    algo = SPE(make_scenario("toy", sv_policy="none"), SPESettings(delta0=1.0, delta_min=1.0))
+    c = Campaign(algo, None, n_eps=10, budget=10, batch_size=1, pipeline_depth=1, seed=0)
+    buf = io.StringIO()
+    Progress(enabled=True, stream=buf).update("total", algo, c, 10)
+    assert "round 0" in buf.getvalue() and "N_eps 0/10" in buf.getvalue()
+    quiet = io.StringIO()
+    Progress(stream=quiet).update("total", algo, c, 10)  # StringIO is not a terminal
+    assert quiet.getvalue() == ""
