@@ -57,7 +57,25 @@ def reference_safe(scenario: Scenario, points: np.ndarray) -> np.ndarray:
         return scenario.safe(points)
     if len(scenario.adversarial_actions) != 1:
         raise ValueError(f"no model-based reference for scenario {scenario.name!r}")
+    if hasattr(scenario, "rollout"):
+        return safe_by_simulation(scenario, points)
     return safe_under_adversary(scenario, points)
+
+
+def safe_by_simulation(scenario: Scenario, points: np.ndarray, horizon: int = 400, chunk: int = 4096) -> np.ndarray:
+    """A black-box SV (SUMO) has no model, but under the single adversarial action the
+    system is deterministic: simulating every grid point long enough (here 40 s: the
+    lead stops within 4 s and the SV settles) decides membership by the simulator itself."""
+    from scenarios.actions import AdversarialActions
+
+    out = np.empty(len(points), dtype=bool)
+    policy = AdversarialActions(deterministic=True)
+    for lo in range(0, len(points), chunk):
+        part = points[lo : lo + chunk]
+        idx = np.arange(lo, lo + len(part))
+        batch = run_scenario(scenario, part, horizon, policy, RunStreams.of(0, idx))
+        out[lo : lo + len(part)] = batch.outcomes != FAILURE
+    return out
 
 
 def falsify(scenario: Scenario, safe_points: np.ndarray, tries: int = 4, horizon: int = 200, seed: int = 0) -> int:

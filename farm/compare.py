@@ -21,8 +21,12 @@ def compare(directory: Path, grid: int | None = None) -> str:
 
     directory = Path(directory)
     cfg = load_frozen_config(directory)
-    if cfg["scenario"]["backend"] != "numpy":
-        raise ValueError("compare: the model-based reference needs known dynamics (scenario.backend = 'numpy')")
+    simulated = cfg["scenario"]["backend"] != "numpy"
+    if simulated and cfg["actions"]["mode"] != "adversarial":
+        raise ValueError("compare: a black-box SV has no model; its reference is simulated under Gamma*, which needs "
+                         "actions.mode = 'adversarial'")
+    if simulated and grid is None:
+        grid = 24  # every grid point is a 40 s simulation
     scenario, _ = build_simulator(spec_of(cfg))
     centres, h = read_safe_set(directory / "safe_set.parquet", scenario.state_names)
     points = _grid(scenario, grid)
@@ -37,7 +41,8 @@ def compare(directory: Path, grid: int | None = None) -> str:
                      f"{len(sample)} sampled reference-safe points")
     write_json(directory / "compare.json", metrics)
     _plot(directory / "plots" / "compare.png", scenario, centres, h, cfg)
-    lines = [f"{directory}: {len(centres)} boxes (half-width {h:g}) against the model-based reference on "
+    kind = "the reference simulated under Gamma* (black-box SV)" if simulated else "the model-based reference"
+    lines = [f"{directory}: {len(centres)} boxes (half-width {h:g}) against {kind} on "
              f"{metrics['grid_points']:,} grid points",
              f"  IoU {metrics['iou']:.4f}  precision {metrics['precision']:.4f}  recall {metrics['recall']:.4f}  "
              f"Hausdorff (l-inf) {metrics['hausdorff']:.3g}",
@@ -68,7 +73,8 @@ def _plot(path: Path, scenario, centres, h, cfg) -> None:
     levels = np.linspace(lo[varied], hi[varied], 4) if varied is not None else [None]
     fig, axs = plt.subplots(1, len(levels), figsize=(4.2 * len(levels), 4), squeeze=False)
     for ax, level in zip(axs[0], levels):
-        xs, ys = np.linspace(lo[x], hi[x], 150), np.linspace(lo[y], hi[y], 150)
+        res = 150 if cfg["scenario"]["backend"] == "numpy" else 60
+        xs, ys = np.linspace(lo[x], hi[x], res), np.linspace(lo[y], hi[y], res)
         gx, gy = np.meshgrid(xs, ys, indexing="ij")
         pts = np.tile((lo + hi) / 2, (gx.size, 1))
         pts[:, x], pts[:, y] = gx.ravel(), gy.ravel()

@@ -46,3 +46,24 @@ def test_sumo_idm_and_numpy_idm_quantify_the_same_set(tmp_path):
     b = read_safe_set(tmp_path / "numpy" / "safe_set.parquet", names)
     iou = raster_iou(a, b, LeadFollow.lower, LeadFollow.upper)
     assert iou >= 0.9, (iou, sumo["volume_union"], ref["volume_union"])
+
+
+def test_compare_on_a_sumo_campaign_uses_the_simulated_reference(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('[scenario]\nname = "lead-follow"\nbackend = "sumo"\nsv_policy = "sumo"\n'
+                   '[scenario.sumo]\ncar_follow_model = "Krauss"\nparams = { sigma = 0.0 }\n'
+                   '[actions]\nmode = "adversarial"\n[quantify]\ndelta0 = 2.0\ndelta_min = 1.0\n'
+                   '[farm]\nexecutor = "local"\n')
+    out = tmp_path / "q"
+    assert subprocess.run([sys.executable, "-m", "farm", "quantify", str(cfg), "--out", str(out)],
+                          capture_output=True).returncode == 0
+    r = subprocess.run([sys.executable, "-m", "farm", "compare", str(out), "--grid", "12"], capture_output=True,
+                       text=True)
+    assert r.returncode == 0, r.stderr
+    assert "simulated under Gamma*" in r.stdout
+    metrics = json.loads((out / "compare.json").read_text())
+    assert metrics["iou"] >= 0.95 and metrics["precision"] >= 0.97
