@@ -217,7 +217,7 @@ def make_algorithm(name: str, scenario: Scenario, settings: SPESettings, seed: i
     from coordinator.spe import SPE
 
     if settings.boundary and name != "spe":
-        raise ValueError(f"quantify.boundary: the boundary band is an SPE option; allowed with algorithm = 'spe'")
+        raise ValueError("quantify.boundary: the boundary band is an SPE option; allowed with algorithm = 'spe'")
     if name == "spe":
         return SPE(scenario, settings)
     return {"ae": AdaptiveExploration, "delta-pruning": DeltaPruning, "vs": VanillaSampling}[name](

@@ -6,7 +6,6 @@ plots/compare.png (2-D slices: claimed but unsafe in red, safe but not claimed i
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np

@@ -235,7 +235,7 @@ def finish(cfg: dict, out: Path, parts: dict[str, tuple[Part, Campaign]]) -> dic
         summary[f"result_hash_{label}_side"] = result_hash(sc[np.lexsort(sc.T[::-1])], sh)
         summary[f"guarantee_{label}_side"] = guarantee_sentence(cfg, side_campaign, side_part.n_eps,
                                                                 side_part.policy.description, sh)
-        write_safe_set(out / f"safe_set_{label}_side.parquet", sc, sh, sc_names(side_part),
+        write_safe_set(out / f"safe_set_{label}_side.parquet", sc, sh, side_part.scenario.state_names,
                        {"config_hash": chash, "side": label})
     write_safe_set(out / "safe_set.parquet", centres, h, scenario.state_names,
                    {"config_hash": chash, "result_hash": rhash})
@@ -248,10 +248,6 @@ def finish(cfg: dict, out: Path, parts: dict[str, tuple[Part, Campaign]]) -> dic
             sc, sh = side_part.algorithm.result()
             draw(out / "plots" / f"{label}_side", side_part.scenario, sc, sh, {**summary, "algorithm": f"{label} side"})
     return summary
-
-
-def sc_names(part: Part):
-    return part.scenario.state_names
 
 
 def run(cfg: dict, out: Path, *, resume: bool, progress: Progress | None = None) -> dict:

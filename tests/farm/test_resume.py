@@ -56,7 +56,7 @@ def test_sigkill_at_random_moments_then_resume_reaches_the_same_result(tmp_path,
     rng = random.Random(1)
     args = ["quantify", str(tmp_path / "c.toml"), "--out", str(out), "--checkpoint-every", "0"]
     kills = 0
-    for attempt in range(8):
+    for _ in range(8):
         proc = subprocess.Popen([sys.executable, "-m", "farm", *args], stdout=subprocess.DEVNULL,
                                 stderr=subprocess.PIPE, text=True)
         time.sleep(rng.uniform(1.5, 4.0))

@@ -5,7 +5,6 @@ import json
 import subprocess
 import sys
 
-import numpy as np
 
 from coordinator.domain import Domain
 from coordinator.validation import plan, validate
