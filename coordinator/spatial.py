@@ -60,10 +60,13 @@ class PointIndex:
         self._shape = shape
         self._strides = np.cumprod(np.concatenate([shape[1:], [1]])[::-1])[::-1].astype(np.int64)
         self._dense = np.zeros(int(np.prod(shape)), dtype=np.int32)
+        self._others = np.zeros(int(np.prod(shape)), dtype=np.int32)  # off-centre points per cell
         ids = np.arange(self.count)
         self._centre_cell[: self.count] = self._centre_cells(self.points[: self.count])
         live = ids[self.alive[: self.count] & (self._centre_cell[: self.count] >= 0)]
         np.add.at(self._dense, self._centre_cell[live], 1)
+        off = ids[self.alive[: self.count] & (self._centre_cell[: self.count] < 0)]
+        np.add.at(self._others, self._flat(self._cells(self.points[off])), 1)
 
     def _flat(self, cells: np.ndarray) -> np.ndarray:
         """Flat dense index of integer cells (clipped into the margin when outside)."""
@@ -133,6 +136,7 @@ class PointIndex:
             cells = self._centre_cells(pts)
             self._centre_cell[ids] = cells
             np.add.at(self._dense, cells[cells >= 0], 1)
+            np.add.at(self._others, self._flat(self._cells(pts[cells < 0])), 1)
         if self.count > len(self._heads) // 2:
             self._rehash(1 << int(np.ceil(np.log2(4 * self.count))))
         else:
@@ -142,8 +146,10 @@ class PointIndex:
     def kill(self, ids) -> None:
         ids = np.unique(np.asarray(ids, dtype=np.int64))
         if self._dense is not None:
-            dying = ids[self.alive[ids] & (self._centre_cell[ids] >= 0)]
-            np.subtract.at(self._dense, self._centre_cell[dying], 1)
+            dying = ids[self.alive[ids]]
+            centred = self._centre_cell[dying] >= 0
+            np.subtract.at(self._dense, self._centre_cell[dying[centred]], 1)
+            np.subtract.at(self._others, self._flat(self._cells(self.points[dying[~centred]])), 1)
         self.alive[ids] = False
 
     def recell(self, cell: float) -> None:
@@ -179,6 +185,8 @@ class PointIndex:
             todo = np.flatnonzero(~hit)
             if len(todo) == 0:
                 return hit
+            if radius <= self.cell / 2 + 1e-12:
+                todo = self._settle_misses(rel, home, todo, r)
         if todo is None:
             todo = np.arange(len(q))
         self._scan(q, home[todo], todo, r, hit)
@@ -188,22 +196,50 @@ class PointIndex:
         lo = np.floor(rel[todo] - r / self.cell).astype(np.int64)
         hi = np.floor(rel[todo] + r / self.cell).astype(np.int64)
         home_t = home[todo]
-        # The other cells the query ball touches: per axis either the home cell or the one
-        # neighbour on the side the ball crosses.
-        side = np.where(lo < home_t, lo, hi)
+        # The other cells the query ball touches: per axis the home cell and, where the
+        # ball reaches over a face, the neighbour beyond it (both, for a query at a cell
+        # centre when r exceeds cell/2 by the tolerance).
+        reach_down, reach_up = lo < home_t, hi > home_t
+        both = (reach_down & reach_up).any(axis=1)
+        # regular queries: one neighbour per axis, on the side the ball crosses
+        side = np.where(reach_down, lo, hi)
         crosses = side != home_t
         for pattern in itertools.product((False, True), repeat=self.n):
             if not any(pattern):
                 continue
             pat = np.array(pattern)
-            sel = todo[(crosses[:, pat].all(axis=1)) & ~hit[todo]]
-            if len(sel) == 0:
+            rows = np.flatnonzero(~both & crosses[:, pat].all(axis=1) & ~hit[todo])
+            if len(rows):
+                cells = home_t[rows].copy()
+                cells[:, pat] = side[rows][:, pat]
+                self._scan(q, cells, todo[rows], r, hit)
+        # queries at a cell centre reach both neighbours of an axis (r = cell/2 + tolerance)
+        for offset in itertools.product((-1, 0, 1), repeat=self.n):
+            if not any(offset) or not both.any():
                 continue
-            rows = np.searchsorted(todo, sel)
-            cells = home_t[rows].copy()
-            cells[:, pat] = side[rows][:, pat]
-            self._scan(q, cells, sel, r, hit)
+            off = np.array(offset)
+            ok = ((off >= 0) | reach_down).all(axis=1) & ((off <= 0) | reach_up).all(axis=1)
+            rows = np.flatnonzero(both & ok & ~hit[todo])
+            if len(rows):
+                self._scan(q, home_t[rows] + off, todo[rows], r, hit)
         return hit
+
+    def _settle_misses(self, rel, home, todo, r) -> np.ndarray:
+        """Queries whose home cell has no alive centre point: with radius = cell/2, a
+        centre point of another cell is farther than r unless the query lies on a cell
+        face, so only off-centre points can cover them. Where no cell the ball touches
+        holds any, the answer is "no" without walking chains. Returns the undecided."""
+        rel_t = rel[todo]
+        frac = rel_t - home[todo]  # position inside the home cell, in [0, 1)
+        near = 1e-9 + TOLERANCE / self.cell
+        on_face = ((frac < near) | (frac > 1 - near)).any(axis=1)
+        lo = np.floor(rel_t - r / self.cell).astype(np.int64)
+        hi = np.floor(rel_t + r / self.cell).astype(np.int64)
+        crowded = (hi - lo >= 2).any(axis=1)  # reaches both neighbours: leave to the chains
+        for pattern in itertools.product((False, True), repeat=self.n):
+            crowded |= self._others[self._flat(np.where(pattern, hi, lo))] > 0
+        undecided = crowded | on_face | ((lo < -1) | (hi >= self._shape - 2)).any(axis=1)
+        return todo[undecided]
 
     def _scan(self, q, cells, sel, r, hit) -> None:
         """Walk the chains of ``cells`` (row i: the cell for query ``sel[i]``), setting ``hit``."""

@@ -79,8 +79,8 @@ class SPE:
         self._replay_states: list[np.ndarray] = []
         self._replay_parents: list[np.ndarray] = []
         self._replay_size = 0
-        self._priority: tuple[int, np.ndarray, np.ndarray] | None = None
         self._dist: tuple[np.ndarray, int, int] | None = None  # (distances, vertices, failures) seen
+        self._draw_cache: tuple | None = None
 
     # -- helpers --------------------------------------------------------------------------
     def _add_roots(self, centres: np.ndarray) -> None:
@@ -95,14 +95,9 @@ class SPE:
         """Prioritized sampling: rho_i ~ alpha(d* - d_i), d_i = d(sigma_i, PhiBar)."""
         if not self.settings.prioritized or self.failures.count == 0:
             return None
-        if self._priority is not None and self._priority[0] == self.version:
-            return self._priority[2]
         dist = self._failure_distances()[ids]
         weights = ALPHAS[self.settings.alpha](dist.max() - dist)
-        if not weights.sum() > 0:  # all equidistant: rho is uniform
-            weights = None
-        self._priority = (self.version, ids, weights)
-        return weights
+        return weights if weights.sum() > 0 else None  # all equidistant: rho is uniform
 
     def _failure_distances(self) -> np.ndarray:
         """d(sigma_i, PhiBar) for every vertex id, kept up to date incrementally: a new
@@ -152,18 +147,28 @@ class SPE:
         return f"start states uniform over {where}"
 
     # -- ask ----------------------------------------------------------------------------
-    def draw(self, streams: RunStreams) -> tuple[np.ndarray, np.ndarray]:
+    def _distribution(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """The sampling distribution of the state as it is now: candidate vertex ids and
+        their cumulative weights (None: uniform). Cached per state version: in the long
+        quiet stretches that end a round, many batches are drawn from one version."""
+        if self._draw_cache is not None and self._draw_cache[0] == self.version:
+            return self._draw_cache[1], self._draw_cache[2]
         ids = self.vertices.alive_ids()
         if len(ids) == 0:
             raise EmptySetError("the safe set is empty: every centre was pruned")
         if self.settings.boundary:
             ids = self._band(ids)
-        u = streams.uniform(0, PURPOSE_START, 1)[:, 0]
         weights = self._weights(ids)
-        if weights is None:
+        cdf = None if weights is None else np.cumsum(weights)
+        self._draw_cache = (self.version, ids, cdf)
+        return ids, cdf
+
+    def draw(self, streams: RunStreams) -> tuple[np.ndarray, np.ndarray]:
+        ids, cdf = self._distribution()
+        u = streams.uniform(0, PURPOSE_START, 1)[:, 0]
+        if cdf is None:
             pick = np.minimum((u * len(ids)).astype(np.int64), len(ids) - 1)
         else:
-            cdf = np.cumsum(weights)
             pick = np.minimum(np.searchsorted(cdf, u * cdf[-1], side="right"), len(ids) - 1)
         chosen = ids[pick]
         return self.vertices.points[chosen].copy(), chosen
@@ -288,8 +293,8 @@ class SPE:
         self._replay_states = [state["replay.states"]] if len(state["replay.states"]) else []
         self._replay_parents = [state["replay.parents"]] if len(state["replay.parents"]) else []
         self._replay_size = len(state["replay.states"])
-        self._priority = None
         self._dist = None
+        self._draw_cache = None
 
 
 class EmptySetError(RuntimeError):

@@ -54,3 +54,25 @@ def test_dense_fast_path_agrees_with_the_chains():
     dense.recell(1.0)
     plain.recell(1.0)
     np.testing.assert_array_equal(dense.any_within(q, 0.5), plain.any_within(q, 0.5))
+
+
+def test_dense_miss_path_on_faces_and_edges():
+    """Queries exactly on cell faces and at the grid's edges, with centre points killed
+    so that only neighbours and off-centre points can answer."""
+    from coordinator.covering import Lattice
+
+    rng = np.random.default_rng(5)
+    lo, hi = np.zeros(2), np.array([10.0, 6.0])
+    lat = Lattice.tiling(lo, hi, 0.5)
+    centres = lat.box_centres(0.5)
+    extra = np.concatenate([lo + (hi - lo) * rng.random((40, 2)), [[10.0, 6.0], [0.0, 0.0], [10.0 + 5e-10, 3.0]]])
+    doomed = rng.choice(len(centres), len(centres) // 2, replace=False)
+    dense = PointIndex(2, 1.0, lat.anchor, bounds=(lo, hi))
+    plain = PointIndex(2, 1.0, lat.anchor)
+    for idx in (dense, plain):
+        idx.insert(centres)
+        idx.insert(extra)
+        idx.kill(doomed)
+    faces = np.stack(np.meshgrid(np.arange(-1.0, 11.5, 0.5), np.arange(-1.0, 7.5, 0.5), indexing="ij"), -1)
+    q = np.concatenate([faces.reshape(-1, 2), lo - 0.5 + (hi - lo + 1) * rng.random((20000, 2))])
+    np.testing.assert_array_equal(dense.any_within(q, 0.5), plain.any_within(q, 0.5))
