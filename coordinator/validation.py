@@ -159,7 +159,7 @@ def counterexample(domain: Domain, batch, row: int, step: int, seed: int) -> dic
 
 
 def verdict_sentence(result: dict, p: ValidationPlan, *, epsilon: float, beta: float, delta: float, seed: int,
-                     action_description: str, adversarial: bool, domain: Domain) -> str:
+                     action_description: str, adversarial: bool) -> str:
     gamma = "Gamma* (the adversarial set, Definition 7)" if adversarial else "Gamma"
     if result["verdict"] == "counterexample":
         ce = result["counterexample"]

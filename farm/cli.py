@@ -58,7 +58,7 @@ def cmd_validate(args) -> int:
         executor.close()
     sentence = verdict_sentence(result, p, epsilon=v["epsilon"], beta=v["beta"], delta=v["delta"],
                                 seed=farm["seed"], action_description=policy.description,
-                                adversarial=cfg["actions"]["mode"] == "adversarial", domain=domain)
+                                adversarial=cfg["actions"]["mode"] == "adversarial")
     cert = {"verdict": result["verdict"], "statement": sentence, "algorithm": p.algorithm,
             "epsilon": v["epsilon"], "beta": v["beta"], "delta": v["delta"], "n_required": p.n_required,
             "n_run": result["n_run"], "runs_simulated": result["runs_simulated"],

@@ -169,7 +169,7 @@ def _did_you_mean(word: str, options) -> str:
     return f"; did you mean {close[0]!r}?" if close else f"; allowed: {', '.join(sorted(options))}"
 
 
-def normalize(raw: dict, sections: tuple[str, ...] | None = None) -> dict:
+def normalize(raw: dict) -> dict:
     """Check a raw config dict and fill defaults. Raises ConfigError (one line)."""
     if not isinstance(raw, dict):
         raise ConfigError("config: expected a TOML table at the top level")
