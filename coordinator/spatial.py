@@ -69,8 +69,15 @@ class PointIndex:
         np.add.at(self._others, self._flat(self._cells(self.points[off])), 1)
 
     def _flat(self, cells: np.ndarray) -> np.ndarray:
-        """Flat dense index of integer cells (clipped into the margin when outside)."""
-        return np.clip(cells + 1, 0, self._shape - 1) @ self._strides
+        """Flat dense index of integer cells (clipped into the margin when outside).
+        Per axis with 1-D operations: numpy has no fast integer matmul."""
+        flat = np.zeros(len(cells), dtype=np.int64)
+        for axis in range(self.n):
+            c = cells[:, axis] + 1
+            np.clip(c, 0, self._shape[axis] - 1, out=c)
+            c *= self._strides[axis]
+            flat += c
+        return flat
 
     def _centre_cells(self, pts: np.ndarray) -> np.ndarray:
         rel = (pts - self.origin) / self.cell
@@ -230,15 +237,22 @@ class PointIndex:
         face, so only off-centre points can cover them. Where no cell the ball touches
         holds any, the answer is "no" without walking chains. Returns the undecided."""
         rel_t = rel[todo]
-        frac = rel_t - home[todo]  # position inside the home cell, in [0, 1)
+        home_t = home[todo]
         near = 1e-9 + TOLERANCE / self.cell
-        on_face = ((frac < near) | (frac > 1 - near)).any(axis=1)
-        lo = np.floor(rel_t - r / self.cell).astype(np.int64)
-        hi = np.floor(rel_t + r / self.cell).astype(np.int64)
-        crowded = (hi - lo >= 2).any(axis=1)  # reaches both neighbours: leave to the chains
+        reach = r / self.cell
+        undecided = np.zeros(len(todo), dtype=bool)
+        lo = np.empty_like(home_t)
+        hi = np.empty_like(home_t)
+        for axis in range(self.n):  # 1-D per axis: reducing (k, n) masks over n is slow
+            x = rel_t[:, axis]
+            frac = x - home_t[:, axis]  # position inside the home cell, in [0, 1)
+            undecided |= (frac < near) | (frac > 1 - near)  # on a face: a centre may reach
+            lo[:, axis] = np.floor(x - reach)
+            hi[:, axis] = np.floor(x + reach)
+            undecided |= hi[:, axis] - lo[:, axis] >= 2  # reaches both neighbours
+            undecided |= (lo[:, axis] < -1) | (hi[:, axis] >= self._shape[axis] - 2)  # grid edge
         for pattern in itertools.product((False, True), repeat=self.n):
-            crowded |= self._others[self._flat(np.where(pattern, hi, lo))] > 0
-        undecided = crowded | on_face | ((lo < -1) | (hi >= self._shape - 2)).any(axis=1)
+            undecided |= self._others[self._flat(np.where(pattern, hi, lo))] > 0
         return todo[undecided]
 
     def _scan(self, q, cells, sel, r, hit) -> None:
@@ -250,8 +264,10 @@ class PointIndex:
             sel, cur = sel[live], cur[live]
             if len(sel) == 0:
                 break
-            d = np.abs(self.points[cur] - q[sel]).max(axis=1)
-            found = (d <= r) & self.alive[cur]
+            found = self.alive[cur]
+            for axis in range(self.n):  # 1-D per axis: reducing (k, n) over n is slow
+                found &= np.abs(self.points[cur, axis] - q[sel, axis]) <= r
+
             hit[sel[found]] = True
             keep = ~found
             sel, cur = sel[keep], self.next[cur[keep]]
