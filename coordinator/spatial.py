@@ -250,7 +250,9 @@ class PointIndex:
             lo[:, axis] = np.floor(x - reach)
             hi[:, axis] = np.floor(x + reach)
             undecided |= hi[:, axis] - lo[:, axis] >= 2  # reaches both neighbours
-            undecided |= (lo[:, axis] < -1) | (hi[:, axis] >= self._shape[axis] - 2)  # grid edge
+            # past the margin: the margin cells hold the counts of every point beyond the
+            # bounds (clipped there), so only a ball reaching further needs the chains
+            undecided |= (lo[:, axis] < -1) | (hi[:, axis] > self._shape[axis] - 2)
         for pattern in itertools.product((False, True), repeat=self.n):
             undecided |= self._others[self._flat(np.where(pattern, hi, lo))] > 0
         return todo[undecided]

@@ -65,7 +65,8 @@ def test_dense_miss_path_on_faces_and_edges():
     lo, hi = np.zeros(2), np.array([10.0, 6.0])
     lat = Lattice.tiling(lo, hi, 0.5)
     centres = lat.box_centres(0.5)
-    extra = np.concatenate([lo + (hi - lo) * rng.random((40, 2)), [[10.0, 6.0], [0.0, 0.0], [10.0 + 5e-10, 3.0]]])
+    extra = np.concatenate([lo + (hi - lo) * rng.random((40, 2)), [[10.0, 6.0], [0.0, 0.0], [10.0 + 5e-10, 3.0]],
+                            [[-3.2, -2.0], [13.0, 9.5], [12.4, 3.0]]])  # far outside: aliased into the margin
     doomed = rng.choice(len(centres), len(centres) // 2, replace=False)
     dense = PointIndex(2, 1.0, lat.anchor, bounds=(lo, hi))
     plain = PointIndex(2, 1.0, lat.anchor)
@@ -74,5 +75,6 @@ def test_dense_miss_path_on_faces_and_edges():
         idx.insert(extra)
         idx.kill(doomed)
     faces = np.stack(np.meshgrid(np.arange(-1.0, 11.5, 0.5), np.arange(-1.0, 7.5, 0.5), indexing="ij"), -1)
-    q = np.concatenate([faces.reshape(-1, 2), lo - 0.5 + (hi - lo + 1) * rng.random((20000, 2))])
+    q = np.concatenate([faces.reshape(-1, 2), lo - 0.5 + (hi - lo + 1) * rng.random((20000, 2)),
+                        lo - 4 + (hi - lo + 8) * rng.random((20000, 2))])
     np.testing.assert_array_equal(dense.any_within(q, 0.5), plain.any_within(q, 0.5))
