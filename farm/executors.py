@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from farm.memory import keep_freed_memory
 from farm.streams import RunStreams
 from scenarios import make_scenario
 from scenarios.actions import make_action_policy
@@ -33,6 +34,7 @@ class SimSpec:
 
 
 def build_simulator(spec: SimSpec):
+    keep_freed_memory()  # this process simulates batches from now on
     sc_cfg = spec.scenario
     scenario = make_scenario(sc_cfg["name"], backend=sc_cfg.get("backend", "numpy"),
                              sv_policy=sc_cfg.get("sv_policy", "idm"), disturbance=sc_cfg.get("disturbance", 0.0),

@@ -48,7 +48,23 @@ def mix64(z: np.ndarray) -> np.ndarray:
 
 def to_unit(z: np.ndarray) -> np.ndarray:
     """uint64 -> double in [0, 1) from the top 53 bits."""
-    return (z >> _S11).astype(np.float64) * (1.0 / 9007199254740992.0)
+    return (z >> _S11).astype(np.float64) * _UNIT
+
+
+_UNIT = 1.0 / 9007199254740992.0  # 2**-53
+
+
+def _mix64_inplace(z: np.ndarray, scratch: np.ndarray) -> None:
+    """``mix64`` in place, with one scratch array: the same values, without the five
+    temporaries a 1e5-row action draw would otherwise allocate every step."""
+    np.right_shift(z, _S30, out=scratch)
+    z ^= scratch
+    z *= _C1
+    np.right_shift(z, _S27, out=scratch)
+    z ^= scratch
+    z *= _C2
+    np.right_shift(z, _S31, out=scratch)
+    z ^= scratch
 
 
 @dataclass(frozen=True)
@@ -93,8 +109,12 @@ class RunStreams:
             raise ValueError(f"width must be in [1, {LANES}]")
         base = self._base(purpose)
         out = np.empty((len(base), width))
+        z, scratch = np.empty_like(base), np.empty_like(base)
         with np.errstate(over="ignore"):
             for lane in range(width):
                 step = np.uint64((counter * LANES + lane + 1) % 2**64) * _G
-                out[:, lane] = to_unit(mix64(base + step))
+                np.add(base, step, out=z)
+                _mix64_inplace(z, scratch)
+                z >>= _S11
+                np.multiply(z, _UNIT, out=out[:, lane])  # = to_unit: exact below 2**53
         return out

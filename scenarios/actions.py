@@ -32,7 +32,9 @@ class UniformActions(ActionPolicy):
 
     def __call__(self, scenario, states, t, streams):
         u = streams.uniform(t, PURPOSE_ACTION, scenario.m)
-        return scenario.action_lower + (scenario.action_upper - scenario.action_lower) * u
+        u *= scenario.action_upper - scenario.action_lower  # in place: runs every step
+        u += scenario.action_lower
+        return u
 
 
 @dataclass

@@ -20,6 +20,10 @@ CONTINUE, TRUNCATED, FAILURE, HORIZON = 0, 1, 2, 3
 OUTCOME_NAMES = {TRUNCATED: "truncated", FAILURE: "failure", HORIZON: "horizon"}
 
 
+class ScenarioError(RuntimeError):
+    """A scenario produced something no verdict can be drawn from (NaN, wrong shape)."""
+
+
 @dataclass(frozen=True)
 class Facet:
     """One facet of the box Sigma: ``state[axis] < bound`` (lower) or ``> bound`` (upper)."""
@@ -79,6 +83,8 @@ class Scenario(ABC):
         self.action_lower = np.asarray(self.action_lower, dtype=float)
         self.action_upper = np.asarray(self.action_upper, dtype=float)
         self.adversarial_actions = np.atleast_2d(np.asarray(self.adversarial_actions, dtype=float))
+        self._below = (self.lower - FACET_TOLERANCE).tolist()  # crossing thresholds
+        self._above = (self.upper + FACET_TOLERANCE).tolist()
         self._failure_mask_lower = np.zeros(self.n, dtype=bool)
         self._failure_mask_upper = np.zeros(self.n, dtype=bool)
         for f in names:
@@ -123,6 +129,21 @@ class Scenario(ABC):
         ``noise`` is ``None`` (no disturbance) or a (B, noise_width) array of U[0,1)
         draws from each run's own stream, to be mapped onto the disturbance bound."""
 
+    def step_into(self, states: np.ndarray, actions: np.ndarray, noise: np.ndarray | None,
+                  out: np.ndarray) -> None:
+        """``step`` written into ``out`` (n, B), the next states as rows: the run loop
+        hands in a slab of its trajectory store. Scenarios of this package override it
+        (and define ``step`` through it) to skip a copy of every state."""
+        nxt = np.asarray(self.step(states, actions, noise))
+        if nxt.shape != states.shape:
+            raise ScenarioError(f"scenario {self.name!r} step returned shape {nxt.shape}, expected {states.shape}")
+        out[...] = nxt.T
+
+    def _step_via_into(self, states, actions, noise) -> np.ndarray:
+        out = np.empty((self.n, len(states)))
+        self.step_into(states, actions, noise, out)
+        return out.T
+
     noise_width: int = 0  # how many U[0,1) draws per step the disturbance needs
 
     # -- classification --------------------------------------------------------------------
@@ -135,17 +156,16 @@ class Scenario(ABC):
         failed = np.zeros(len(states), dtype=bool)
         for axis in range(states.shape[1]):
             column = states[:, axis]
-            below = column < self.lower[axis] - FACET_TOLERANCE
-            above = column > self.upper[axis] + FACET_TOLERANCE
+            below = column < self._below[axis]
+            above = column > self._above[axis]
             left |= below
             left |= above
             if self._failure_mask_lower[axis]:
                 failed |= below
             if self._failure_mask_upper[axis]:
                 failed |= above
-        out = left.astype(np.int8)  # TRUNCATED == 1
-        out[failed] = FAILURE
-        return out
+        # a failure also left Sigma, so left + failed is 0, 1 (TRUNCATED) or 2 (FAILURE)
+        return np.add(left, failed, dtype=np.int8)
 
     def describe(self) -> dict:
         return {

@@ -31,6 +31,9 @@ class Fleet3(Scenario):
         self._policy = lookup_sv_policy(sv_policy)
 
     def step(self, states, actions, noise):
+        return self._step_via_into(states, actions, noise)
+
+    def step_into(self, states, actions, noise, out):
         v0, v1, v2 = states[:, 0], states[:, 1], states[:, 2]
         p10, p20 = states[:, 3], states[:, 4]
         a0 = self._policy(v0, v1, p10 - VEHICLE_LENGTH)  # the SV sees the lead only
@@ -39,15 +42,13 @@ class Fleet3(Scenario):
             a0 = disturb(a0, noise[:, 0], self.disturbance)
             a1 = disturb(a1, noise[:, 1], self.disturbance)
             a2 = disturb(a2, noise[:, 2], self.disturbance)
-        nxt = np.empty((5, len(states)))  # rows written in place; returned as a (B, 5) view
-        _, x0 = advance(v0, a0, self.dt, out=nxt[0])
-        _, x1 = advance(v1, a1, self.dt, out=nxt[1])
-        _, x2 = advance(v2, a2, self.dt, out=nxt[2])
-        np.subtract(x1, x0, out=nxt[3])
-        nxt[3] += p10
-        np.subtract(x2, x0, out=nxt[4])
-        nxt[4] += p20
-        return nxt.T
+        _, x0 = advance(v0, a0, self.dt, out=out[0])
+        _, x1 = advance(v1, a1, self.dt, out=out[1])
+        _, x2 = advance(v2, a2, self.dt, out=out[2])
+        np.subtract(x1, x0, out=out[3])
+        out[3] += p10
+        np.subtract(x2, x0, out=out[4])
+        out[4] += p20
 
     def step_bound(self) -> float:
         a_max = max(abs(BRAKE_ACCEL), 7.0) + self.disturbance

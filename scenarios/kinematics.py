@@ -14,16 +14,26 @@ def advance(speed: np.ndarray, accel: np.ndarray, dt: float,
     """One step for a batch of vehicles: speed [m/s], accel [m/s^2] -> (new speed,
     distance travelled [m]). If ``v + a*dt >= 0``: ``v' = v + a*dt``, ``x = v*dt +
     a*dt^2/2`` (= (v + v') dt / 2); else the vehicle stops inside the step: ``v' = 0``,
-    ``x = v^2/(2|a|)``. ``out`` receives the new speed (a row of the next state)."""
+    ``x = v^2/(2|a|)``. ``out`` receives the new speed (a row of the next state).
+
+    Branch-free, so that a row's result never depends on its batch-mates: with
+    ``v' = max(v + a*dt, 0)``, ``x = min((v + v') dt/2, v^2 / (2 max(-a, 0)))``. The
+    second term is the distance to standstill, which is the smaller exactly when the
+    vehicle stops inside the step (the braking parabola peaks before ``dt``) and is
+    +inf or NaN (ignored by ``fmin``) for a vehicle that does not brake."""
     new_speed = np.multiply(accel, dt, out=out)
     new_speed += speed
+    # np.clip with both bounds: numpy's maximum against a scalar is ~2.5x slower
+    np.clip(new_speed, 0.0, np.inf, out=new_speed)
     distance = speed + new_speed
     distance *= 0.5 * dt
-    stops = np.flatnonzero(new_speed < 0.0)  # one scan; the few stopped rows by index
-    if len(stops):
-        v, a = speed[stops], np.broadcast_to(accel, speed.shape)[stops]
-        distance[stops] = v * v / (2.0 * np.abs(a))
-        new_speed[stops] = 0.0
+    to_standstill = speed * speed
+    twice_decel = np.clip(accel, -np.inf, 0.0)
+    np.abs(twice_decel, out=twice_decel)  # max(-a, 0) as +0.0, never -0.0 (x/-0 = -inf)
+    twice_decel *= 2.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        to_standstill /= twice_decel
+    np.fmin(distance, to_standstill, out=distance)
     return new_speed, distance
 
 

@@ -29,18 +29,19 @@ class LeadFollow(Scenario):
         self._policy = lookup_sv_policy(sv_policy)
 
     def step(self, states, actions, noise):
+        return self._step_via_into(states, actions, noise)
+
+    def step_into(self, states, actions, noise, out):
         v0, v1, p10 = states[:, 0], states[:, 1], states[:, 2]
         a0 = self._policy(v0, v1, p10)
         a1 = actions[:, 0]
         if noise is not None:
             a0 = disturb(a0, noise[:, 0], self.disturbance)
             a1 = disturb(a1, noise[:, 1], self.disturbance)
-        nxt = np.empty((3, len(states)))  # rows written in place; returned as a (B, 3) view
-        _, x0 = advance(v0, a0, self.dt, out=nxt[0])
-        _, x1 = advance(v1, a1, self.dt, out=nxt[1])
-        np.subtract(x1, x0, out=nxt[2])
-        nxt[2] += p10
-        return nxt.T
+        _, x0 = advance(v0, a0, self.dt, out=out[0])
+        _, x1 = advance(v1, a1, self.dt, out=out[1])
+        np.subtract(x1, x0, out=out[2])
+        out[2] += p10
 
     def step_bound(self) -> float:
         a_max = max(abs(BRAKE_ACCEL), 5.0, 3.0) + self.disturbance

@@ -14,11 +14,7 @@ import numpy as np
 
 from farm.streams import PURPOSE_DISTURBANCE, RunStreams
 from scenarios.actions import ActionPolicy
-from scenarios.base import CONTINUE, FAILURE, HORIZON, Scenario
-
-
-class ScenarioError(RuntimeError):
-    """A scenario produced something no verdict can be drawn from (NaN, wrong shape)."""
+from scenarios.base import CONTINUE, FAILURE, HORIZON, Scenario, ScenarioError
 
 
 @dataclass
@@ -91,16 +87,17 @@ def run_scenario(
     for t in range(1, horizon):
         actions = policy(scenario, states, t, row_streams)
         noise = row_streams.uniform(t, PURPOSE_DISTURBANCE, scenario.noise_width) if disturbed else None
-        nxt = scenario.step(states, actions, noise)
-        if nxt.shape != states.shape:
-            raise ScenarioError(f"scenario {scenario.name!r} step returned shape {nxt.shape}, expected {states.shape}")
+        # all rows stepped: straight into the store; after compaction: scattered there
+        slab = store[t] if full else np.empty((n, len(rows)))
+        scenario.step_into(states, actions, noise, slab)
+        nxt = slab.T
         status = scenario.classify(nxt)
-        if full:
-            store[t] = nxt.T
-        else:
-            store[t][:, rows] = nxt.T
+        if not full:
+            store[t][:, rows] = slab
         ended = running & (status != CONTINUE)
-        if not np.isfinite(nxt).all():  # one reduction; the per-row search only on error
+        # one pass: a sum is finite iff every term is (or it overflowed, which the exact
+        # per-row check below then clears); the per-row search only on error
+        if not np.isfinite(np.add.reduce(slab, axis=None)):
             bad = ~np.isfinite(nxt).all(axis=1) & running
             if bad.any():
                 _raise_bad_state(scenario, nxt, rows, bad, streams, starts, t)
@@ -115,7 +112,9 @@ def run_scenario(
             # Ended rows keep being stepped (cheaper than a gather every step) until they
             # are a quarter of the rows: then compact.
             if alive < 0.75 * len(rows):
-                rows, nxt = rows[running], nxt[running]
+                # gathered as (n, k) rows, so that the states stay column-contiguous: a
+                # row-major (k, n) gather would make every later column op strided
+                rows, nxt = rows[running], np.compress(running, nxt.T, axis=1).T
                 row_streams = row_streams.subset(running)
                 running = np.ones(len(rows), dtype=bool)
                 full = False
