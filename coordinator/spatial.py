@@ -12,7 +12,10 @@ removal is a flag (chains are rebuilt when the table grows or the cell size chan
 Fast path: when the index is given ``bounds`` and the cells over them number at most
 ``DENSE_LIMIT``, a dense array counts the alive points sitting exactly at each cell's
 centre. Such a point covers its whole cell, so a query in that cell is answered by one
-array lookup; only the rest walk the hash chains.
+array lookup. A query whose home cell has no such point can only be covered by an
+off-centre point (unless it sits on a cell face): those are chained per dense cell too,
+so it walks at most the 2^n cells its ball touches, off-centre points only. The rest
+(faces, balls past the grid's margin) walk the hash chains.
 """
 
 from __future__ import annotations
@@ -45,6 +48,7 @@ class PointIndex:
         self.bounds = None if bounds is None else (np.asarray(bounds[0], float), np.asarray(bounds[1], float))
         self._dense = None
         self._centre_cell = np.full(capacity, -1, dtype=np.int64)  # flat dense cell if at a centre
+        self._off_next = np.full(capacity, -1, dtype=np.int64)  # off-centre chains (dense)
         self._build_dense()
 
     # -- dense fast path --------------------------------------------------------------------
@@ -61,23 +65,30 @@ class PointIndex:
         self._strides = np.cumprod(np.concatenate([shape[1:], [1]])[::-1])[::-1].astype(np.int64)
         self._dense = np.zeros(int(np.prod(shape)), dtype=np.int32)
         self._others = np.zeros(int(np.prod(shape)), dtype=np.int32)  # off-centre points per cell
+        self._off_head = np.full(int(np.prod(shape)), -1, dtype=np.int64)  # their chains
         ids = np.arange(self.count)
         self._centre_cell[: self.count] = self._centre_cells(self.points[: self.count])
         live = ids[self.alive[: self.count] & (self._centre_cell[: self.count] >= 0)]
         np.add.at(self._dense, self._centre_cell[live], 1)
         off = ids[self.alive[: self.count] & (self._centre_cell[: self.count] < 0)]
-        np.add.at(self._others, self._flat(self._cells(self.points[off])), 1)
+        off_cells = self._flat(self._cells(self.points[off]))
+        np.add.at(self._others, off_cells, 1)
+        self._push(off, off_cells, self._off_head, self._off_next)
 
     def _flat(self, cells: np.ndarray) -> np.ndarray:
         """Flat dense index of integer cells (clipped into the margin when outside).
         Per axis with 1-D operations: numpy has no fast integer matmul."""
-        flat = np.zeros(len(cells), dtype=np.int64)
-        for axis in range(self.n):
-            c = cells[:, axis] + 1
-            np.clip(c, 0, self._shape[axis] - 1, out=c)
-            c *= self._strides[axis]
-            flat += c
+        flat = self._axis_flat(cells[:, 0], 0)
+        for axis in range(1, self.n):
+            flat += self._axis_flat(cells[:, axis], axis)
         return flat
+
+    def _axis_flat(self, cells: np.ndarray, axis: int) -> np.ndarray:
+        """One axis's part of the flat dense index (the cell clipped into the margin)."""
+        part = cells + 1
+        np.clip(part, 0, self._shape[axis] - 1, out=part)
+        part *= self._strides[axis]
+        return part
 
     def _centre_cells(self, pts: np.ndarray) -> np.ndarray:
         rel = (pts - self.origin) / self.cell
@@ -101,23 +112,28 @@ class PointIndex:
         return (h & np.uint64(len(self._heads) - 1)).astype(np.int64)
 
     def _link(self, ids: np.ndarray) -> None:
-        """Push points ``ids`` onto the chains of their buckets (vectorized)."""
+        """Push points ``ids`` onto the chains of their hash buckets."""
+        if len(ids):
+            self._push(ids, self._bucket(self._cells(self.points[ids])), self._heads, self.next)
+
+    @staticmethod
+    def _push(ids: np.ndarray, keys: np.ndarray, heads: np.ndarray, links: np.ndarray) -> None:
+        """Push points ``ids`` onto the chains ``heads[keys]`` (vectorized)."""
         if len(ids) == 0:
             return
-        buckets = self._bucket(self._cells(self.points[ids]))
-        order = np.argsort(buckets, kind="stable")
-        ids, buckets = ids[order], buckets[order]
+        order = np.argsort(keys, kind="stable")
+        ids, keys = ids[order], keys[order]
         first = np.ones(len(ids), dtype=bool)
-        first[1:] = buckets[1:] != buckets[:-1]
-        # within a bucket group, each point links to the previous one; the first links
+        first[1:] = keys[1:] != keys[:-1]
+        # within a key group, each point links to the previous one; the first links
         # to the old head; the last becomes the new head
         prev = np.empty(len(ids), dtype=np.int64)
         prev[1:] = ids[:-1]
-        prev[first] = self._heads[buckets[first]]
-        self.next[ids] = prev
+        prev[first] = heads[keys[first]]
+        links[ids] = prev
         last = np.ones(len(ids), dtype=bool)
-        last[:-1] = buckets[:-1] != buckets[1:]
-        self._heads[buckets[last]] = ids[last]
+        last[:-1] = keys[:-1] != keys[1:]
+        heads[keys[last]] = ids[last]
 
     def _rehash(self, buckets: int) -> None:
         self._heads = np.full(buckets, -1, dtype=np.int64)
@@ -135,6 +151,8 @@ class PointIndex:
             self.next = np.concatenate([self.next, np.full(cap - len(self.next), -1, dtype=np.int64)])
             self._centre_cell = np.concatenate([self._centre_cell, np.full(cap - len(self._centre_cell), -1,
                                                                             dtype=np.int64)])
+            self._off_next = np.concatenate([self._off_next, np.full(cap - len(self._off_next), -1,
+                                                                      dtype=np.int64)])
         ids = np.arange(self.count, self.count + k)
         self.points[ids] = pts
         self.alive[ids] = True
@@ -143,7 +161,10 @@ class PointIndex:
             cells = self._centre_cells(pts)
             self._centre_cell[ids] = cells
             np.add.at(self._dense, cells[cells >= 0], 1)
-            np.add.at(self._others, self._flat(self._cells(pts[cells < 0])), 1)
+            off = cells < 0
+            off_cells = self._flat(self._cells(pts[off]))
+            np.add.at(self._others, off_cells, 1)
+            self._push(ids[off], off_cells, self._off_head, self._off_next)
         if self.count > len(self._heads) // 2:
             self._rehash(1 << int(np.ceil(np.log2(4 * self.count))))
         else:
@@ -193,7 +214,9 @@ class PointIndex:
             if len(todo) == 0:
                 return hit
             if radius <= self.cell / 2 + 1e-12:
-                todo = self._settle_misses(rel, home, todo, r)
+                todo = self._settle_misses(q, rel, home, todo, r, hit)
+                if len(todo) == 0:
+                    return hit
         if todo is None:
             todo = np.arange(len(q))
         self._scan(q, home[todo], todo, r, hit)
@@ -231,36 +254,70 @@ class PointIndex:
                 self._scan(q, home_t[rows] + off, todo[rows], r, hit)
         return hit
 
-    def _settle_misses(self, rel, home, todo, r) -> np.ndarray:
-        """Queries whose home cell has no alive centre point: with radius = cell/2, a
-        centre point of another cell is farther than r unless the query lies on a cell
-        face, so only off-centre points can cover them. Where no cell the ball touches
-        holds any, the answer is "no" without walking chains. Returns the undecided."""
+    def _settle_misses(self, q, rel, home, todo, r, hit) -> np.ndarray:
+        """Queries whose home cell has no alive centre point, radius = cell/2. The ball
+        touches 2 cells per axis; a centre point of another cell can reach the query
+        only across a face the query lies on. Where no such cell holds a centre point,
+        only off-centre points can cover the query: walk their per-cell chains in the
+        touched cells (none where those cells hold none). Sets ``hit``; returns the
+        queries left for the hash chains: on a face next to an alive centre, reaching
+        over both neighbours of an axis, or past the grid's margin."""
         rel_t = rel[todo]
         home_t = home[todo]
         near = 1e-9 + TOLERANCE / self.cell
         reach = r / self.cell
-        undecided = np.zeros(len(todo), dtype=bool)
-        lo = np.empty_like(home_t)
-        hi = np.empty_like(home_t)
+        general = np.zeros(len(todo), dtype=bool)
+        on_face = np.zeros(len(todo), dtype=bool)
+        flat_parts = []  # per axis: flat-index parts of the lower and the upper cell
+        sides = []  # per axis: for the lower and the upper cell, (is home, across a face the query is on)
         for axis in range(self.n):  # 1-D per axis: reducing (k, n) masks over n is slow
             x = rel_t[:, axis]
-            frac = x - home_t[:, axis]  # position inside the home cell, in [0, 1)
-            undecided |= (frac < near) | (frac > 1 - near)  # on a face: a centre may reach
-            lo[:, axis] = np.floor(x - reach)
-            hi[:, axis] = np.floor(x + reach)
-            undecided |= hi[:, axis] - lo[:, axis] >= 2  # reaches both neighbours
+            h = home_t[:, axis]
+            frac = x - h  # position inside the home cell, in [0, 1)
+            lo = np.floor(x - reach).astype(np.int64)
+            hi = np.floor(x + reach).astype(np.int64)
+            general |= hi - lo >= 2  # reaches both neighbours
             # past the margin: the margin cells hold the counts of every point beyond the
             # bounds (clipped there), so only a ball reaching further needs the chains
-            undecided |= (lo[:, axis] < -1) | (hi[:, axis] > self._shape[axis] - 2)
-        for pattern in itertools.product((False, True), repeat=self.n):
-            undecided |= self._others[self._flat(np.where(pattern, hi, lo))] > 0
-        return todo[undecided]
+            general |= (lo < -1) | (hi > self._shape[axis] - 2)
+            on_lo, on_hi = frac < near, frac > 1 - near
+            on_face |= on_lo | on_hi
+            sides.append(((lo == h, on_lo), (hi == h, on_hi)))
+            flat_parts.append((self._axis_flat(lo, axis), self._axis_flat(hi, axis)))
+        patterns = list(itertools.product((0, 1), repeat=self.n))
+        flats = []
+        for pattern in patterns:
+            flat = flat_parts[0][pattern[0]].copy()
+            for axis in range(1, self.n):
+                flat += flat_parts[axis][pattern[axis]]
+            flats.append(flat)
+        face_rows = np.flatnonzero(on_face & ~general)
+        for pattern, flat in zip(patterns, flats):  # the rare queries on a face
+            if len(face_rows) == 0:
+                break
+            reached = np.ones(len(face_rows), dtype=bool)  # every move crosses a face it is on
+            moved = np.zeros(len(face_rows), dtype=bool)
+            for axis, side in enumerate(pattern):
+                is_home, across = sides[axis][side]
+                reached &= is_home[face_rows] | across[face_rows]
+                moved |= ~is_home[face_rows]
+            general[face_rows] |= reached & moved & (self._dense[flat[face_rows]] > 0)
+        simple = np.flatnonzero(~general)
+        sel_parts, cur_parts = [], []
+        for flat in flats:
+            rows = simple[self._others[flat[simple]] > 0]
+            sel_parts.append(rows)
+            cur_parts.append(self._off_head[flat[rows]])
+        self._walk(q, todo[np.concatenate(sel_parts)], np.concatenate(cur_parts), r, hit, self._off_next)
+        return todo[general]
 
     def _scan(self, q, cells, sel, r, hit) -> None:
-        """Walk the chains of ``cells`` (row i: the cell for query ``sel[i]``), setting ``hit``."""
-        cur = self._heads[self._bucket(cells)]
-        sel = sel.copy()
+        """Walk the hash chains of ``cells`` (row i: the cell for query ``sel[i]``), setting ``hit``."""
+        self._walk(q, sel, self._heads[self._bucket(cells)], r, hit, self.next)
+
+    def _walk(self, q, sel, cur, r, hit, links) -> None:
+        """Walk chains from points ``cur`` (row i for query ``sel[i]``) along ``links``,
+        setting ``hit`` where an alive point lies within ``r``."""
         while len(sel):
             live = cur >= 0
             sel, cur = sel[live], cur[live]
@@ -269,10 +326,9 @@ class PointIndex:
             found = self.alive[cur]
             for axis in range(self.n):  # 1-D per axis: reducing (k, n) over n is slow
                 found &= np.abs(self.points[cur, axis] - q[sel, axis]) <= r
-
             hit[sel[found]] = True
-            keep = ~found
-            sel, cur = sel[keep], self.next[cur[keep]]
+            keep = ~hit[sel]  # a query found through another cell stops walking too
+            sel, cur = sel[keep], links[cur[keep]]
 
     # -- persistence (plain arrays, no pickle) -------------------------------------------
     def state(self) -> dict:

@@ -114,8 +114,16 @@ class SPE:
                 d_new, _ = cKDTree(new_f).query(pts[:seen_v], p=np.inf)
                 np.minimum(dist[:seen_v], d_new, out=dist[:seen_v])
             else:
-                for f in new_f:
-                    np.minimum(dist[:seen_v], np.abs(pts[:seen_v] - f).max(axis=1), out=dist[:seen_v])
+                columns = [np.ascontiguousarray(pts[:seen_v, axis]) for axis in range(pts.shape[1])]
+                gap, axis_gap = np.empty(seen_v), np.empty(seen_v)
+                for f in new_f:  # l-inf distance per axis: a (V, n) max over n is ~5x slower
+                    np.subtract(columns[0], f[0], out=gap)
+                    np.abs(gap, out=gap)
+                    for axis in range(1, len(columns)):
+                        np.subtract(columns[axis], f[axis], out=axis_gap)
+                        np.abs(axis_gap, out=axis_gap)
+                        np.maximum(gap, axis_gap, out=gap)
+                    np.minimum(dist[:seen_v], gap, out=dist[:seen_v])
         if nv > seen_v:
             d_new, _ = cKDTree(fails[:nf]).query(pts[seen_v:nv], p=np.inf)
             dist = np.concatenate([dist[:seen_v], d_new])

@@ -218,10 +218,12 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     from coordinator.domain import DomainError
     from farm.config import ConfigError
+    from farm.memory import keep_freed_memory
     from farm.storage import CampaignError
 
     parser = build_parser()
     args = parser.parse_args(argv)
+    keep_freed_memory()  # the coordinator's batch queries allocate like a simulator's steps
     try:
         return args.func(args)
     except (ConfigError, DomainError, CampaignError, FileExistsError) as exc:

@@ -78,3 +78,32 @@ def test_dense_miss_path_on_faces_and_edges():
     q = np.concatenate([faces.reshape(-1, 2), lo - 0.5 + (hi - lo + 1) * rng.random((20000, 2)),
                         lo - 4 + (hi - lo + 8) * rng.random((20000, 2))])
     np.testing.assert_array_equal(dense.any_within(q, 0.5), plain.any_within(q, 0.5))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_dense_paths_match_brute_force_near_faces_and_tolerances(seed):
+    """Aligned lattice (faces on Sigma's bounds, as in SPE at delta = 2, 1, 0.5, ...),
+    centres killed at random, off-centre points on faces, corners and a hair off them,
+    queries likewise: the dense index answers exactly as a brute-force l-inf check."""
+    from coordinator.covering import Lattice
+
+    rng = np.random.default_rng(seed)
+    lo, hi = np.zeros(3), np.array([4.0, 4.0, 6.0])
+    lat = Lattice.tiling(lo, hi, 0.5)
+    centres = lat.box_centres(0.5)
+    grid = np.round(lo + (hi - lo) * rng.random((400, 3)))  # lattice corners and faces
+    hair = rng.choice([-2e-9, -1e-9, -5e-10, 0.0, 5e-10, 1e-9, 2e-9], size=(400, 3))
+    off = np.concatenate([grid + hair, lo + (hi - lo) * rng.random((60, 3))])
+    dense = PointIndex(3, 1.0, lat.anchor, bounds=(lo, hi))
+    dense.insert(centres)
+    dense.insert(off[:230])
+    dense.kill(rng.choice(len(centres), len(centres) // 3, replace=False))
+    dense.insert(off[230:])
+    pts = dense.points[: dense.count][dense.alive[: dense.count]]
+    q = np.concatenate([
+        np.round(lo - 1 + (hi - lo + 2) * rng.random((3000, 3)) * 2) / 2,  # faces, centres
+        np.round(lo + (hi - lo) * rng.random((3000, 3))) + rng.choice([-2e-9, -1e-9, 0.0, 1e-9, 2e-9], (3000, 3)),
+        lo - 0.5 + (hi - lo + 1) * rng.random((6000, 3)),
+    ])
+    brute = (np.abs(q[:, None, :] - pts[None, :, :]).max(axis=2) <= 0.5 + 1e-9).any(axis=1)
+    np.testing.assert_array_equal(dense.any_within(q, 0.5), brute)
