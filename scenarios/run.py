@@ -17,6 +17,10 @@ from scenarios.actions import ActionPolicy
 from scenarios.base import CONTINUE, FAILURE, HORIZON, Scenario, ScenarioError
 
 
+# Compact the stepped rows once fewer than this share of them still run.
+COMPACT_BELOW = 0.75
+
+
 @dataclass
 class RunBatch:
     """Results of a batch of runs.
@@ -110,8 +114,8 @@ def run_scenario(
             if alive == 0:
                 break
             # Ended rows keep being stepped (cheaper than a gather every step) until they
-            # are a quarter of the rows: then compact.
-            if alive < 0.75 * len(rows):
+            # are a share of the rows: then compact.
+            if alive < COMPACT_BELOW * len(rows):
                 # gathered as (n, k) rows, so that the states stay column-contiguous: a
                 # row-major (k, n) gather would make every later column op strided
                 rows, nxt = rows[running], np.compress(running, nxt.T, axis=1).T
