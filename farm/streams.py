@@ -46,12 +46,7 @@ def mix64(z: np.ndarray) -> np.ndarray:
     return z
 
 
-def to_unit(z: np.ndarray) -> np.ndarray:
-    """uint64 -> double in [0, 1) from the top 53 bits."""
-    return (z >> _S11).astype(np.float64) * _UNIT
-
-
-_UNIT = 1.0 / 9007199254740992.0  # 2**-53
+_UNIT = 1.0 / 9007199254740992.0  # 2**-53: a draw is its top 53 bits times this
 
 
 def _mix64_inplace(z: np.ndarray, scratch: np.ndarray) -> None:
@@ -116,5 +111,5 @@ class RunStreams:
                 np.add(base, step, out=z)
                 _mix64_inplace(z, scratch)
                 z >>= _S11
-                np.multiply(z, _UNIT, out=out[:, lane])  # = to_unit: exact below 2**53
+                np.multiply(z, _UNIT, out=out[:, lane])  # uint64 -> double: exact below 2**53
         return out

@@ -20,7 +20,10 @@ def advance(speed: np.ndarray, accel: np.ndarray, dt: float,
     ``v' = max(v + a*dt, 0)``, ``x = min((v + v') dt/2, v^2 / (2 max(-a, 0)))``. The
     second term is the distance to standstill, which is the smaller exactly when the
     vehicle stops inside the step (the braking parabola peaks before ``dt``) and is
-    +inf or NaN (ignored by ``fmin``) for a vehicle that does not brake."""
+    +inf or NaN (ignored by ``fmin``) for a vehicle that does not brake. (Only a braking
+    acceleration below ~1e-150 m/s^2 with a speed below ~1e-154 m/s, where v^2
+    underflows, would pick the wrong term; accelerations here are differences of O(1)
+    numbers, never that small unless exactly 0.)"""
     new_speed = np.multiply(accel, dt, out=out)
     new_speed += speed
     # np.clip with both bounds: numpy's maximum against a scalar is ~2.5x slower

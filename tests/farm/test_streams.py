@@ -30,3 +30,17 @@ def test_same_stream_in_a_fresh_process():
             "print(repr(RunStreams.of(123, [5, 2**40]).uniform(9, 2, 3).tolist()))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert eval(out) == RunStreams.of(123, [5, 2**40]).uniform(9, 2, 3).tolist()
+
+
+def test_draws_follow_the_documented_formula():
+    """draw(counter, lane) = top 53 bits of mix(base + (counter * LANES + lane + 1) * G),
+    whatever in-place arithmetic computes it."""
+    from farm.streams import _G, LANES, mix64
+
+    s = RunStreams.of(11, np.array([0, 3, 2**33, 2**63 + 5], dtype=np.uint64))
+    u = s.uniform(7, PURPOSE_ACTION, 3)
+    base = s._base(PURPOSE_ACTION)
+    with np.errstate(over="ignore"):
+        for lane in range(3):
+            z = mix64(base + np.uint64(7 * LANES + lane + 1) * _G)
+            np.testing.assert_array_equal(u[:, lane], (z >> np.uint64(11)).astype(np.float64) / 2.0**53)

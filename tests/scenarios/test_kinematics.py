@@ -61,3 +61,37 @@ def test_disturbance_is_bounded_and_drawn_per_vehicle():
     assert dv0.min() >= -10.5 - 1e-9 and dv0.max() <= -9.5 + 1e-9
     assert dv1.min() >= -0.5 - 1e-9 and dv1.max() <= 0.5 + 1e-9
     assert abs(np.corrcoef(dv0, dv1)[0, 1]) < 0.1
+
+
+def _spec_advance(v, a, dt):
+    """The spec's two cases, row by row in plain Python floats."""
+    out_v, out_x = [], []
+    for vi, ai in zip(v.tolist(), a.tolist()):
+        if vi + ai * dt >= 0:
+            out_v.append(vi + ai * dt)
+            out_x.append((vi + (vi + ai * dt)) * (0.5 * dt))
+        else:
+            out_v.append(0.0)
+            out_x.append(vi * vi / (2.0 * abs(ai)))
+    return np.array(out_v), np.array(out_x)
+
+
+def test_branch_free_step_is_the_spec_formula_bit_for_bit():
+    rng = np.random.default_rng(5)
+    v = np.concatenate([rng.random(20000) * 20, np.zeros(6), [0.5, 0.5, 1.0, 2.0, 1e-300, 3.0]])
+    a = np.concatenate([rng.random(20000) * 8 - 5, [0.0, -0.0, 3.0, -5.0, -10.0, 1e-300],
+                        [-5.0, -4.999999999, -10.0, -20.0, -5.0, 0.0]])  # stop boundary v = -a dt
+    speed, dist = advance(v, a, 0.1)
+    ref_speed, ref_dist = _spec_advance(v, a, 0.1)
+    np.testing.assert_array_equal(speed, ref_speed)
+    np.testing.assert_array_equal(dist, ref_dist)
+    # a row's result does not depend on its batch-mates (all stopping or none)
+    alone = advance(v[:1], a[:1], 0.1)
+    assert alone[0][0] == speed[0] and alone[1][0] == dist[0]
+
+
+def test_idm_contact_is_exactly_full_braking_without_dividing_by_zero():
+    gaps = np.array([0.0, -0.0, -3.0, 5e-324, 1e-310, 1e-300, 1e-3])
+    with np.errstate(all="raise"):  # no division by zero, no invalid operation escapes
+        accel = idm(np.full(7, 20.0), np.zeros(7), gaps)
+    assert accel.tolist() == [-4.67] * 7
