@@ -13,9 +13,10 @@ Fast path: when the index is given ``bounds`` and the cells over them number at 
 ``DENSE_LIMIT``, a dense array counts the alive points sitting exactly at each cell's
 centre. Such a point covers its whole cell, so a query in that cell is answered by one
 array lookup. A query whose home cell has no such point can only be covered by an
-off-centre point (unless it sits on a cell face): those are chained per dense cell too,
-so it walks at most the 2^n cells its ball touches, off-centre points only. The rest
-(faces, balls past the grid's margin) walk the hash chains.
+off-centre point (unless it sits on a cell face next to an alive centre): those are
+chained per dense cell too, so it walks at most the 2^n cells its ball touches,
+off-centre points only. The rest (faces next to an alive centre, balls reaching over
+both neighbours of an axis or past the grid's margin) walk the hash chains.
 """
 
 from __future__ import annotations
