@@ -292,10 +292,8 @@ class PointIndex:
             for axis in range(1, self.n):
                 flat += flat_parts[axis][pattern[axis]]
             flats.append(flat)
-        face_rows = np.flatnonzero(on_face & ~general)
-        for pattern, flat in zip(patterns, flats):  # the rare queries on a face
-            if len(face_rows) == 0:
-                break
+        face_rows = np.flatnonzero(on_face & ~general)  # rare: queries on a face
+        for pattern, flat in zip(patterns, flats) if len(face_rows) else ():
             reached = np.ones(len(face_rows), dtype=bool)  # every move crosses a face it is on
             moved = np.zeros(len(face_rows), dtype=bool)
             for axis, side in enumerate(pattern):
