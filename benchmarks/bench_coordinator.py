@@ -45,7 +45,7 @@ def index_of_size(boxes: int, rng) -> tuple[PointIndex, float]:
 def visited_queries(queries: int = 400_000) -> np.ndarray:
     """States visited by lead-follow idm runs (uniform Gamma) from uniform starts."""
     from coordinator.runs import visited_states
-    from farm.streams import RunStreams
+    from scenarios.streams import RunStreams
     from scenarios import make_scenario
     from scenarios.actions import make_action_policy
     from scenarios.run import run_scenario

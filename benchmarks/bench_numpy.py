@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from farm.executors import SimSpec, build_simulator
-from farm.streams import RunStreams
+from scenarios.streams import RunStreams
 from scenarios.run import run_scenario
 
 TARGET = 3e7

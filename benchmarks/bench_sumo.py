@@ -23,7 +23,7 @@ KRAUSS = {"car_follow_model": "Krauss", "params": {"sigma": 0.0}}
 
 
 def measure(batch: int, horizon: int = 50, repeats: int = 5, full_length: bool = False) -> tuple[float, float]:
-    from farm.streams import RunStreams
+    from scenarios.streams import RunStreams
     from scenarios import make_scenario
     from scenarios.actions import UniformActions
     from scenarios.run import run_scenario

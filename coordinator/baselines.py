@@ -15,7 +15,7 @@ from coordinator.covering import Lattice
 from coordinator.runs import first_true_per_run, visited_states
 from coordinator.spatial import PointIndex
 from coordinator.spe import EmptySetError, SPESettings, greedy_uncovered
-from farm.streams import PURPOSE_START, RunStreams
+from scenarios.streams import PURPOSE_START, RunStreams
 from scenarios.base import FAILURE, Scenario
 from scenarios.run import RunBatch
 

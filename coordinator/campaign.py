@@ -25,7 +25,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from farm.streams import RunStreams
+from scenarios.streams import RunStreams
 
 
 @dataclass

@@ -13,7 +13,7 @@ import numpy as np
 
 from coordinator.covering import Lattice
 from coordinator.spatial import PointIndex
-from farm.streams import PURPOSE_START, RunStreams
+from scenarios.streams import PURPOSE_START, RunStreams
 from scenarios.base import FACET_TOLERANCE, Scenario
 
 MAX_REJECTION_ROUNDS = 256
@@ -42,7 +42,7 @@ class Domain:
         if section.get("domain_set"):
             if section.get("domain") or section.get("constraints"):
                 raise DomainError("validate.domain_set: give either domain_set or domain/constraints, not both")
-            from coordinator.results import read_safe_set
+            from farm.files import read_safe_set  # TODO(layers): the caller should load the set
 
             centres, hw = read_safe_set(section["domain_set"], names)
             if len(centres) == 0:

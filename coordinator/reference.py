@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from farm.streams import RunStreams
+from scenarios.streams import RunStreams
 from scenarios.actions import UniformActions
 from scenarios.base import CONTINUE, FAILURE, Scenario
 from scenarios.run import run_scenario

@@ -26,7 +26,7 @@ from coordinator.covering import Lattice
 from coordinator.graph import ExplorationForest
 from coordinator.runs import first_true_per_run, visited_states
 from coordinator.spatial import PointIndex
-from farm.streams import PURPOSE_START, RunStreams
+from scenarios.streams import PURPOSE_START, RunStreams
 from scenarios.base import FAILURE, Scenario
 from scenarios.run import RunBatch
 

@@ -19,7 +19,7 @@ from coordinator.covering import covering_size, n_eps
 from coordinator.domain import Domain
 from coordinator.runs import visited_states
 from coordinator.spatial import PointIndex
-from farm.streams import PURPOSE_START, RunStreams
+from scenarios.streams import PURPOSE_START, RunStreams
 from scenarios.base import FAILURE, OUTCOME_NAMES, TRUNCATED
 
 

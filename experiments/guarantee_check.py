@@ -20,7 +20,7 @@ from scipy import stats
 from coordinator.domain import Domain
 from coordinator.validation import Checker, plan, validate
 from farm.executors import LocalExecutor, SimSpec, build_simulator
-from farm.streams import RunStreams
+from scenarios.streams import RunStreams
 
 EPS, BETA, HORIZON = 0.001, 0.1, 50
 SCENARIO = {"name": "lead-follow", "sv_policy": "brake"}

@@ -1,3 +1,5 @@
 """Scenario Farm runtime: seeds, batching, executors, Ray actors, CLI, campaign storage."""
 
-__version__ = "0.1.0"
+from scenarios.version import __version__
+
+__all__ = ["__version__"]

@@ -34,7 +34,7 @@ def _add_farm_flags(p, seed=True):
 
 def cmd_validate(args) -> int:
     from coordinator.domain import Domain
-    from coordinator.results import write_json
+    from farm.files import write_json
     from coordinator.validation import plan, validate, verdict_sentence
     from farm import config as config_mod
     from farm.executors import SimSpec, build_simulator
@@ -125,8 +125,8 @@ def _print_summary(summary: dict, out: Path) -> None:
 
 
 def cmd_report(args) -> int:
-    from coordinator.plots import draw
-    from coordinator.results import read_safe_set
+    from farm.plots import draw
+    from farm.files import read_safe_set
     from farm import quantify
     from farm.executors import build_simulator
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from coordinator.reference import claimed, compare_boxes, falsify, grid, reference_safe
-from coordinator.results import read_safe_set, write_json
+from farm.files import read_safe_set, write_json
 from farm.executors import build_simulator
 
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from farm import __version__
+from scenarios.version import __version__
 
 
 class ConfigError(ValueError):

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from farm.memory import keep_freed_memory
-from farm.streams import RunStreams
+from scenarios.streams import RunStreams
 from scenarios import make_scenario
 from scenarios.actions import make_action_policy
 from scenarios.run import RunBatch, ScenarioError, run_scenario

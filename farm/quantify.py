@@ -19,7 +19,8 @@ import numpy as np
 from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign, Counters
 from coordinator.covering import n_eps
-from coordinator.results import result_hash, write_json, write_safe_set
+from coordinator.results import result_hash
+from farm.files import write_json, write_safe_set
 from coordinator.spe import SPESettings
 from coordinator.volume import hull_volume, union_volume
 from farm import __version__, config as config_mod
@@ -27,8 +28,6 @@ from farm.executors import SimSpec, build_simulator
 from farm.progress import Progress
 from farm.ray_executor import make_executor
 from farm.storage import CampaignError, Ledger, load_checkpoint, save_checkpoint, write_status
-
-SIDES = {"fleet3": {"lead": ["p10"], "rear": ["p20"]}}
 
 
 def settings_of(q: dict) -> SPESettings:
@@ -240,7 +239,7 @@ def finish(cfg: dict, out: Path, parts: dict[str, tuple[Part, Campaign]]) -> dic
     write_safe_set(out / "safe_set.parquet", centres, h, scenario.state_names,
                    {"config_hash": chash, "result_hash": rhash})
     write_json(out / "summary.json", summary)
-    from coordinator.plots import draw
+    from farm.plots import draw
 
     draw(out / "plots", scenario, centres, h, summary)
     for label, (side_part, _) in parts.items():
@@ -256,13 +255,16 @@ def run(cfg: dict, out: Path, *, resume: bool, progress: Progress | None = None)
     progress = progress or Progress(enabled=False)
     parts: dict[str, tuple[Part, Campaign]] = {}
     facet_sets = {"total": cfg["scenario"]["failure_facets"]}
+    from scenarios import scenario_class
+
+    declared = scenario_class(cfg["scenario"]["name"]).sides
     sides = cfg["quantify"]["sides"]
     if sides is None:
-        sides = cfg["scenario"]["name"] in SIDES and cfg["scenario"]["failure_facets"] is None
+        sides = bool(declared) and cfg["scenario"]["failure_facets"] is None
     if sides:
-        if cfg["scenario"]["name"] not in SIDES:
-            raise CampaignError(f"quantify.sides: only defined for {', '.join(SIDES)}")
-        facet_sets.update(SIDES[cfg["scenario"]["name"]])
+        if not declared:
+            raise CampaignError(f"quantify.sides: scenario {cfg['scenario']['name']!r} declares no sides")
+        facet_sets.update({label: list(facets) for label, facets in declared.items()})
     for label, facets in facet_sets.items():
         directory = out if label == "total" else out / "sides" / label
         part = Part(cfg, directory, facets, label)

@@ -14,7 +14,7 @@ import numpy as np
 import pyarrow.dataset as ds
 
 from farm.executors import SimSpec, build_simulator
-from farm.streams import RunStreams
+from scenarios.streams import RunStreams
 from scenarios.base import OUTCOME_NAMES
 from scenarios.run import run_scenario
 

@@ -26,8 +26,8 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from farm import __version__
-from coordinator.results import atomic_write_bytes, write_json
+from scenarios.version import __version__
+from farm.files import atomic_write_bytes, write_json
 
 CHECKPOINT_FORMAT = 1
 SEGMENT = re.compile(r"segment-(\d{6})\.parquet$")

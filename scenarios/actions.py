@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from farm.streams import PURPOSE_ACTION, RunStreams
+from scenarios.streams import PURPOSE_ACTION, RunStreams
 from scenarios.base import Scenario
 
 

@@ -25,6 +25,30 @@ class ScenarioError(RuntimeError):
 
 
 @dataclass(frozen=True)
+class View:
+    """A 3-D picture of a safe set: over the plane (x, y), the boundary value of z.
+
+    ``safe_above``: the safe set lies above the surface (the smallest safe z is drawn,
+    e.g. a gap that must be large enough) or below it (the largest safe z). The other
+    coordinates are held at ``fixed`` (state name -> value), by default mid-range."""
+
+    name: str  # file-safe, e.g. "lead_side"
+    title: str  # e.g. "lead side"
+    axes: tuple[str, str, str]  # state names x, y, z
+    safe_above: bool = True
+    fixed: tuple[tuple[str, float], ...] = ()
+
+
+@dataclass(frozen=True)
+class Slices:
+    """2-D cuts of a safe set: the plane (x, y) at a few values of ``varied``."""
+
+    x: str
+    y: str
+    varied: str | None = None
+
+
+@dataclass(frozen=True)
 class Facet:
     """One facet of the box Sigma: ``state[axis] < bound`` (lower) or ``> bound`` (upper)."""
 
@@ -51,6 +75,10 @@ class Scenario(ABC):
       action_lower, action_upper  (m,) bounds of Gamma
       adversarial_actions  (k, m) the finite adversarial set Gamma*
       dt              time step [s]
+      units           state name -> unit, for labels (e.g. {"v0": "m/s"})
+      sides           named sub-studies: side name -> the failure facets that count
+                      (e.g. fleet3's {"lead": ("p10",), "rear": ("p20",)}); quantified
+                      alongside the total and reported as volume_<side>_side
     """
 
     name: str = ""
@@ -63,6 +91,8 @@ class Scenario(ABC):
     action_upper: np.ndarray
     adversarial_actions: np.ndarray
     dt: float = 0.1
+    units: dict[str, str] = {}
+    sides: dict[str, tuple[str, ...]] = {}
 
     def __init__(self, failure_facets: tuple[str, ...] | None = None, disturbance: float = 0.0):
         """``failure_facets`` selects which failure facets count (default: all); the
@@ -114,6 +144,27 @@ class Scenario(ABC):
             out.append((Facet(name, i, False, self.lower[i]), bool(self._failure_mask_lower[i])))
             out.append((Facet(name, i, True, self.upper[i]), bool(self._failure_mask_upper[i])))
         return out
+
+    def label(self, name: str) -> str:
+        """Axis label of a state variable, with its unit if known: "p10 [m]"."""
+        unit = self.units.get(name)
+        return f"{name} [{unit}]" if unit else name
+
+    def views(self) -> list[View]:
+        """3-D views for figures. Default: the last coordinate over the first two (safe
+        above), if there are at least three; scenarios override to say what matters."""
+        if self.n < 3:
+            return []
+        names = self.state_names
+        return [View("boundary", "boundary of the safe set", (names[0], names[1], names[-1]))]
+
+    def slices(self) -> list[Slices]:
+        """2-D cuts for figures. Default: (first, last) at a few values of the second
+        coordinate; two coordinates: the plane itself."""
+        names = self.state_names
+        if self.n == 2:
+            return [Slices(names[0], names[1])]
+        return [Slices(names[0], names[-1], names[1])]
 
     def step_bound(self) -> float:
         """sigma-bar of Assumption 1: an upper bound on ||sigma(t+1) - sigma(t)||_inf.

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenarios.base import Scenario
+from scenarios.base import Scenario, Slices, View
 from scenarios.kinematics import advance, disturb
 from scenarios.policies import BRAKE_ACCEL, sv_policy as lookup_sv_policy
 
@@ -24,6 +24,8 @@ class Fleet3(Scenario):
     action_upper = np.array([3.0, -3.0])  # the follower never accelerates
     adversarial_actions = np.array([[-5.0, -3.0]])  # lead brakes hardest, follower least
     noise_width = 3
+    units = {"v0": "m/s", "v1": "m/s", "v2": "m/s", "p10": "m", "p20": "m"}
+    sides = {"lead": ("p10",), "rear": ("p20",)}  # the paper's Fig. 4 / Table 2 measures
 
     def __init__(self, sv_policy: str = "idm", failure_facets=None, disturbance: float = 0.0):
         super().__init__(failure_facets, disturbance)
@@ -49,6 +51,15 @@ class Fleet3(Scenario):
         out[3] += p10
         np.subtract(x2, x0, out=out[4])
         out[4] += p20
+
+    def views(self):
+        # the paper's Fig. 4: the lead side (gap to the lead must be large enough) and the
+        # rear side (the follower must stay far enough behind: p20 small enough)
+        return [View("lead_side", "lead side", ("v0", "v1", "p10"), safe_above=True),
+                View("rear_side", "rear side", ("v0", "v2", "p20"), safe_above=False)]
+
+    def slices(self):
+        return [Slices("v0", "p10", "v1"), Slices("v0", "p20", "v2")]
 
     def step_bound(self) -> float:
         a_max = max(abs(BRAKE_ACCEL), 7.0) + self.disturbance

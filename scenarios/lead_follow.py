@@ -22,6 +22,7 @@ class LeadFollow(Scenario):
     action_upper = np.array([3.0])
     adversarial_actions = np.array([[-5.0]])  # maximal braking of the lead
     noise_width = 2
+    units = {"v0": "m/s", "v1": "m/s", "p10": "m"}
 
     def __init__(self, sv_policy: str = "idm", failure_facets=None, disturbance: float = 0.0):
         super().__init__(failure_facets, disturbance)

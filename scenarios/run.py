@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from farm.streams import PURPOSE_DISTURBANCE, RunStreams
+from scenarios.streams import PURPOSE_DISTURBANCE, RunStreams
 from scenarios.actions import ActionPolicy
 from scenarios.base import CONTINUE, FAILURE, HORIZON, Scenario, ScenarioError
 

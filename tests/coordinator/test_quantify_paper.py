@@ -34,7 +34,7 @@ def test_lead_follow_brake_matches_the_exact_safe_set(tmp_path):
     almost no unsafe volume claimed safe, and the sets nearly coincide."""
     import numpy as np
 
-    from coordinator.results import read_safe_set
+    from farm.files import read_safe_set
     from coordinator.spatial import PointIndex
     from invariant_sets import min_future_gap_brake
     from scenarios.lead_follow import LeadFollow

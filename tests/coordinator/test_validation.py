@@ -6,7 +6,7 @@ import pytest
 from coordinator.domain import Domain
 from coordinator.validation import plan, validate
 from farm.executors import LocalExecutor, SimSpec, build_simulator
-from farm.streams import RunStreams
+from scenarios.streams import RunStreams
 from scenarios.base import FAILURE
 from scenarios.run import run_scenario
 

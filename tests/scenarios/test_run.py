@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from farm.streams import RunStreams
+from scenarios.streams import RunStreams
 from scenarios import make_scenario
 from scenarios.actions import make_action_policy
 from scenarios.base import FAILURE, HORIZON, TRUNCATED

@@ -5,7 +5,7 @@ import pytest
 
 pytest.importorskip("libsumo")
 
-from farm.streams import RunStreams  # noqa: E402
+from scenarios.streams import RunStreams  # noqa: E402
 from scenarios import make_scenario  # noqa: E402
 from scenarios.actions import AdversarialActions, UniformActions  # noqa: E402
 from scenarios.base import FAILURE  # noqa: E402

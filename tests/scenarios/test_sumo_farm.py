@@ -2,7 +2,7 @@
 
 import pytest
 
-from coordinator.results import read_safe_set
+from farm.files import read_safe_set
 from coordinator.volume import raster_iou
 from farm import config as config_mod
 from farm.quantify import run

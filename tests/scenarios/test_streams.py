@@ -4,7 +4,7 @@ import sys
 import numpy as np
 from scipy import stats
 
-from farm.streams import PURPOSE_ACTION, PURPOSE_START, RunStreams
+from scenarios.streams import PURPOSE_ACTION, PURPOSE_START, RunStreams
 
 
 def test_draws_depend_on_seed_and_index_only():
@@ -26,7 +26,7 @@ def test_draws_are_uniform_and_uncorrelated_across_counters_purposes_and_indices
 
 
 def test_same_stream_in_a_fresh_process():
-    code = ("import numpy as np; from farm.streams import RunStreams; "
+    code = ("import numpy as np; from scenarios.streams import RunStreams; "
             "print(repr(RunStreams.of(123, [5, 2**40]).uniform(9, 2, 3).tolist()))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert eval(out) == RunStreams.of(123, [5, 2**40]).uniform(9, 2, 3).tolist()
@@ -35,7 +35,7 @@ def test_same_stream_in_a_fresh_process():
 def test_draws_follow_the_documented_formula():
     """draw(counter, lane) = top 53 bits of mix(base + (counter * LANES + lane + 1) * G),
     whatever in-place arithmetic computes it."""
-    from farm.streams import _G, LANES, mix64
+    from scenarios.streams import _G, LANES, mix64
 
     s = RunStreams.of(11, np.array([0, 3, 2**33, 2**63 + 5], dtype=np.uint64))
     u = s.uniform(7, PURPOSE_ACTION, 3)
