@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 from farm import config as config_mod
-from farm.quantify import run
+from farm.quantification import run
 
 TARGET_S = 120.0
 

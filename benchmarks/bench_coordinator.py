@@ -82,7 +82,8 @@ def campaign_scaling() -> tuple[list[tuple[int, float]], float]:
     from coordinator.campaign import Campaign
     from coordinator.covering import n_eps
     from coordinator.spe import SPE, SPESettings
-    from farm.executors import LocalExecutor, SimSpec
+    from farm.executors import LocalExecutor
+from scenarios.simulator import SimSpec
     from scenarios import make_scenario
 
     sc = make_scenario("lead-follow", sv_policy="idm")

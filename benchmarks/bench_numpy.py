@@ -16,7 +16,8 @@ import time
 
 import numpy as np
 
-from farm.executors import SimSpec, build_simulator
+from farm.executors import build_simulator
+from scenarios.simulator import SimSpec
 from scenarios.streams import RunStreams
 from scenarios.run import run_scenario
 

@@ -30,7 +30,7 @@ def run_campaign(cfg):
     from coordinator.baselines import make_algorithm
     from coordinator.campaign import Campaign
     from coordinator.covering import n_eps
-    from farm.quantify import settings_of, spec_of
+    from farm.quantification import settings_of, spec_of
     from farm.ray_executor import make_executor
 
     spec = spec_of(cfg)
@@ -68,7 +68,7 @@ def main() -> None:
         print(f"lead-follow idm SPE (delta 2 -> 0.5, uniform Gamma): {label:15s} {rate:9,.0f} committed runs/s "
               f"({c.committed} runs, {wall:.1f} s; {rate / base:.2f}x in-process{idle})")
     # per-batch overhead: tiny batches, where simulation time is negligible
-    from farm.executors import SimSpec
+    from scenarios.simulator import SimSpec
     from farm.ray_executor import RayExecutor
 
     spec = SimSpec({"name": "lead-follow", "sv_policy": "idm"}, {"mode": "uniform"}, 2, 0)

@@ -20,7 +20,7 @@ def main() -> None:
         return
     import ray
 
-    from farm.executors import SimSpec
+    from scenarios.simulator import SimSpec
     from farm.ray_executor import RayExecutor
 
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=False)

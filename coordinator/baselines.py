@@ -4,42 +4,54 @@
 - ``DeltaPruning``          QNT^deltaP (Alg. 6): incomplete (Theorem 6)
 - ``VanillaSampling``       QNT^VS (Alg. 5): incomplete (Theorem 5)
 
-Same ask/tell interface as ``coordinator.spe.SPE``.
+Same contract as ``coordinator.spe.SPE`` (coordinator/algorithm.py). Their coverage has
+no failure points: a run changes the state when it fails or leaves the covering.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from coordinator.algorithm import Algorithm, Event, greedy_uncovered, uniform_pick
+from coordinator.coverage import Coverage, Insert, Kill, Recell, Reset
 from coordinator.covering import Lattice
-from coordinator.runs import first_true_per_run, visited_states
-from coordinator.spatial import PointIndex
-from coordinator.spe import EmptySetError, SPESettings, greedy_uncovered
+from scenarios.base import Scenario
 from scenarios.streams import PURPOSE_START, RunStreams
-from scenarios.base import FAILURE, Scenario
-from scenarios.run import RunBatch
 
 RESTART_INDEX = 2**62  # stream index of the very first AE start state (no run has it)
 
 
-def _uniform_pick(ids: np.ndarray, streams: RunStreams) -> np.ndarray:
-    u = streams.uniform(0, PURPOSE_START, 1)[:, 0]
-    return ids[np.minimum((u * len(ids)).astype(np.int64), len(ids) - 1)]
+class _CoverageOnly(Algorithm):
+    """Shared parts of algorithms whose whole state is one covering + scalars."""
 
+    append_only = ("vertices.points",)
 
-class _IndexState:
-    """Shared persistence for algorithms whose state is one PointIndex + scalars."""
+    def _fresh(self, centres: np.ndarray, lo, hi, bounded: bool) -> Coverage:
+        cov = Coverage(self.scenario.n, self._delta0, lo if not bounded else Lattice.tiling(lo, hi, self._delta0).anchor,
+                       bounds=(lo, hi) if bounded else None, failures=False)
+        cov.apply(Insert(centres), 0)
+        return cov
+
+    def _replace(self, fresh: Coverage) -> None:
+        """A restart: the covering is replaced (a Reset for the mirrors)."""
+        fresh.version = self.version
+        self.coverage.apply(Reset(fresh.state()), self.version)
+        self.state_epoch += 1
+
+    def draw(self, streams):
+        chosen = uniform_pick(self.vertices.alive_ids(), streams)
+        return self.vertices.points[chosen].copy(), chosen
 
     def state(self) -> dict:
-        out = {f"vertices.{k}": v for k, v in self.vertices.state().items()}
-        out["scalars"] = np.array([self.delta, self.round, self.version], dtype=float)
+        out = self.coverage.state()
+        out["scalars"] = np.array([self.delta, self.round, self.version, self.state_epoch], dtype=float)
         out.update(self._extra_state())
         return out
 
     def load_state(self, state: dict) -> None:
-        self.vertices = PointIndex.from_state({k[9:]: v for k, v in state.items() if k.startswith("vertices.")})
-        delta, rnd, version = state["scalars"]
-        self.delta, self.round, self.version = float(delta), int(rnd), int(version)
+        self.coverage = Coverage.from_state(state)
+        _, rnd, version, epoch = state["scalars"]
+        self.round, self.version, self.state_epoch = int(rnd), int(version), int(epoch)
         self._load_extra(state)
 
     def _extra_state(self) -> dict:
@@ -48,85 +60,50 @@ class _IndexState:
     def _load_extra(self, state: dict) -> None:
         pass
 
-    def result(self) -> tuple[np.ndarray, float]:
-        return self.vertices.alive_points(), self.delta
 
-    def counts(self) -> dict:
-        return {"boxes": self.vertices.alive_count, "vertices": self.vertices.count,
-                "delta": self.delta, "round": self.round}
-
-    def record(self, batch, rows, start_ids) -> None:
-        pass
-
-    def draw(self, streams):
-        ids = self.vertices.alive_ids()
-        if len(ids) == 0:
-            raise EmptySetError("the safe set is empty: every centre was pruned")
-        chosen = _uniform_pick(ids, streams)
-        return self.vertices.points[chosen].copy(), chosen
-
-    def _first_leaving(self, batch: RunBatch, rows, counts=None):
-        """Offset of the first run that fails or visits a state outside the covering
-        (``counts`` masks runs whose change would be a no-op)."""
-        fail = batch.outcomes[rows] == FAILURE
-        states, pos = visited_states(batch, rows)
-        left = ~self.vertices.any_within(states, self.delta)
-        change = fail | first_true_per_run(left, pos, len(rows))
-        if counts is not None:
-            change &= counts
-        offset = int(np.argmax(change)) if change.any() else len(rows)
-        return offset, np.zeros(offset, dtype=bool)
-
-    def sampling_description(self) -> str:
-        return "start states uniform over the alive centres"
-
-
-class AdaptiveExploration(_IndexState):
+class AdaptiveExploration(_CoverageOnly):
     """Alg. 7: grow Phi_sigma from one random sigma0 ~ U(Sigma) by adding every visited
     state not yet covered; any failure restarts from a fresh sigma0."""
 
     name = "ae"
     decays = True
 
-    def __init__(self, scenario: Scenario, settings: SPESettings, seed: int):
+    def __init__(self, scenario: Scenario, settings, seed: int):
         self.scenario, self.settings, self.seed = scenario, settings, seed
-        self.delta = settings.delta0
-        self.round = 0
+        self._delta0 = settings.delta0
         self.version = 0
+        self.round = 0
         self.restarts = 0
-        self._restart(RunStreams.of(seed, [RESTART_INDEX]))
+        self.state_epoch = 0
+        self.coverage = self._fresh(self._sigma0(RunStreams.of(seed, [RESTART_INDEX])), scenario.lower,
+                                    scenario.upper, bounded=False)
 
-    def _restart(self, streams: RunStreams) -> None:
+    def _sigma0(self, streams: RunStreams) -> np.ndarray:
         sc = self.scenario
-        sigma0 = sc.lower + (sc.upper - sc.lower) * streams.uniform(1, PURPOSE_START, sc.n)
-        self.vertices = PointIndex(sc.n, 2 * self.delta, sc.lower)
-        self.vertices.insert(sigma0)
+        return sc.lower + (sc.upper - sc.lower) * streams.uniform(1, PURPOSE_START, sc.n)
 
     @property
     def final_round(self) -> bool:
         return self.delta <= self.settings.delta_min * (1 + 1e-12)
 
-    def scan(self, batch: RunBatch, rows, start_ids):
-        return self._first_leaving(batch, rows)  # a failure restarts, a new state explores
-
-    def apply(self, batch: RunBatch, row: int, start_id: int) -> str:
+    def apply(self, event: Event) -> str:
         self.version += 1
-        if batch.outcomes[row] == FAILURE:
+        if event.failed:
             self.restarts += 1
-            self._restart(RunStreams.of(self.seed, batch.indices[row : row + 1]))
+            fresh = Coverage(self.scenario.n, self.delta, self.scenario.lower, failures=False)
+            fresh.apply(Insert(self._sigma0(RunStreams.of(self.seed, [event.index]))), 0)
+            self._replace(fresh)
             return "restarted"
-        states, _ = visited_states(batch, np.array([row]))
-        states = states[~self.vertices.any_within(states, self.delta)]
-        self.vertices.insert(states[greedy_uncovered(states, self.delta)])
+        states = event.states[~self.vertices.any_within(event.states, self.delta)]
+        self.coverage.apply(Insert(states[greedy_uncovered(states, self.delta)]), self.version)
         return "explored"
 
     def end_round(self) -> bool:
         if self.final_round:
             return False
-        self.delta = max(self.settings.gamma * self.delta, self.settings.delta_min)
-        self.vertices.recell(2 * self.delta)
-        self.round += 1
         self.version += 1
+        self.coverage.apply(Recell(max(self.settings.gamma * self.delta, self.settings.delta_min)), self.version)
+        self.round += 1
         return True
 
     def _extra_state(self):
@@ -136,7 +113,7 @@ class AdaptiveExploration(_IndexState):
         self.restarts = int(state["restarts"])
 
 
-class DeltaPruning(_IndexState):
+class DeltaPruning(_CoverageOnly):
     """Alg. 6 at delta = delta_min: sample a live centre, and prune its box when its run
     leaves the current covering Phi_delta (a failure leaves it too). Ends by the N_eps
     rule (the paper runs a fixed N; a stopping rule makes it comparable)."""
@@ -145,30 +122,29 @@ class DeltaPruning(_IndexState):
     decays = False
     final_round = True
 
-    def __init__(self, scenario: Scenario, settings: SPESettings, seed: int):
+    def __init__(self, scenario: Scenario, settings, seed: int):
         self.scenario, self.settings = scenario, settings
-        self.delta = settings.delta_min
-        self.round = 0
+        self._delta0 = settings.delta_min
         self.version = 0
-        lattice = Lattice.tiling(scenario.lower, scenario.upper, self.delta)
-        self.vertices = PointIndex(scenario.n, 2 * self.delta, lattice.anchor,
-                                   bounds=(scenario.lower, scenario.upper))
-        self.vertices.insert(lattice.box_centres(self.delta))
+        self.round = 0
+        self.state_epoch = 0
+        lattice = Lattice.tiling(scenario.lower, scenario.upper, self._delta0)
+        self.coverage = self._fresh(lattice.box_centres(self._delta0), scenario.lower, scenario.upper, bounded=True)
 
-    def scan(self, batch, rows, start_ids):
+    def events(self, rescreen, lo, start_ids):
         # a stale draw's centre may be pruned already: pruning it again changes nothing
-        return self._first_leaving(batch, rows, counts=self.vertices.alive[start_ids])
+        return rescreen.events(lo) & self.vertices.alive[start_ids[lo:]]
 
-    def apply(self, batch, row, start_id) -> str:
+    def apply(self, event: Event) -> str:
         self.version += 1
-        self.vertices.kill([int(start_id)])
+        self.coverage.apply(Kill(np.array([event.start_id])), self.version)
         return "pruned"
 
     def end_round(self) -> bool:
         return False
 
 
-class VanillaSampling(_IndexState):
+class VanillaSampling(_CoverageOnly):
     """Alg. 5: draw a random sub-box Phi of Sigma, validate it with VAL^eps-delta (runs
     from its delta-covering centres); the first failure draws a new box; N_eps quiet
     runs in a row accept it."""
@@ -177,30 +153,29 @@ class VanillaSampling(_IndexState):
     decays = False
     final_round = True
 
-    def __init__(self, scenario: Scenario, settings: SPESettings, seed: int):
+    def __init__(self, scenario: Scenario, settings, seed: int):
         self.scenario, self.settings, self.seed = scenario, settings, seed
-        self.delta = settings.delta_min
-        self.round = 0
+        self._delta0 = settings.delta_min
         self.version = 0
+        self.round = 0
         self.attempts = 0
-        self._new_box(RunStreams.of(seed, [RESTART_INDEX]))
+        self.state_epoch = 0
+        self.coverage = self._new_box(RunStreams.of(seed, [RESTART_INDEX]))
 
-    def _new_box(self, streams: RunStreams) -> None:
+    def _new_box(self, streams: RunStreams) -> Coverage:
         sc = self.scenario
         a = sc.lower + (sc.upper - sc.lower) * streams.uniform(1, PURPOSE_START, sc.n)
         b = sc.lower + (sc.upper - sc.lower) * streams.uniform(2, PURPOSE_START, sc.n)
         lo, hi = np.minimum(a, b)[0], np.maximum(a, b)[0]
-        lattice = Lattice.tiling(lo, hi, self.delta)
-        self.vertices = PointIndex(sc.n, 2 * self.delta, lattice.anchor)
-        self.vertices.insert(lattice.box_centres(self.delta))
+        lattice = Lattice.tiling(lo, hi, self._delta0)
         self.attempts += 1
+        cov = Coverage(sc.n, self._delta0, lattice.anchor, failures=False)
+        cov.apply(Insert(lattice.box_centres(self._delta0)), 0)
+        return cov
 
-    def scan(self, batch, rows, start_ids):
-        return self._first_leaving(batch, rows)  # VAL^eps-delta on the current box
-
-    def apply(self, batch, row, start_id) -> str:
+    def apply(self, event: Event) -> str:
         self.version += 1
-        self._new_box(RunStreams.of(self.seed, batch.indices[row : row + 1]))
+        self._replace(self._new_box(RunStreams.of(self.seed, [event.index])))
         return "rejected"
 
     def end_round(self) -> bool:
@@ -213,12 +188,12 @@ class VanillaSampling(_IndexState):
         self.attempts = int(state["attempts"])
 
 
-def make_algorithm(name: str, scenario: Scenario, settings: SPESettings, seed: int):
+def make_algorithm(name: str, scenario: Scenario, settings, seed: int, deterministic: bool = False) -> Algorithm:
     from coordinator.spe import SPE
 
     if settings.boundary and name != "spe":
         raise ValueError("quantify.boundary: the boundary band is an SPE option; allowed with algorithm = 'spe'")
     if name == "spe":
-        return SPE(scenario, settings)
+        return SPE(scenario, settings, deterministic)
     return {"ae": AdaptiveExploration, "delta-pruning": DeltaPruning, "vs": VanillaSampling}[name](
         scenario, settings, seed)

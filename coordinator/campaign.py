@@ -7,13 +7,15 @@
   committed (D = pipeline depth): the driver keeps D batches drawn ahead and draws the
   next one only after committing the oldest. Which worker simulates what, and when,
   cannot change what is drawn.
-- Results are committed strictly in sample-index order.
+- Results are committed strictly in sample-index order, chunk by chunk as they arrive.
+  Workers screen their runs against a mirror of the coverage (coordinator/coverage.py);
+  the driver takes a screening as it is when nothing changed since, and otherwise
+  re-decides each run at the current version from its witnesses.
 - N_eps rule: a round ends after N_eps consecutive committed runs that changed nothing
   *and were drawn from the state as it is now* (their draw version equals the current
   version). A run drawn before the last change still has its evidence used, but does not
-  count. At a round end, runs of the batch after the N_eps-th, and all batches in flight,
-  are dropped and their indices re-used: the committed sequence depends only on the
-  config and the seed.
+  count. At a round end, runs after the N_eps-th, and all chunks in flight, are dropped
+  and their indices re-used: the committed sequence depends only on the config and seed.
 """
 
 from __future__ import annotations
@@ -21,20 +23,31 @@ from __future__ import annotations
 import time
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Callable
 
 import numpy as np
 
+from coordinator.algorithm import Algorithm, Event
+from coordinator.coverage import Rescreen
+from coordinator.executor import Chunk
+from scenarios.base import FAILURE, OUTCOME_NAMES
 from scenarios.streams import RunStreams
 
 
 @dataclass
 class Pending:
+    """A batch drawn at ``version``; ``done`` of its runs are committed."""
+
     first_index: int
     starts: np.ndarray
     start_ids: np.ndarray
     version: int
-    handle: Any = None
+    handles: list = field(default_factory=list)
+    done: int = 0
+    next_handle: int = 0
+
+    def __len__(self) -> int:
+        return len(self.starts)
 
 
 @dataclass
@@ -67,15 +80,16 @@ class CommitLog:
     changed: list = field(default_factory=list)
     counted: list = field(default_factory=list)
 
-    def add(self, batch, rows, rnd, delta, changed: bool, counted: bool) -> None:
+    def add(self, first_index: int, starts: np.ndarray, chunk: Chunk, rows: np.ndarray, rnd: int, delta: float,
+            changed: bool, counted: bool) -> None:
         if len(rows) == 0:
             return
-        self.sample_index.append(batch.indices[rows].astype(np.int64))
+        self.sample_index.append(first_index + rows.astype(np.int64))
         self.round.append(np.full(len(rows), rnd, dtype=np.int32))
         self.delta.append(np.full(len(rows), delta))
-        self.start.append(batch.trajectories[0, rows])
-        self.outcome.append(batch.outcomes[rows].astype(np.int8))
-        self.steps.append((batch.lengths[rows] - 1).astype(np.int32))
+        self.start.append(starts[rows])
+        self.outcome.append(chunk.outcomes[rows].astype(np.int8))
+        self.steps.append((chunk.lengths[rows] - 1).astype(np.int32))
         self.changed.append(np.full(len(rows), changed))
         self.counted.append(np.full(len(rows), counted))
 
@@ -92,7 +106,7 @@ class Campaign:
     """Drive ``algorithm`` with ``executor`` until the last round ends by the N_eps rule
     or ``budget`` runs are committed."""
 
-    def __init__(self, algorithm, executor, *, n_eps: int, budget: int, batch_size: int,
+    def __init__(self, algorithm: Algorithm, executor, *, n_eps: int, budget: int, batch_size: int,
                  pipeline_depth: int, seed: int, on_batch: Callable[["Campaign"], None] | None = None,
                  record_limit: int = 0):
         self.algorithm = algorithm
@@ -115,84 +129,87 @@ class Campaign:
     def _next_draw_index(self) -> int:
         if self.pending:
             last = self.pending[-1]
-            return last.first_index + len(last.starts)
+            return last.first_index + len(last)
         return self.counters.committed
 
     def _fill(self) -> None:
+        """Keep ``depth`` batches drawn and submitted (fewer when the budget ends)."""
         while len(self.pending) < self.depth:
             first = self._next_draw_index()
             size = min(self.batch_size, self.budget - first)
             if size <= 0:
-                return
+                break
             streams = RunStreams.of(self.seed, np.arange(first, first + size, dtype=np.uint64))
             starts, ids = self.algorithm.draw(streams)
             self.pending.append(Pending(first, starts, ids, self.algorithm.version))
         for p in self.pending:
-            if p.handle is None:
-                p.handle = self.executor.submit(p.first_index, p.starts)
+            if not p.handles:
+                first = p.first_index + p.done
+                p.handles = self.executor.submit(first, p.starts[p.done :], self.algorithm.coverage)
 
     # -- committing ------------------------------------------------------------------------
-    def _commit(self, p: Pending, batch) -> bool:
-        """Commit one batch in index order. True if the round ended inside it."""
+    def _commit(self, p: Pending, chunk: Chunk) -> bool:
+        """Commit one chunk of batch ``p`` in index order. True if the round ended in it."""
         algo, c = self.algorithm, self.counters
-        size = len(batch)
-        pos, chunk = 0, 32
-        while pos < size:
-            rows = np.arange(pos, min(pos + chunk, size))
-            offset, escaped = algo.scan(batch, rows, p.start_ids[rows])
-            quiet_rows = rows[:offset]
+        at = chunk.first_index - p.first_index
+        k = len(chunk)
+        starts, ids = p.starts[at : at + k], p.start_ids[at : at + k]
+        rescreen = Rescreen(algo.coverage, chunk.screening, chunk.outcomes, chunk.visited)
+        pos = 0
+        while pos < k:
+            changes = algo.events(rescreen, pos, ids)
+            offset = int(np.argmax(changes)) if changes.any() else k - pos
+            quiet = np.arange(pos, pos + offset)
             counted = p.version == algo.version
             if counted and c.quiet + offset >= self.n_eps:
-                take = self.n_eps - c.quiet
-                self._commit_quiet(batch, p, quiet_rows[:take], counted, escaped[:take])
-                c.quiet = self.n_eps
+                quiet = quiet[: self.n_eps - c.quiet]
+                self._commit_quiet(chunk, starts, ids, quiet, counted)
+                p.done = at + quiet[-1] + 1 if len(quiet) else at + pos
                 return True
-            self._commit_quiet(batch, p, quiet_rows, counted, escaped)
-            if offset < len(rows):
-                row = int(rows[offset])
-                algo.apply(batch, row, int(p.start_ids[row]))
-                self._maybe_record(batch, row)
-                c.quiet = 0
-                c.escaped_in_streak = 0
-                c.changes += 1
-                self.log.add(batch, np.array([row]), algo.round, algo.delta, True, False)
-                algo.record(batch, np.array([row]), p.start_ids[[row]])
-                c.committed += 1
-                pos = row + 1
-                chunk = max(16, chunk // 4)  # after a change, more changes tend to follow
-            else:
-                pos += len(rows)
-                chunk = min(4 * chunk, 16384)
-            if c.committed >= self.budget:
-                return False
+            self._commit_quiet(chunk, starts, ids, quiet, counted)
+            pos += offset
+            if pos == k:
+                break
+            row = np.array([pos])
+            event = Event(chunk.first_index + pos, starts[pos], int(ids[pos]), bool(chunk.outcomes[pos] == FAILURE),
+                          rescreen.candidates(pos))
+            self.log.add(chunk.first_index, starts, chunk, row, algo.round, algo.delta, True, False)
+            algo.apply(event)
+            self._maybe_record(chunk, pos, starts[pos])
+            algo.record(chunk, row, ids[row])
+            c.quiet = 0
+            c.escaped_in_streak = 0
+            c.changes += 1
+            c.committed += 1
+            pos += 1
+        p.done = at + k
         return False
 
-    def _maybe_record(self, batch, row: int) -> None:
-        """Keep the trajectory of a state-changing failure for the MCAP recording (the
-        runs worth looking at), up to ``record_limit`` per campaign."""
-        from scenarios.base import FAILURE, OUTCOME_NAMES
-
-        c = self.counters
-        if c.recorded >= self.record_limit or batch.outcomes[row] != FAILURE:
-            return
-        self.recordings.append({"sample_index": int(batch.indices[row]), "trajectory": batch.trajectory(row).copy(),
-                                "outcome": OUTCOME_NAMES[int(batch.outcomes[row])]})
-        c.recorded += 1
-
-    def _commit_quiet(self, batch, p, rows, counted, escaped) -> None:
+    def _commit_quiet(self, chunk: Chunk, starts, ids, rows, counted: bool) -> None:
         if len(rows) == 0:
             return
         c = self.counters
-        self.log.add(batch, rows, self.algorithm.round, self.algorithm.delta, False, counted)
-        self.algorithm.record(batch, rows, p.start_ids[rows])
+        self.log.add(chunk.first_index, starts, chunk, rows, self.algorithm.round, self.algorithm.delta, False,
+                     counted)
+        self.algorithm.record(chunk, rows, ids[rows])
         c.committed += len(rows)
         if counted:
             c.quiet += len(rows)
-            c.escaped_in_streak += int(np.count_nonzero(escaped))
+            c.escaped_in_streak += int(np.count_nonzero(chunk.screening.escaped[rows]))
+
+    def _maybe_record(self, chunk: Chunk, row: int, start: np.ndarray) -> None:
+        """Keep the trajectory of a state-changing failure for the MCAP recording (the
+        runs worth looking at), up to ``record_limit`` per campaign."""
+        c = self.counters
+        if c.recorded >= self.record_limit or chunk.outcomes[row] != FAILURE:
+            return
+        self.recordings.append({"sample_index": chunk.first_index + row, "trajectory": chunk.trajectory(row, start),
+                                "outcome": OUTCOME_NAMES[int(chunk.outcomes[row])]})
+        c.recorded += 1
 
     # -- the loop -------------------------------------------------------------------------
     def stop(self) -> None:
-        """Ask the loop to return at the next batch boundary (e.g. on SIGINT)."""
+        """Ask the loop to return at the next chunk boundary (e.g. on SIGINT)."""
         self._stop = True
 
     def run(self) -> Counters:
@@ -203,16 +220,16 @@ class Campaign:
             if not self.pending:
                 c.done = True  # budget exhausted before the last round converged
                 break
-            p = self.pending.popleft()
-            batch = self.executor.result(p.handle)
-            c.runs_simulated += len(batch)
-            c.steps_simulated += batch.steps
-            round_ended = self._commit(p, batch)
+            p = self.pending[0]
+            chunk = self.executor.result(p.handles[p.next_handle])
+            p.next_handle += 1
+            c.runs_simulated += len(chunk)
+            c.steps_simulated += chunk.steps
+            committed_before = c.committed
+            round_ended = self._commit(p, chunk)
             if round_ended:
-                c.runs_dropped += len(batch) - (c.committed - p.first_index)
-                for q in self.pending:
-                    self.executor.cancel(q.handle)
-                self.pending.clear()
+                c.runs_dropped += len(chunk) - (c.committed - committed_before)
+                self._drop_in_flight()
                 c.round_ends.append(c.committed)
                 c.rounds_completed += 1
                 if self.algorithm.final_round:
@@ -223,22 +240,31 @@ class Campaign:
                     self.algorithm.end_round()
                     c.quiet = 0
                     c.escaped_in_streak = 0
-            elif c.committed >= self.budget:
-                c.done = True
+            else:
+                if p.done == len(p):
+                    self.pending.popleft()
+                if c.committed >= self.budget:
+                    c.done = True
             c.elapsed_s = time.monotonic() - started
             if self.on_batch is not None:
                 self.on_batch(self)
         c.elapsed_s = time.monotonic() - started
         return c
 
+    def _drop_in_flight(self) -> None:
+        for q in self.pending:
+            for handle in q.handles[q.next_handle :]:
+                self.executor.cancel(handle)
+        self.pending.clear()
+
     # -- persistence --------------------------------------------------------------------
     def pending_state(self) -> dict:
-        """Draws in flight, so that a resumed campaign re-simulates exactly them."""
+        """Draws not yet committed, so that a resumed campaign re-simulates exactly them."""
         out = {"pending.count": np.array(len(self.pending))}
         for i, p in enumerate(self.pending):
-            out[f"pending.{i}.first_index"] = np.array(p.first_index)
-            out[f"pending.{i}.starts"] = p.starts
-            out[f"pending.{i}.start_ids"] = p.start_ids
+            out[f"pending.{i}.first_index"] = np.array(p.first_index + p.done)
+            out[f"pending.{i}.starts"] = p.starts[p.done :]
+            out[f"pending.{i}.start_ids"] = p.start_ids[p.done :]
             out[f"pending.{i}.version"] = np.array(p.version)
         return out
 

@@ -37,19 +37,25 @@ class Domain:
 
     # -- construction -------------------------------------------------------------------
     @staticmethod
-    def from_config(scenario: Scenario, section: dict) -> "Domain":
+    def of_set(scenario: Scenario, centres: np.ndarray, half_width: float) -> "Domain":
+        """Phi = the union of the boxes centre +- half_width (e.g. a quantified safe set)."""
+        if len(centres) == 0:
+            raise DomainError("validate.domain_set: the set holds no boxes")
+        if not half_width > 0:
+            raise DomainError(f"validate.domain_set: half_width {half_width!r} is out of range; allowed (0, inf)")
+        return Domain(scenario, np.maximum(centres.min(0) - half_width, scenario.lower),
+                      np.minimum(centres.max(0) + half_width, scenario.upper),
+                      np.zeros((0, scenario.n)), np.zeros(0), np.asarray(centres, float), float(half_width))
+
+    @staticmethod
+    def from_config(scenario: Scenario, section: dict, set_boxes: tuple | None = None) -> "Domain":
+        """The domain of a ``[validate]`` section; ``set_boxes`` = (centres, half_width) of
+        the set that ``validate.domain_set`` names, read by the caller."""
         names = scenario.state_names
         if section.get("domain_set"):
             if section.get("domain") or section.get("constraints"):
                 raise DomainError("validate.domain_set: give either domain_set or domain/constraints, not both")
-            from farm.files import read_safe_set  # TODO(layers): the caller should load the set
-
-            centres, hw = read_safe_set(section["domain_set"], names)
-            if len(centres) == 0:
-                raise DomainError(f"validate.domain_set: {section['domain_set']} holds no boxes")
-            return Domain(scenario, np.maximum(centres.min(0) - hw, scenario.lower),
-                          np.minimum(centres.max(0) + hw, scenario.upper),
-                          np.zeros((0, scenario.n)), np.zeros(0), centres, hw)
+            return Domain.of_set(scenario, *set_boxes)
         lo, hi = scenario.lower.copy(), scenario.upper.copy()
         for name, bounds in (section.get("domain") or {}).items():
             if name not in names:
@@ -79,9 +85,10 @@ class Domain:
             rhs.append(float(cut["b"]))
         dom = Domain(scenario, lo, hi, np.array(rows).reshape(-1, scenario.n), np.array(rhs))
         if section.get("domain_predicate"):
-            from scenarios.actions import load_object
+            from scenarios.actions import load_callable
 
-            dom.predicate = load_object(section["domain_predicate"], "validate.domain_predicate")
+            dom.predicate = load_callable(section["domain_predicate"], "validate.domain_predicate",
+                                          "states (B, n) -> (B,) bool")
             dom.predicate_name = section["domain_predicate"]
         probe = dom.lattice(min(hi - lo) / 20)
         if len(probe) == 0:
@@ -147,8 +154,15 @@ class Domain:
         return box * len(probe) / len(full)
 
     def lattice(self, delta: float, band: float | None = None) -> np.ndarray:
-        """delta-covering centres of Phi (Definition 1): the tiling of its bounding box,
-        kept where the centre lies in Phi (and in the band, if given)."""
+        """delta-covering centres of Phi (Definition 1). A set domain's own box centres
+        (its covering is the one it was built on: Definition 1 asks only that *some*
+        delta-covering works); otherwise the tiling of the bounding box, kept where the
+        centre lies in Phi (and in the band, if given)."""
+        if self.is_set:
+            if delta < self.set_half_width * (1 - 1e-12):
+                raise DomainError(f"validate.delta: {delta:g} is below the set's box half-width "
+                                  f"{self.set_half_width:g}; allowed [{self.set_half_width:g}, inf)")
+            return self.set_centres
         centres = Lattice.tiling(self.lo, self.hi, delta).box_centres(delta)
         keep = self.contains(centres)
         if band is not None:

@@ -3,10 +3,10 @@
 The safe set is the set of states from which no admissible action sequence reaches a
 failure facet before a truncating one (infinite horizon). For the scenarios here:
 
-- ``toy``: closed form (``Toy.safe``).
+- ``toy``: closed form (``Toy.safe``), via ``Scenario.reference_safe``.
 - ``lead-follow`` / ``fleet3`` under a single adversarial action: the system is then
   deterministic, and one rollout per point until failure, truncation or standstill
-  decides membership exactly (``safe_under_adversary``). This is the reference for
+  decides membership exactly (``scenarios.reference``). This is the reference for
   every campaign run with ``actions.mode = "adversarial"``.
 - With ``brake`` and uniform Gamma as well: the brake SV ignores the lead, and maximal
   lead braking minimises the lead's position at every future time, so a sequence that
@@ -23,69 +23,41 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from scenarios.streams import RunStreams
 from scenarios.actions import UniformActions
-from scenarios.base import CONTINUE, FAILURE, Scenario
-from scenarios.run import run_scenario
+from scenarios.base import FAILURE, Scenario
+from scenarios.reference import safe_by_simulation
+from scenarios.rollout import run_scenario
+from scenarios.streams import RunStreams
 
 
-def safe_under_adversary(scenario: Scenario, points: np.ndarray, max_steps: int = 5000,
-                         chunk: int = 1 << 18) -> np.ndarray:
-    """(B, n) -> (B,) bool: the rollout under Gamma*[0] never fails."""
-    out = np.empty(len(points), dtype=bool)
-    u_row = scenario.adversarial_actions[0]
-    for lo in range(0, len(points), chunk):
-        state = np.ascontiguousarray(points[lo : lo + chunk], dtype=float)
-        safe = np.ones(len(state), dtype=bool)
-        active = np.arange(len(state))
-        for _ in range(max_steps):
-            nxt = scenario.step(state, np.broadcast_to(u_row, (len(state), scenario.m)), None)
-            status = scenario.classify(nxt)
-            safe[active[status == FAILURE]] = False
-            moving = (status == CONTINUE) & (np.abs(nxt - state).max(axis=1) > 0)
-            active, state = active[moving], np.ascontiguousarray(nxt[moving])
-            if len(active) == 0:
-                break
-        else:
-            raise RuntimeError(f"adversarial rollouts did not settle within {max_steps} steps")
-        out[lo : lo + chunk] = safe
-    return out
+class NoReference(ValueError):
+    """The scenario offers no reference to compare with (one-line message)."""
 
 
-def reference_safe(scenario: Scenario, points: np.ndarray) -> np.ndarray:
-    if scenario.name == "toy":
-        return scenario.safe(points)
-    if len(scenario.adversarial_actions) != 1:
-        raise ValueError(f"no model-based reference for scenario {scenario.name!r}")
-    if hasattr(scenario, "rollout"):
-        return safe_by_simulation(scenario, points)
-    return safe_under_adversary(scenario, points)
+def reference_safe(backend, points: np.ndarray) -> np.ndarray:
+    """(G, n) -> (G,) bool membership of the reference safe set: the scenario's own
+    model (``Scenario.reference_safe``), else, for a single adversarial action, the
+    back end simulated long enough to settle (``adversary_settle_steps``)."""
+    scenario = backend.scenario
+    if not scenario.external_sv:
+        truth = scenario.reference_safe(points)
+        if truth is not None:
+            return np.asarray(truth, dtype=bool)
+    if len(scenario.adversarial_actions) != 1 or not scenario.adversary_settle_steps:
+        raise NoReference(f"compare: scenario {scenario.name!r} has no reference safe set: it defines no "
+                          f"reference_safe() model, and no single adversarial action with adversary_settle_steps "
+                          f"to simulate one")
+    return safe_by_simulation(backend, points)
 
 
-def safe_by_simulation(scenario: Scenario, points: np.ndarray, horizon: int = 400, chunk: int = 4096) -> np.ndarray:
-    """A black-box SV (SUMO) has no model, but under the single adversarial action the
-    system is deterministic: simulating every grid point long enough (here 40 s: the
-    lead stops within 4 s and the SV settles) decides membership by the simulator itself."""
-    from scenarios.actions import AdversarialActions
-
-    out = np.empty(len(points), dtype=bool)
-    policy = AdversarialActions(deterministic=True)
-    for lo in range(0, len(points), chunk):
-        part = points[lo : lo + chunk]
-        idx = np.arange(lo, lo + len(part))
-        batch = run_scenario(scenario, part, horizon, policy, RunStreams.of(0, idx))
-        out[lo : lo + len(part)] = batch.outcomes != FAILURE
-    return out
-
-
-def falsify(scenario: Scenario, safe_points: np.ndarray, tries: int = 4, horizon: int = 200, seed: int = 0) -> int:
+def falsify(backend, safe_points: np.ndarray, tries: int = 4, horizon: int = 200, seed: int = 0) -> int:
     """How many reference-safe points fail under some random action sequence."""
     if len(safe_points) == 0:
         return 0
     broken = np.zeros(len(safe_points), dtype=bool)
     for k in range(tries):
         idx = np.arange(k * len(safe_points), (k + 1) * len(safe_points))
-        batch = run_scenario(scenario, safe_points, horizon, UniformActions(), RunStreams.of(seed, idx))
+        batch = run_scenario(backend, safe_points, horizon, UniformActions(), RunStreams.of(seed, idx))
         broken |= batch.outcomes == FAILURE
     return int(broken.sum())
 
@@ -106,12 +78,13 @@ def claimed(scenario: Scenario, centres: np.ndarray, half_width: float, points: 
     return index.any_within(points, half_width)
 
 
-def compare_boxes(scenario: Scenario, centres: np.ndarray, half_width: float,
+def compare_boxes(backend, centres: np.ndarray, half_width: float,
                   grid_points_per_axis: int | None = None, truth: np.ndarray | None = None) -> dict:
     """IoU, precision (claimed volume truly safe), recall (true safe volume claimed) and
     the l-inf Hausdorff distance between the quantified set and the reference, on a grid."""
+    scenario = backend.scenario
     points = grid(scenario, grid_points_per_axis)
-    truth = reference_safe(scenario, points) if truth is None else truth
+    truth = reference_safe(backend, points) if truth is None else truth
     got = claimed(scenario, centres, half_width, points)
     both = (got & truth).sum()
     cell = float(np.prod((scenario.upper - scenario.lower) / round(len(points) ** (1 / scenario.n))))

@@ -65,12 +65,16 @@ class PointIndex:
         self._shape = shape
         self._strides = np.cumprod(np.concatenate([shape[1:], [1]])[::-1])[::-1].astype(np.int64)
         self._dense = np.zeros(int(np.prod(shape)), dtype=np.int32)
+        # the id of one alive centre point per cell (-1: none), so that a hit names its
+        # witness
+        self._centre_point = np.full(int(np.prod(shape)), -1, dtype=np.int64)
         self._others = np.zeros(int(np.prod(shape)), dtype=np.int32)  # off-centre points per cell
         self._off_head = np.full(int(np.prod(shape)), -1, dtype=np.int64)  # their chains
         ids = np.arange(self.count)
         self._centre_cell[: self.count] = self._centre_cells(self.points[: self.count])
         live = ids[self.alive[: self.count] & (self._centre_cell[: self.count] >= 0)]
         np.add.at(self._dense, self._centre_cell[live], 1)
+        self._centre_point[self._centre_cell[live]] = live
         off = ids[self.alive[: self.count] & (self._centre_cell[: self.count] < 0)]
         off_cells = self._flat(self._cells(self.points[off]))
         np.add.at(self._others, off_cells, 1)
@@ -162,6 +166,7 @@ class PointIndex:
             cells = self._centre_cells(pts)
             self._centre_cell[ids] = cells
             np.add.at(self._dense, cells[cells >= 0], 1)
+            self._centre_point[cells[cells >= 0]] = ids[cells >= 0]
             off = cells < 0
             off_cells = self._flat(self._cells(pts[off]))
             np.add.at(self._others, off_cells, 1)
@@ -177,9 +182,23 @@ class PointIndex:
         if self._dense is not None:
             dying = ids[self.alive[ids]]
             centred = self._centre_cell[dying] >= 0
-            np.subtract.at(self._dense, self._centre_cell[dying[centred]], 1)
+            cells = self._centre_cell[dying[centred]]
+            np.subtract.at(self._dense, cells, 1)
+            known = self._centre_point[cells] == dying[centred]
+            self._centre_point[cells[known]] = -1
+            self.alive[ids] = False
+            orphaned = np.unique(cells[known])
+            self._rename(orphaned[self._dense[orphaned] > 0])
             np.subtract.at(self._others, self._flat(self._cells(self.points[dying[~centred]])), 1)
         self.alive[ids] = False
+
+    def _rename(self, cells: np.ndarray) -> None:
+        """Name another alive centre point for cells whose named one was killed (rare:
+        two points at one cell centre). Cells in insertion order of their points."""
+        if len(cells) == 0:
+            return
+        ids = np.flatnonzero(self.alive[: self.count] & np.isin(self._centre_cell[: self.count], cells))
+        self._centre_point[self._centre_cell[ids]] = ids
 
     def recell(self, cell: float) -> None:
         """Change the cell size (when delta shrinks) and rebuild the chains."""
@@ -200,30 +219,36 @@ class PointIndex:
 
     def any_within(self, queries: np.ndarray, radius: float) -> np.ndarray:
         """(B, n) -> (B,) bool: is some alive point within l-inf distance ``radius``?"""
+        return self.cover(queries, radius) >= 0
+
+    def cover(self, queries: np.ndarray, radius: float) -> np.ndarray:
+        """(B, n) -> (B,) int64: the id of an alive point within l-inf distance
+        ``radius`` of each query (a witness), or -1 if there is none."""
         q = np.atleast_2d(np.asarray(queries, dtype=float))
-        hit = np.zeros(len(q), dtype=bool)
+        found = np.full(len(q), -1, dtype=np.int64)
         if self.count == 0 or len(q) == 0:
-            return hit
+            return found
         r = radius + TOLERANCE
         rel = q - self.origin
         rel *= 1.0 / self.cell
         home = np.floor(rel).astype(np.int64)
         todo = None
         if self._dense is not None and radius >= self.cell / 2 - 1e-12:
-            hit = self._dense[self._flat(home)] > 0
-            todo = np.flatnonzero(~hit)
+            flat = self._flat(home)
+            found = self._centre_point[flat]
+            todo = np.flatnonzero(found < 0)
             if len(todo) == 0:
-                return hit
+                return found
             if radius <= self.cell / 2 + 1e-12:
-                todo = self._settle_misses(q, rel, home, todo, r, hit)
+                todo = self._settle_misses(q, rel, home, todo, r, found)
                 if len(todo) == 0:
-                    return hit
+                    return found
         if todo is None:
             todo = np.arange(len(q))
-        self._scan(q, home[todo], todo, r, hit)
-        todo = todo[~hit[todo]]
+        self._scan(q, home[todo], todo, r, found)
+        todo = todo[found[todo] < 0]
         if len(todo) == 0:
-            return hit
+            return found
         lo = np.floor(rel[todo] - r / self.cell).astype(np.int64)
         hi = np.floor(rel[todo] + r / self.cell).astype(np.int64)
         home_t = home[todo]
@@ -239,28 +264,28 @@ class PointIndex:
             if not any(pattern):
                 continue
             pat = np.array(pattern)
-            rows = np.flatnonzero(~both & crosses[:, pat].all(axis=1) & ~hit[todo])
+            rows = np.flatnonzero(~both & crosses[:, pat].all(axis=1) & (found[todo] < 0))
             if len(rows):
                 cells = home_t[rows].copy()
                 cells[:, pat] = side[rows][:, pat]
-                self._scan(q, cells, todo[rows], r, hit)
+                self._scan(q, cells, todo[rows], r, found)
         # queries at a cell centre reach both neighbours of an axis (r = cell/2 + tolerance)
         for offset in itertools.product((-1, 0, 1), repeat=self.n):
             if not any(offset) or not both.any():
                 continue
             off = np.array(offset)
             ok = ((off >= 0) | reach_down).all(axis=1) & ((off <= 0) | reach_up).all(axis=1)
-            rows = np.flatnonzero(both & ok & ~hit[todo])
+            rows = np.flatnonzero(both & ok & (found[todo] < 0))
             if len(rows):
-                self._scan(q, home_t[rows] + off, todo[rows], r, hit)
-        return hit
+                self._scan(q, home_t[rows] + off, todo[rows], r, found)
+        return found
 
-    def _settle_misses(self, q, rel, home, todo, r, hit) -> np.ndarray:
+    def _settle_misses(self, q, rel, home, todo, r, found) -> np.ndarray:
         """Queries whose home cell has no alive centre point, radius = cell/2. The ball
         touches 2 cells per axis; a centre point of another cell can reach the query
         only across a face the query lies on. Where no such cell holds a centre point,
         only off-centre points can cover the query: walk their per-cell chains in the
-        touched cells (none where those cells hold none). Sets ``hit``; returns the
+        touched cells (none where those cells hold none). Sets ``found``; returns the
         queries left for the hash chains: on a face next to an alive centre, reaching
         over both neighbours of an axis, or past the grid's margin."""
         rel_t = rel[todo]
@@ -307,26 +332,26 @@ class PointIndex:
             rows = simple[self._others[flat[simple]] > 0]
             sel_parts.append(rows)
             cur_parts.append(self._off_head[flat[rows]])
-        self._walk(q, todo[np.concatenate(sel_parts)], np.concatenate(cur_parts), r, hit, self._off_next)
+        self._walk(q, todo[np.concatenate(sel_parts)], np.concatenate(cur_parts), r, found, self._off_next)
         return todo[general]
 
-    def _scan(self, q, cells, sel, r, hit) -> None:
-        """Walk the hash chains of ``cells`` (row i: the cell for query ``sel[i]``), setting ``hit``."""
-        self._walk(q, sel, self._heads[self._bucket(cells)], r, hit, self.next)
+    def _scan(self, q, cells, sel, r, found) -> None:
+        """Walk the hash chains of ``cells`` (row i: the cell for query ``sel[i]``), setting ``found``."""
+        self._walk(q, sel, self._heads[self._bucket(cells)], r, found, self.next)
 
-    def _walk(self, q, sel, cur, r, hit, links) -> None:
+    def _walk(self, q, sel, cur, r, found, links) -> None:
         """Walk chains from points ``cur`` (row i for query ``sel[i]``) along ``links``,
-        setting ``hit`` where an alive point lies within ``r``."""
+        setting ``found`` (the point's id) where an alive point lies within ``r``."""
         while len(sel):
             live = cur >= 0
             sel, cur = sel[live], cur[live]
             if len(sel) == 0:
                 break
-            found = self.alive[cur]
+            near = self.alive[cur]
             for axis in range(self.n):  # 1-D per axis: reducing (k, n) over n is slow
-                found &= np.abs(self.points[cur, axis] - q[sel, axis]) <= r
-            hit[sel[found]] = True
-            keep = ~hit[sel]  # a query found through another cell stops walking too
+                near &= np.abs(self.points[cur, axis] - q[sel, axis]) <= r
+            found[sel[near]] = cur[near]
+            keep = found[sel] < 0  # a query found through another cell stops walking too
             sel, cur = sel[keep], links[cur[keep]]
 
     # -- persistence (plain arrays, no pickle) -------------------------------------------

@@ -1,14 +1,7 @@
 """QNT^SPE (paper Alg. 8): synchronous pruning and exploration, with prioritized
-sampling and experience replay (Sec. 4.4).
-
-The algorithm state is explicit (``SPE`` holds arrays, no hidden globals) and is
-driven ask/tell-style by ``coordinator.campaign``:
-
-    draw(streams)                 start vertices for a batch, from the state as it is now
-    scan(batch, rows, ids)        offset of the first run in ``rows`` that changes the state
-    apply(batch, row, id)         apply that run's change (prune or explore)
-    record(batch, rows, ids)      keep committed runs' states for experience replay
-    end_round()                   delta decay (lines 25-27); False after the last round
+sampling and experience replay (Sec. 4.4), over explicit state (``SPE`` holds arrays,
+no hidden globals), driven ask/tell-style by ``coordinator.campaign`` (the contract is
+coordinator/algorithm.py).
 
 A run *changes the state* when it fails (line 9: prune reachable(sigma), add sigma to
 PhiBar) or visits a state sigma' with d(sigma', Phi_delta) > delta and d(sigma', PhiBar)
@@ -22,19 +15,22 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered
+from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell
 from coordinator.covering import Lattice
 from coordinator.graph import ExplorationForest
-from coordinator.runs import first_true_per_run, visited_states
-from coordinator.spatial import PointIndex
-from scenarios.streams import PURPOSE_START, RunStreams
 from scenarios.base import FAILURE, Scenario
-from scenarios.run import RunBatch
+from scenarios.streams import PURPOSE_START, RunStreams
 
 ALPHAS = {"identity": lambda x: x, "square": np.square, "sqrt": np.sqrt}
+REPLAY_CHUNK = 4096  # stored states per greedy pass in experience replay
 
 
 @dataclass(frozen=True)
 class SPESettings:
+    """The algorithm's parameters (the config's [quantify] section carries the same
+    names and takes its defaults from here)."""
+
     delta0: float = 2.0
     gamma: float = 0.5
     delta_min: float = 0.5
@@ -46,46 +42,42 @@ class SPESettings:
     boundary: bool = False
 
 
-def greedy_uncovered(points: np.ndarray, delta: float) -> np.ndarray:
-    """Indices of ``points`` kept when adding them in order and skipping any point
-    within l-inf ``delta`` of one already kept (line 15 applied point by point)."""
-    kept: list[int] = []
-    covered = np.zeros(len(points), dtype=bool)
-    for i in range(len(points)):
-        if covered[i]:
-            continue
-        kept.append(i)
-        covered[i:] |= np.abs(points[i:] - points[i]).max(axis=1) <= delta + 1e-9
-    return np.asarray(kept, dtype=np.int64)
-
-
-class SPE:
+class SPE(Algorithm):
     name = "spe"
     decays = True
+    append_only = ("vertices.points", "failures.points", "graph.parent", "replay.states", "replay.parents")
 
-    def __init__(self, scenario: Scenario, settings: SPESettings):
+    def __init__(self, scenario: Scenario, settings: SPESettings, deterministic: bool = False):
+        """``deterministic``: a run is a function of its start state (one adversarial
+        action, no disturbance); experience replay then stores each vertex's run once."""
         self.scenario = scenario
         self.settings = settings
-        n = scenario.n
+        self.deterministic = deterministic
         self.lattice = Lattice.tiling(scenario.lower, scenario.upper, settings.delta0)
-        self.delta = settings.delta0
-        bounds = (scenario.lower, scenario.upper)
-        self.vertices = PointIndex(n, 2 * self.delta, self.lattice.anchor, bounds=bounds)
-        self.failures = PointIndex(n, 2 * self.delta, self.lattice.anchor)
+        self.coverage = Coverage(scenario.n, settings.delta0, self.lattice.anchor,
+                                 bounds=(scenario.lower, scenario.upper), failures=True)
         self.graph = ExplorationForest()
-        self._add_roots(self.lattice.box_centres(self.delta))
         self.version = 0
         self.round = 0
+        self._add_roots(self.lattice.box_centres(self.delta))
         self._replay_states: list[np.ndarray] = []
         self._replay_parents: list[np.ndarray] = []
-        self._replay_size = 0
+        self._replay_size = 0  # states offered to the buffer, duplicates included (the capacity's unit)
+        self._replayed_vertices = np.zeros(0, dtype=bool)  # deterministic: vertices whose run is stored
         self._dist: tuple[np.ndarray, int, int] | None = None  # (distances, vertices, failures) seen
         self._draw_cache: tuple | None = None
 
+    @property
+    def failures(self):
+        return self.coverage.failures
+
     # -- helpers --------------------------------------------------------------------------
     def _add_roots(self, centres: np.ndarray) -> None:
-        self.vertices.insert(centres)
+        self.coverage.apply(Insert(centres), self.version)
         self.graph.add_roots(len(centres))
+
+    def failure_points(self) -> np.ndarray:
+        return self.failures.points[: self.failures.count].copy()
 
     @property
     def final_round(self) -> bool:
@@ -182,53 +174,60 @@ class SPE:
         return self.vertices.points[chosen].copy(), chosen
 
     # -- tell ---------------------------------------------------------------------------
-    def scan(self, batch: RunBatch, rows: np.ndarray, start_ids: np.ndarray):
-        """-> (offset of the first state-changing run in ``rows`` or len(rows),
-        (offset,) bool: quiet runs that left Phi_delta within delta of PhiBar)."""
-        fail = batch.outcomes[rows] == FAILURE
-        states, pos = visited_states(batch, rows)
-        covered = self.vertices.any_within(states, self.delta)
-        uncovered = np.nonzero(~covered)[0]
-        near = np.zeros(len(states), dtype=bool)
-        if len(uncovered):
-            near[uncovered] = self.failures.any_within(states[uncovered], self.delta)
-        explore = ~covered & ~near
-        change = fail | first_true_per_run(explore, pos, len(rows))
-        offset = int(np.argmax(change)) if change.any() else len(rows)
-        escaped = first_true_per_run(~covered & near, pos, len(rows))[:offset]
-        return offset, escaped
-
-    def apply(self, batch: RunBatch, row: int, start_id: int) -> str:
-        """Apply the change of run ``row``; returns "pruned" or "explored"."""
+    def apply(self, event: Event) -> str:
+        """Apply the change of one run; returns "pruned" or "explored"."""
         self.version += 1
-        if batch.outcomes[row] == FAILURE:
+        if event.failed:
             # A failing run's explored states would be pruned with sigma at once (they are
             # in reachable(sigma)), so only sigma enters PhiBar and its tree is pruned.
-            self.failures.insert(batch.trajectories[0, row][None, :])
-            self.vertices.kill(self.graph.reachable(int(start_id), self.settings.reachable))
+            self.coverage.apply(AddFailures(event.start[None, :]), self.version)
+            self.coverage.apply(Kill(self.graph.reachable(event.start_id, self.settings.reachable)), self.version)
             return "pruned"
-        states, _ = visited_states(batch, np.array([row]))
+        states = event.states
         new = ~self.vertices.any_within(states, self.delta)
         new[new] = ~self.failures.any_within(states[new], self.delta)
         candidates = states[new]
         kept = candidates[greedy_uncovered(candidates, self.delta)]
-        self.vertices.insert(kept)
-        self.graph.add_children(int(start_id), len(kept))
+        self.coverage.apply(Insert(kept), self.version)
+        self.graph.add_children(event.start_id, len(kept))
         return "explored"
 
-    def record(self, batch: RunBatch, rows: np.ndarray, start_ids: np.ndarray) -> None:
-        """Keep the states of committed, non-failing runs for experience replay."""
+    def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray) -> None:
+        """Keep the states of committed, non-failing runs for experience replay, up to
+        ``replay_capacity`` states. Exact duplicates are not stored (replaying a state
+        twice adds nothing): a state repeating its predecessor (a standing vehicle), and,
+        for a deterministic system, the whole run of a vertex already stored."""
         if not self.settings.replay or self._replay_size >= self.settings.replay_capacity:
             return
-        ok = rows[batch.outcomes[rows] != FAILURE]
+        ok = rows[chunk.outcomes[rows] != FAILURE]
         if len(ok) == 0:
             return
-        states, pos = visited_states(batch, ok)
+        states, offsets = chunk.visited()
+        counts = offsets[ok + 1] - offsets[ok]
+        parents = start_ids[np.searchsorted(rows, ok)]
         room = self.settings.replay_capacity - self._replay_size
-        states, pos = states[:room], pos[:room]
-        self._replay_states.append(states)
-        self._replay_parents.append(start_ids[np.searchsorted(rows, ok)][pos])
-        self._replay_size += len(states)
+        take = np.minimum(counts, np.maximum(room - (np.cumsum(counts) - counts), 0))
+        self._replay_size += int(take.sum())
+        keep_run = take > 0
+        if self.deterministic:
+            seen = self._replayed_vertices
+            if len(seen) < self.vertices.count:
+                seen = self._replayed_vertices = np.concatenate([seen, np.zeros(self.vertices.count - len(seen), bool)])
+            first = np.zeros(len(ok), dtype=bool)
+            first[np.unique(parents, return_index=True)[1]] = True  # first run of each vertex here
+            keep_run &= first & ~seen[parents]
+            seen[parents[keep_run]] = True
+        if not keep_run.any():
+            return
+        run_start = offsets[ok][keep_run]
+        run_take = take[keep_run]
+        index = np.repeat(run_start - np.cumsum(run_take) + run_take, run_take) + np.arange(int(run_take.sum()))
+        kept_states = states[index]
+        kept_parents = np.repeat(parents[keep_run], run_take)
+        same = np.zeros(len(kept_states), dtype=bool)
+        same[1:] = (kept_states[1:] == kept_states[:-1]).all(axis=1) & (kept_parents[1:] == kept_parents[:-1])
+        self._replay_states.append(kept_states[~same])
+        self._replay_parents.append(kept_parents[~same])
 
     # -- round end ---------------------------------------------------------------------
     def end_round(self) -> bool:
@@ -237,14 +236,12 @@ class SPE:
         new_delta = max(self.settings.gamma * self.delta, self.settings.delta_min)
         centres = self.vertices.alive_points()
         children = self.lattice.children(centres, self.delta, new_delta)
-        self.delta = new_delta
-        self.vertices.recell(2 * new_delta)
-        self.failures.recell(2 * new_delta)
+        self.version += 1
+        self.coverage.apply(Recell(new_delta), self.version)
         if len(children):
             children = children[~self.failures.any_within(children, new_delta)]
         self._add_roots(children)
         self.round += 1
-        self.version += 1
         if self.settings.replay:
             self._replay()
         return True
@@ -259,33 +256,30 @@ class SPE:
         new[new] = ~self.failures.any_within(states[new], self.delta)
         states, parents = states[new], parents[new]
         added = 0
-        chunk = 4096
-        for lo in range(0, len(states), chunk):
-            part, part_parents = states[lo : lo + chunk], parents[lo : lo + chunk]
+        for lo in range(0, len(states), REPLAY_CHUNK):
+            part, part_parents = states[lo : lo + REPLAY_CHUNK], parents[lo : lo + REPLAY_CHUNK]
             if added:  # points added by earlier chunks may cover these
                 fresh = ~self.vertices.any_within(part, self.delta)
                 part, part_parents = part[fresh], part_parents[fresh]
             kept = greedy_uncovered(part, self.delta)
-            self.vertices.insert(part[kept])
+            self.coverage.apply(Insert(part[kept]), self.version)
             for parent in part_parents[kept]:
                 self.graph.add_children(int(parent), 1)
             added += len(kept)
         return added
 
     # -- output ---------------------------------------------------------------------------
-    def result(self) -> tuple[np.ndarray, float]:
-        return self.vertices.alive_points(), self.delta
-
     def counts(self) -> dict:
         return {"boxes": self.vertices.alive_count, "vertices": self.vertices.count,
                 "failures": self.failures.count, "delta": self.delta, "round": self.round}
 
     # -- persistence --------------------------------------------------------------------
     def state(self) -> dict:
-        out = {f"vertices.{k}": v for k, v in self.vertices.state().items()}
-        out.update({f"failures.{k}": v for k, v in self.failures.state().items()})
+        out = self.coverage.state()
         out["graph.parent"] = self.graph.parent.copy()
         out["scalars"] = np.array([self.delta, self.round, self.version], dtype=float)
+        out["replay.size"] = np.array(self._replay_size)
+        out["replay.vertices"] = self._replayed_vertices.copy()
         out["replay.states"] = (np.concatenate(self._replay_states) if self._replay_states
                                 else np.empty((0, self.scenario.n)))
         out["replay.parents"] = (np.concatenate(self._replay_parents) if self._replay_parents
@@ -293,17 +287,13 @@ class SPE:
         return out
 
     def load_state(self, state: dict) -> None:
-        self.vertices = PointIndex.from_state({k[9:]: v for k, v in state.items() if k.startswith("vertices.")})
-        self.failures = PointIndex.from_state({k[9:]: v for k, v in state.items() if k.startswith("failures.")})
+        self.coverage = Coverage.from_state(state)
         self.graph = ExplorationForest.from_state({"parent": state["graph.parent"]})
-        delta, rnd, version = state["scalars"]
-        self.delta, self.round, self.version = float(delta), int(rnd), int(version)
+        _, rnd, version = state["scalars"]
+        self.round, self.version = int(rnd), int(version)
         self._replay_states = [state["replay.states"]] if len(state["replay.states"]) else []
         self._replay_parents = [state["replay.parents"]] if len(state["replay.parents"]) else []
-        self._replay_size = len(state["replay.states"])
+        self._replay_size = int(state["replay.size"])
+        self._replayed_vertices = state["replay.vertices"].astype(bool)
         self._dist = None
         self._draw_cache = None
-
-
-class EmptySetError(RuntimeError):
-    """Every candidate was pruned: the quantified safe set is empty."""

@@ -1,9 +1,10 @@
 """Safety validation (paper Sec. 3): VAL^delta (Alg. 2), VAL^eps (Alg. 3) and
 VAL^eps-delta (Alg. 4), with the boundary band (Thm. 3) and Gamma* (Def. 7) options.
 
-Runs are simulated in batches on any executor and committed in sample-index order, so
-the verdict and the first counterexample (the smallest violating index) do not depend
-on the number of workers. A run *violates* when it reaches a failure facet, or visits a
+Runs are simulated in batches on any executor, checked on the workers (``Checker`` is
+the screen every chunk is sent with), and committed in sample-index order, so the
+verdict and the first counterexample (the smallest violating index) do not depend on
+the number of workers. A run *violates* when it reaches a failure facet, or visits a
 state inside Sigma outside Phi (eps) or outside Phi_delta (delta, eps-delta). Leaving
 Sigma through a truncating facet ends a run quietly (the hard-constraint rule).
 """
@@ -17,7 +18,6 @@ import numpy as np
 
 from coordinator.covering import covering_size, n_eps
 from coordinator.domain import Domain
-from coordinator.runs import visited_states
 from coordinator.spatial import PointIndex
 from scenarios.streams import PURPOSE_START, RunStreams
 from scenarios.base import FAILURE, OUTCOME_NAMES, TRUNCATED
@@ -63,98 +63,106 @@ def draw_starts(domain: Domain, p: ValidationPlan, streams: RunStreams) -> np.nd
 
 
 class Checker:
-    """Decides, per run, the first violating step (or none)."""
+    """Decides, per run, the first violating step (or none): the screen of a validation.
+
+    Phi_delta is the union of the delta-boxes of the covering centres (for a set domain
+    its own box centres); Definition 1 needs it to contain Phi, and centres kept inside
+    a cut domain may leave slivers of Phi near its faces, so Phi counts too."""
 
     def __init__(self, domain: Domain, p: ValidationPlan, delta: float):
         self.domain, self.plan, self.delta = domain, p, delta
+        self.cover = None
         if p.centres is not None:
-            self.cover = PointIndex(domain.scenario.n, 2 * delta, domain.lo - delta,
-                                    bounds=(domain.lo, domain.hi))
+            self.cover = PointIndex(domain.scenario.n, 2 * delta, domain.lo - delta, bounds=(domain.lo, domain.hi))
             self.cover.insert(p.centres)
 
     def inside(self, states: np.ndarray) -> np.ndarray:
+        if self.cover is not None and self.domain.is_set:
+            return self.cover.any_within(states, self.delta)
         inside = self.domain.contains(states)
-        if self.plan.algorithm == "eps":
-            return inside
-        # Definition 1 needs Phi_delta to contain Phi; centres kept inside a cut or a set
-        # domain may leave slivers of Phi uncovered near its faces, so Phi counts too.
-        inside[~inside] = self.cover.any_within(states[~inside], self.delta)
+        if self.cover is not None:
+            inside[~inside] = self.cover.any_within(states[~inside], self.delta)
         return inside
 
-    def violations(self, batch) -> tuple[np.ndarray, np.ndarray]:
-        """(B,) bool violated, (B,) int step of the first violating state (or -1)."""
-        rows = np.arange(len(batch))
-        states, pos = visited_states(batch, rows)
+    def screen(self, states: np.ndarray, offsets: np.ndarray, outcomes: np.ndarray) -> np.ndarray:
+        """(k,) int64: the step of each run's first violating state, -1 for none."""
+        k = len(outcomes)
+        counts = np.diff(offsets)
+        run = np.repeat(np.arange(k), counts)
+        t = np.arange(len(states)) - np.repeat(offsets[:-1], counts) + 1
         outside = ~self.inside(states)
-        step = np.full(len(batch), -1, dtype=np.int64)
-        if outside.any():
-            # visited states are in time order within a run: first outside state per run
-            first = np.full(len(batch), np.iinfo(np.int64).max)
-            t = np.arange(len(states)) - np.searchsorted(pos, pos) + 1
-            np.minimum.at(first, pos[outside], t[outside])
-            hit = first < np.iinfo(np.int64).max
-            step[hit] = first[hit]
-        failed = batch.outcomes == FAILURE
-        step[failed & (step < 0)] = batch.lengths[failed & (step < 0)] - 1
-        return step >= 0, step
+        first = np.full(k, np.iinfo(np.int64).max)
+        np.minimum.at(first, run[outside], t[outside])
+        step = np.where(first < np.iinfo(np.int64).max, first, -1)
+        # a failure is the run's terminal state, after every visited state
+        failed = (outcomes == FAILURE) & (step < 0)
+        step[failed] = counts[failed] + 1
+        return step
 
 
 def validate(domain: Domain, p: ValidationPlan, executor, *, seed: int, delta: float, batch_size: int,
              pipeline_depth: int, progress=None) -> dict:
     """Run up to p.n_required runs; stop at the first violation (smallest index)."""
     checker = Checker(domain, p, delta)
-    pending: deque = deque()
-    next_index = 0
-    committed = 0
-    simulated = 0
-    steps = 0
-    while committed < p.n_required:
-        while len(pending) < pipeline_depth and next_index < p.n_required:
-            size = min(batch_size, p.n_required - next_index)
-            streams = RunStreams.of(seed, np.arange(next_index, next_index + size, dtype=np.uint64))
-            starts = draw_starts(domain, p, streams)
-            pending.append((next_index, executor.submit(next_index, starts)))
-            next_index += size
-        first, handle = pending.popleft()
-        batch = executor.result(handle)
-        simulated += len(batch)
-        steps += batch.steps
-        violated, step = checker.violations(batch)
-        if violated.any():
-            row = int(np.argmax(violated))
-            for _, h in pending:
-                executor.cancel(h)
-            committed += row + 1
-            return {"verdict": "counterexample", "n_run": committed, "runs_simulated": simulated,
-                    "steps_simulated": steps,
-                    "counterexample": counterexample(domain, batch, row, int(step[row]), seed)}
-        committed += len(batch)
-        if progress:
-            progress(committed, p.n_required)
+    pending: deque = deque()  # (first index, starts, handles)
+    next_index = committed = simulated = steps = 0
+    try:
+        while committed < p.n_required:
+            while len(pending) < pipeline_depth and next_index < p.n_required:
+                size = min(batch_size, p.n_required - next_index)
+                streams = RunStreams.of(seed, np.arange(next_index, next_index + size, dtype=np.uint64))
+                starts = draw_starts(domain, p, streams)
+                pending.append((next_index, starts, deque(executor.submit(next_index, starts, checker))))
+                next_index += size
+            first, starts, handles = pending[0]
+            chunk = executor.result(handles.popleft())
+            if not handles:
+                pending.popleft()
+            simulated += len(chunk)
+            steps += chunk.steps
+            violated = chunk.screening >= 0
+            if violated.any():
+                row = int(np.argmax(violated))
+                committed += row + 1
+                start = starts[chunk.first_index - first + row]
+                return {"verdict": "counterexample", "n_run": committed, "runs_simulated": simulated,
+                        "steps_simulated": steps,
+                        "counterexample": counterexample(domain, chunk, row, start, int(chunk.screening[row]), seed)}
+            committed += len(chunk)
+            if progress:
+                progress(committed, p.n_required)
+    finally:
+        for _, _, handles in pending:
+            for handle in handles:
+                executor.cancel(handle)
     return {"verdict": "certified", "n_run": committed, "runs_simulated": simulated, "steps_simulated": steps,
             "counterexample": None}
 
 
-def counterexample(domain: Domain, batch, row: int, step: int, seed: int) -> dict:
+def counterexample(domain: Domain, chunk, row: int, start: np.ndarray, step: int, seed: int) -> dict:
     sc = domain.scenario
-    traj = batch.trajectory(row)[: step + 1]
+    traj = chunk.trajectory(row, start)[: step + 1]
     last = traj[-1]
-    if batch.outcomes[row] == FAILURE and step == batch.lengths[row] - 1:
+    failed_here = chunk.outcomes[row] == FAILURE and step == chunk.lengths[row] - 1
+    if failed_here:
         crossed = [f.label for f, fail in sc.facets() if fail and
                    ((last[f.axis] > f.bound) if f.upper else (last[f.axis] < f.bound))]
         reason = f"failure: crossed {' and '.join(crossed) or 'a failure facet'} at step {step}"
     else:
         reason = f"left the claimed domain at step {step} (state {np.round(last, 6).tolist()})"
+    index = chunk.first_index + row
     return {
-        "sample_index": int(batch.indices[row]),
-        "stream_key": {"seed": seed, "index": int(batch.indices[row])},
+        "sample_index": index,
+        "stream_key": {"seed": seed, "index": index},
         "start_state": dict(zip(sc.state_names, map(float, traj[0]))),
         "violating_step": step,
         "reason": reason,
-        "outcome": OUTCOME_NAMES.get(int(batch.outcomes[row]), "horizon"),
+        # what happened at the violating step; the trajectory ends there
+        "outcome": "failure" if failed_here else "left the domain",
+        "run_outcome": OUTCOME_NAMES.get(int(chunk.outcomes[row]), "horizon"),
         "state_names": list(sc.state_names),
         "trajectory": traj.tolist(),
-        "truncated": bool(batch.outcomes[row] == TRUNCATED),
+        "truncated": bool(chunk.outcomes[row] == TRUNCATED),
     }
 
 

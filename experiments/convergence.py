@@ -19,7 +19,8 @@ from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign
 from coordinator.covering import n_eps
 from coordinator.spe import SPESettings
-from farm.executors import LocalExecutor, SimSpec
+from farm.executors import LocalExecutor
+from scenarios.simulator import SimSpec
 from scenarios import make_scenario
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"

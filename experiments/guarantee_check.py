@@ -18,8 +18,10 @@ import numpy as np
 from scipy import stats
 
 from coordinator.domain import Domain
-from coordinator.validation import Checker, plan, validate
-from farm.executors import LocalExecutor, SimSpec, build_simulator
+from coordinator.validation import Checker, plan
+from farm import api
+from farm.executors import LocalExecutor
+from scenarios.simulator import SimSpec
 from scenarios.streams import RunStreams
 
 EPS, BETA, HORIZON = 0.001, 0.1, 50
@@ -30,34 +32,32 @@ def domain_section(b: float) -> dict:
     return {"domain": {"p10": [10.0, 70.0]}, "constraints": [{"a": {"v0": 1.0, "v1": -1.0}, "b": b}]}
 
 
+def config(b: float, seed: int) -> dict:
+    return {"scenario": SCENARIO, "actions": {"mode": "uniform"},
+            "validate": {**domain_section(b), "algorithm": "eps", "epsilon": EPS, "beta": BETA, "horizon": HORIZON},
+            "farm": {"executor": "local", "seed": seed, "batch_size": 256, "pipeline_depth": 1}}
+
+
 def true_violation_rate(b: float, runs: int = 400_000, seed: int = 10**9) -> tuple[float, int]:
-    spec = SimSpec(SCENARIO, {"mode": "uniform"}, HORIZON, seed)
-    scenario, _ = build_simulator(spec)
-    domain = Domain.from_config(scenario, domain_section(b))
-    p = plan(domain, "eps", EPS, BETA, 1.0, False, False)
-    checker = Checker(domain, p, 1.0)
-    ex = LocalExecutor(spec)
+    ex = LocalExecutor(SimSpec(SCENARIO, {"mode": "uniform"}, HORIZON, seed))
+    domain = Domain.from_config(ex.simulator.scenario, domain_section(b))
+    checker = Checker(domain, plan(domain, "eps", EPS, BETA, 1.0, False, False), 1.0)
     bad = 0
     for first in range(0, runs, 50_000):
-        idx = np.arange(first, first + 50_000, dtype=np.uint64)
-        starts = domain.sample(RunStreams.of(seed, idx))
-        bad += int(checker.violations(ex.result(ex.submit(first, starts)))[0].sum())
+        starts = domain.sample(RunStreams.of(seed, np.arange(first, first + 50_000, dtype=np.uint64)))
+        (handle,) = ex.submit(first, starts, checker)
+        bad += int((ex.result(handle).screening >= 0).sum())
     return bad / runs, runs
 
 
 def experiment(seeds: int, b: float) -> dict:
     p_true, mc_runs = true_violation_rate(b)
-    wrong = 0
+    wrong, n = 0, None
     for seed in range(seeds):
-        spec = SimSpec(SCENARIO, {"mode": "uniform"}, HORIZON, seed)
-        scenario, _ = build_simulator(spec)
-        domain = Domain.from_config(scenario, domain_section(b))
-        p = plan(domain, "eps", EPS, BETA, 1.0, False, False)
-        r = validate(domain, p, LocalExecutor(spec), seed=seed, delta=1.0, batch_size=256, pipeline_depth=1)
-        wrong += r["verdict"] == "certified"
+        cert = api.validate(config(b, seed))
+        wrong += cert.certified
+        n = cert["n_required"]
     lo, hi = stats.binomtest(wrong, seeds).proportion_ci(0.95, method="exact")
-    n = plan(Domain.from_config(build_simulator(SimSpec(SCENARIO, {"mode": "uniform"}, HORIZON, 0))[0],
-                                domain_section(b)), "eps", EPS, BETA, 1.0, False, False).n_required
     return {"epsilon": EPS, "beta": BETA, "n_eps": n, "cut_b": b, "true_violation_rate": p_true,
             "true_rate_mc_runs": mc_runs, "predicted_false_certification": (1 - p_true) ** n,
             "seeds": seeds, "false_certifications": wrong, "false_certification_rate": wrong / seeds,

@@ -20,7 +20,8 @@ from coordinator.campaign import Campaign
 from coordinator.covering import n_eps
 from coordinator.spatial import PointIndex
 from coordinator.spe import SPESettings
-from farm.executors import LocalExecutor, SimSpec
+from farm.executors import LocalExecutor
+from scenarios.simulator import SimSpec
 from scenarios import make_scenario
 from scenarios.base import CONTINUE, FAILURE
 

@@ -14,7 +14,8 @@ from coordinator.campaign import Campaign
 from coordinator.covering import n_eps
 from coordinator.reference import compare_boxes
 from coordinator.spe import SPESettings
-from farm.executors import LocalExecutor, SimSpec
+from farm.executors import LocalExecutor
+from scenarios.simulator import SimSpec
 from scenarios import make_scenario
 
 rows = []

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from coordinator.covering import n_eps
 from farm import config as config_mod
-from farm.quantify import run
+from farm.quantification import run
 
 ROOT = Path(__file__).resolve().parents[1]
 KEYS = ["volume_union", "volume_hull", "boxes", "runs_committed", "rounds", "converged", "elapsed_s", "result_hash",

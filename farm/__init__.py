@@ -1,5 +1,17 @@
-"""Scenario Farm runtime: seeds, batching, executors, Ray actors, CLI, campaign storage."""
+"""Scenario Farm: guaranteed safety assurance of automated-driving controllers by
+scenario sampling, on a Ray farm. The Python API (``farm.api``):
 
+    quantify(config, out=None, ...)  -> QuantifyResult   find the maximal safe set
+    validate(config, out=None, ...)  -> Certificate      certify a claimed domain
+    compare(directory_or_result)     -> dict             against the reference safe set
+    open_campaign(directory)         -> QuantifyResult   a finished campaign
+    load_config(source, **overrides) -> Config           TOML path or string, dict
+
+Runtime pieces: config, executors (in-process and Ray), campaign storage, CLI.
+"""
+
+from farm.api import Certificate, QuantifyResult, compare, load_config, open_campaign, quantify, validate
 from scenarios.version import __version__
 
-__all__ = ["__version__"]
+__all__ = ["Certificate", "QuantifyResult", "__version__", "compare", "load_config", "open_campaign", "quantify",
+           "validate"]

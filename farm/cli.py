@@ -1,27 +1,29 @@
-"""``scenario-farm`` (also ``python -m farm``): validate, quantify, resume, report,
-status, replay, compare.
+"""``scenario-farm`` (also ``python -m farm``): a thin layer over ``farm.api``.
 
-Exit codes: 0 success (certified, campaign finished), 1 counterexample found,
-2 bad input (one line naming the field and the allowed range; nothing touched),
-3 a failure while running (a scenario raised, workers died beyond the retry bound).
+Exit codes: 0 success (certified, campaign finished), 1 counterexample found (validate,
+replay mismatch), 2 bad input or an unusable directory (one line naming the field and
+the allowed range; nothing touched), 3 a bug in this tool (one line and where the
+traceback went: please report it), 130 stopped by a signal (checkpointed; resume it).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+import tempfile
+import traceback
 from pathlib import Path
 
-from farm import __version__
+from scenarios.version import __version__
 
-EXIT_OK, EXIT_COUNTEREXAMPLE, EXIT_BAD_INPUT, EXIT_RUNTIME = 0, 1, 2, 3
+EXIT_OK, EXIT_COUNTEREXAMPLE, EXIT_BAD_INPUT, EXIT_BUG, EXIT_STOPPED = 0, 1, 2, 3, 130
 
 
-def _farm_overrides(args) -> dict:
-    return {"farm.workers": getattr(args, "workers", None), "farm.address": getattr(args, "address", None),
-            "farm.executor": getattr(args, "executor", None), "farm.seed": getattr(args, "seed", None),
-            "farm.checkpoint_every": getattr(args, "checkpoint_every", None)}
+def _overrides(args) -> dict:
+    return {f"farm.{k}": getattr(args, k, None) for k in ("workers", "address", "executor", "seed",
+                                                           "checkpoint_every")}
 
 
 def _add_farm_flags(p, seed=True):
@@ -33,89 +35,48 @@ def _add_farm_flags(p, seed=True):
 
 
 def cmd_validate(args) -> int:
-    from coordinator.domain import Domain
-    from farm.files import write_json
-    from coordinator.validation import plan, validate, verdict_sentence
-    from farm import config as config_mod
-    from farm.executors import SimSpec, build_simulator
-    from farm.ray_executor import make_executor
+    from farm import api
 
-    cfg = config_mod.load(args.config, _farm_overrides(args))
-    v, farm = cfg["validate"], cfg["farm"]
-    spec = SimSpec(dict(cfg["scenario"]), dict(cfg["actions"]), v["horizon"], farm["seed"])
-    scenario, policy = build_simulator(spec)
-    domain = Domain.from_config(scenario, v)
-    deterministic = policy.deterministic and scenario.disturbance == 0
-    p = plan(domain, v["algorithm"], v["epsilon"], v["beta"], v["delta"], v["boundary"], deterministic)
-    out = Path(args.out) if args.out else None
-    if out is not None and (out / "certificate.json").exists() and not args.force:
-        raise FileExistsError(f"{out}/certificate.json exists; pass --force to replace it")
-    executor = make_executor(farm["executor"], spec, farm["workers"], farm["address"], farm["max_retries"])
-    try:
-        result = validate(domain, p, executor, seed=farm["seed"], delta=v["delta"], batch_size=farm["batch_size"],
-                          pipeline_depth=farm["pipeline_depth"])
-    finally:
-        executor.close()
-    sentence = verdict_sentence(result, p, epsilon=v["epsilon"], beta=v["beta"], delta=v["delta"],
-                                seed=farm["seed"], action_description=policy.description,
-                                adversarial=cfg["actions"]["mode"] == "adversarial")
-    cert = {"verdict": result["verdict"], "statement": sentence, "algorithm": p.algorithm,
-            "epsilon": v["epsilon"], "beta": v["beta"], "delta": v["delta"], "n_required": p.n_required,
-            "n_run": result["n_run"], "runs_simulated": result["runs_simulated"],
-            "steps_simulated": result["steps_simulated"], "seed": farm["seed"],
-            "config_hash": config_mod.config_hash(cfg), "scenario": cfg["scenario"]["name"],
-            "sv_policy": cfg["scenario"]["sv_policy"], "domain": domain.describe(), "sampling": p.description,
-            "actions": policy.description, "boundary": v["boundary"],
-            "counterexample": result["counterexample"], "scenario_farm_version": __version__}
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-        write_json(out / "config.json", {"config": cfg, "config_hash": cert["config_hash"]})
-        write_json(out / "certificate.json", cert)
-        if result["counterexample"] and cfg["record"]["counterexamples"]:
-            from farm.replay import record_counterexample
+    cert = api.validate(args.config, out=args.out, force=args.force, **_farm_kwargs(args))
+    print(json.dumps(cert.data, indent=2) if args.json else cert.statement)
+    return EXIT_OK if cert.certified else EXIT_COUNTEREXAMPLE
 
-            record_counterexample(out / "counterexample.mcap", scenario, cert)
-    if args.json:
-        print(json.dumps(cert, indent=2))
-    else:
-        print(sentence)
-    return EXIT_OK if result["verdict"] == "certified" else EXIT_COUNTEREXAMPLE
+
+def _farm_kwargs(args) -> dict:
+    return {k.replace(".", "__"): v for k, v in _overrides(args).items() if v is not None}
 
 
 def cmd_quantify(args) -> int:
-    from farm import config as config_mod
-    from farm import quantify
+    from farm import api, quantification
     from farm.progress import Progress
 
-    cfg = config_mod.load(args.config, _farm_overrides(args))
-    out = Path(args.out)
-    resuming = quantify.prepare_directory(out, Path(args.config), cfg, resume=args.resume, force=args.force)
-    if resuming:
-        quantify.check_resume_config(out, cfg)
-    summary = quantify.run(cfg, out, resume=resuming, progress=Progress())
-    _print_summary(summary, out)
+    cfg = api.load_config(args.config, **_farm_kwargs(args))
+    summary = quantification.run(cfg, Path(args.out), resume=args.resume, force=args.force, progress=Progress(),
+                           config_text=Path(args.config).read_text())
+    _print_summary(summary, Path(args.out))
     return EXIT_OK
 
 
 def cmd_resume(args) -> int:
-    from farm import config as config_mod
-    from farm import quantify
+    from farm import quantification
     from farm.progress import Progress
+    from farm.storage import CampaignDir
 
     out = Path(args.dir)
-    cfg = quantify.load_frozen_config(out)
-    for dotted, value in _farm_overrides(args).items():
-        if value is not None:
-            section, key = dotted.split(".")
-            cfg[section][key] = config_mod.SCHEMA[section][key].check(f"--{key}", value)
-    summary = quantify.run(cfg, out, resume=True, progress=Progress())
+    CampaignDir(out).open("quantify")
+    cfg = quantification.load_frozen_config(out).with_overrides(_overrides(args))
+    done = quantification._finished_summary(out)
+    if done is not None:
+        print(f"{out}: the campaign has finished (result hash {done['result_hash']}); nothing to resume")
+        return EXIT_OK
+    summary = quantification.run(cfg, out, resume=True, progress=Progress())
     _print_summary(summary, out)
     return EXIT_OK
 
 
 def _print_summary(summary: dict, out: Path) -> None:
     keys = ["scenario", "sv_policy", "algorithm", "delta_final", "rounds", "boxes", "volume_union", "volume_hull",
-            "runs_committed", "runs_simulated", "steps_simulated", "elapsed_s", "result_hash"]
+            "runs_committed", "runs_simulated", "steps_simulated", "elapsed_s", "startup_s", "result_hash"]
     for k in keys + [k for k in summary if k.startswith("volume_") and k.endswith("_side")]:
         if k in summary:
             v = summary[k]
@@ -125,21 +86,11 @@ def _print_summary(summary: dict, out: Path) -> None:
 
 
 def cmd_report(args) -> int:
-    from farm.plots import draw
-    from farm.files import read_safe_set
-    from farm import quantify
-    from farm.executors import build_simulator
+    from farm import api
 
-    out = Path(args.dir)
-    try:
-        summary = json.loads((out / "summary.json").read_text())
-    except FileNotFoundError:
-        raise ValueError(f"{out}: no summary.json (is the campaign finished? try `scenario-farm status {out}`)") from None
-    cfg = quantify.load_frozen_config(out)
-    scenario, _ = build_simulator(quantify.spec_of(cfg))
-    centres, h = read_safe_set(out / "safe_set.parquet", scenario.state_names)
-    paths = draw(out / "plots", scenario, centres, h, summary)
-    _print_summary(summary, out)
+    result = api.open_campaign(args.dir)
+    paths = result.plot()
+    _print_summary(result.summary, Path(args.dir))
     print(f"{'plots':>18}: {', '.join(str(p) for p in paths)}")
     return EXIT_OK
 
@@ -160,9 +111,18 @@ def cmd_replay(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    from farm.compare import compare
+    from farm import api
+    from farm.compare import describe
 
-    print(compare(Path(args.dir), grid=args.grid))
+    metrics = api.compare(args.dir, grid=args.grid)
+    print(describe(Path(args.dir), metrics))
+    return EXIT_OK
+
+
+def cmd_schema(args) -> int:
+    from farm.config import schema
+
+    print(json.dumps(schema(), indent=2))
     return EXIT_OK
 
 
@@ -184,7 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="campaign directory")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--resume", action="store_true", help="continue the campaign in a non-empty --out")
-    g.add_argument("--force", action="store_true", help="replace the campaign in a non-empty --out")
+    g.add_argument("--force", action="store_true", help="replace the campaign in --out (only a campaign directory)")
     p.add_argument("--checkpoint-every", type=float, help="seconds between checkpoints (farm.checkpoint_every)")
     _add_farm_flags(p)
     p.set_defaults(func=cmd_quantify)
@@ -208,34 +168,65 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sample", type=int, required=True, help="global sample index")
     p.set_defaults(func=cmd_replay)
 
-    p = sub.add_parser("compare", help="compare a quantified set with the model-based reference")
+    p = sub.add_parser("compare", help="compare a quantified set with the reference safe set")
     p.add_argument("dir")
     p.add_argument("--grid", type=int, default=None, help="reference grid points per axis")
     p.set_defaults(func=cmd_compare)
+
+    p = sub.add_parser("schema", help="print the JSON Schema of the config (for editors)")
+    p.set_defaults(func=cmd_schema)
     return parser
 
 
 def main(argv=None) -> int:
-    from coordinator.domain import DomainError
-    from farm.config import ConfigError
     from farm.memory import keep_freed_memory
-    from farm.storage import CampaignError
 
     parser = build_parser()
     args = parser.parse_args(argv)
+    # like `python -m`: 'module:Class' in a config imports from the working directory
+    if os.getcwd() not in sys.path:
+        sys.path.insert(0, os.getcwd())
     keep_freed_memory()  # the coordinator's batch queries allocate like a simulator's steps
     try:
         return args.func(args)
-    except (ConfigError, DomainError, CampaignError, FileExistsError) as exc:
-        print(f"scenario-farm: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+    except Exception as exc:  # noqa: BLE001 - the one place where errors become exit codes
+        return report_error(exc)
     except KeyboardInterrupt:
-        print("scenario-farm: stopped; the campaign was checkpointed (continue with `scenario-farm resume DIR`)",
-              file=sys.stderr)
-        return 130
-    except ValueError as exc:  # raised by scenario/back-end constructors on bad config values
-        print(f"scenario-farm: error: {exc}", file=sys.stderr)
+        print("scenario-farm: interrupted", file=sys.stderr)
+        return EXIT_STOPPED
+
+
+def report_error(exc: BaseException) -> int:
+    from farm.quantification import Stopped
+
+    if isinstance(exc, Stopped):
+        print(f"scenario-farm: {exc}; checkpointed (continue with `scenario-farm resume DIR`)", file=sys.stderr)
+        return EXIT_STOPPED
+    if is_user_error(exc):
+        text = " ".join(str(exc).split()) or type(exc).__name__
+        print(f"scenario-farm: error: {text}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except RuntimeError as exc:  # ScenarioError, WorkerError, EmptySetError
-        print(f"scenario-farm: error: {exc}", file=sys.stderr)
-        return EXIT_RUNTIME
+    fd, path = tempfile.mkstemp(prefix="scenario-farm-bug-", suffix=".txt")
+    with os.fdopen(fd, "w") as fh:
+        fh.write(f"scenario-farm {__version__}\n{' '.join(sys.argv)}\n\n")
+        traceback.print_exception(exc, file=fh)
+    print(f"scenario-farm: internal error ({type(exc).__name__}: {exc}); this is a bug: please report it with "
+          f"the traceback in {path}", file=sys.stderr)
+    return EXIT_BUG
+
+
+def is_user_error(exc: BaseException) -> bool:
+    """Errors that say what is wrong with the input, the directory or the environment."""
+    from coordinator.algorithm import EmptySetError
+    from coordinator.domain import DomainError
+    from farm.config import ConfigError
+    from farm.ray_executor import WorkerError
+    from farm.storage import CampaignError
+    from scenarios.base import ScenarioError
+
+    known = (ConfigError, DomainError, CampaignError, ScenarioError, WorkerError, EmptySetError, FileExistsError,
+             ValueError)
+    if isinstance(exc, known):
+        return True
+    # a full disk, a read-only place, a missing file: the environment, named in the message
+    return isinstance(exc, OSError) and exc.errno is not None

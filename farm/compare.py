@@ -15,38 +15,52 @@ from farm.files import read_safe_set, write_json
 from farm.executors import build_simulator
 
 
-def compare(directory: Path, grid: int | None = None) -> str:
-    from farm.quantify import load_frozen_config, spec_of
+def compare(directory: Path, grid: int | None = None) -> dict:
+    """Metrics of a finished campaign against its reference (also written to
+    compare.json, with plots/compare.png); ``notes`` says how the reference was made."""
+    from farm.quantification import load_frozen_config, spec_of
+    from farm.storage import CampaignDir
 
     directory = Path(directory)
+    CampaignDir(directory).open("quantify")
     cfg = load_frozen_config(directory)
-    simulated = cfg["scenario"]["backend"] != "numpy"
-    if simulated and cfg["actions"]["mode"] != "adversarial":
+    if grid is not None and not (2 <= grid <= 4096):
+        raise ValueError(f"--grid: {grid} is out of range; allowed [2, 4096] points per axis")
+    simulated = cfg.scenario.backend != "numpy"
+    if simulated and cfg.actions.mode != "adversarial":
         raise ValueError("compare: a black-box SV has no model; its reference is simulated under Gamma*, which needs "
                          "actions.mode = 'adversarial'")
     if simulated and grid is None:
         grid = 24  # every grid point is a 40 s simulation
-    scenario, _ = build_simulator(spec_of(cfg))
+    backend = build_simulator(spec_of(cfg)).backend
+    scenario = backend.scenario
     centres, h = read_safe_set(directory / "safe_set.parquet", scenario.state_names)
     points = _grid(scenario, grid)
-    truth = reference_safe(scenario, points)
-    metrics = compare_boxes(scenario, centres, h, truth=truth, grid_points_per_axis=_k(scenario, grid))
+    truth = reference_safe(backend, points)
+    metrics = compare_boxes(backend, centres, h, truth=truth, grid_points_per_axis=_k(scenario, grid))
     notes = []
-    if cfg["actions"]["mode"] != "adversarial" and scenario.name != "toy" and cfg["scenario"]["sv_policy"] != "brake":
+    if cfg.actions.mode != "adversarial" and scenario.name != "toy" and scenario.sv_policy_name != "brake":
         sample = points[truth][:: max(1, int(truth.sum()) // 20000)]
-        broken = falsify(scenario, sample)
+        broken = falsify(backend, sample)
         metrics["falsified_reference_points"] = [broken, int(len(sample))]
         notes.append(f"reference = worst case under Gamma*; random action sequences broke {broken} of "
                      f"{len(sample)} sampled reference-safe points")
+    metrics["reference"] = ("simulated under Gamma* (black-box SV)" if simulated else "model-based")
+    metrics["boxes"], metrics["half_width"] = int(len(centres)), h
+    metrics["notes"] = notes
     write_json(directory / "compare.json", metrics)
-    _plot(directory / "plots" / "compare.png", scenario, centres, h, cfg)
-    kind = "the reference simulated under Gamma* (black-box SV)" if simulated else "the model-based reference"
-    lines = [f"{directory}: {len(centres)} boxes (half-width {h:g}) against {kind} on "
-             f"{metrics['grid_points']:,} grid points",
+    _plot(directory / "plots" / "compare.png", backend, centres, h, cfg)
+    return metrics
+
+
+def describe(directory: Path, metrics: dict) -> str:
+    """The CLI's lines for ``compare``'s metrics."""
+    lines = [f"{directory}: {metrics['boxes']} boxes (half-width {metrics['half_width']:g}) against the "
+             f"{metrics['reference']} reference on {metrics['grid_points']:,} grid points",
              f"  IoU {metrics['iou']:.4f}  precision {metrics['precision']:.4f}  recall {metrics['recall']:.4f}  "
              f"Hausdorff (l-inf) {metrics['hausdorff']:.3g}",
              f"  claimed volume {metrics['claimed_volume']:.6g}, reference volume {metrics['reference_volume']:.6g}"]
-    lines += [f"  {n}" for n in notes]
+    lines += [f"  {n}" for n in metrics["notes"]]
     lines.append(f"  wrote {directory / 'compare.json'} and {directory / 'plots' / 'compare.png'}")
     return "\n".join(lines)
 
@@ -59,27 +73,28 @@ def _grid(scenario, k):
     return grid(scenario, _k(scenario, k))
 
 
-def _plot(path: Path, scenario, centres, h, cfg) -> None:
+def _plot(path: Path, backend, centres, h, cfg) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     path.parent.mkdir(parents=True, exist_ok=True)
+    scenario = backend.scenario
     lo, hi = scenario.lower, scenario.upper
     x, y = 0, (3 if scenario.name == "fleet3" else scenario.n - 1)
     varied = 1 if scenario.n > 2 else None
     levels = np.linspace(lo[varied], hi[varied], 4) if varied is not None else [None]
     fig, axs = plt.subplots(1, len(levels), figsize=(4.2 * len(levels), 4), squeeze=False)
     for ax, level in zip(axs[0], levels):
-        res = 150 if cfg["scenario"]["backend"] == "numpy" else 60
+        res = 150 if cfg.scenario.backend == "numpy" else 60
         xs, ys = np.linspace(lo[x], hi[x], res), np.linspace(lo[y], hi[y], res)
         gx, gy = np.meshgrid(xs, ys, indexing="ij")
         pts = np.tile((lo + hi) / 2, (gx.size, 1))
         pts[:, x], pts[:, y] = gx.ravel(), gy.ravel()
         if varied is not None:
             pts[:, varied] = level
-        truth = reference_safe(scenario, pts).reshape(gx.shape)
+        truth = reference_safe(backend, pts).reshape(gx.shape)
         got = claimed(scenario, centres, h, pts).reshape(gx.shape)
         img = np.zeros(gx.shape + (3,)) + 1.0
         img[truth & got] = (0.75, 0.9, 0.75)
@@ -90,7 +105,7 @@ def _plot(path: Path, scenario, centres, h, cfg) -> None:
         ax.set_ylabel(scenario.state_names[y])
         if varied is not None:
             ax.set_title(f"{scenario.state_names[varied]} = {level:.3g}", fontsize=9)
-    fig.suptitle(f"{cfg['scenario']['name']} / {cfg['scenario']['sv_policy']}: green agree, red claimed but unsafe, "
+    fig.suptitle(f"{cfg.scenario.name} / {scenario.sv_policy_name}: green agree, red claimed but unsafe, "
                  f"blue safe but not claimed", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=100)

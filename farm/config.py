@@ -1,8 +1,16 @@
-"""Campaign configuration: TOML in, a checked, normalized, hashable dict out.
+"""Campaign configuration: one typed model, defaults once, one error format.
 
-The key names are a public interface (scripts outside this repository read them).
-Every field is checked here, once, with a one-line error that names the field and the
-allowed range; nothing downstream re-validates user input.
+A config is TOML (a file or a string) or a dict, read into ``Config``: frozen pydantic
+models, one per section. The key names are a public interface (scripts outside this
+repository read them): keep them. Every value is checked on load; a bad one is a
+``ConfigError`` of one line that names the field and the allowed range, e.g.
+``quantify.epsilon: 1.5 is out of range; allowed (0, 1)``. Checks that need the scenario
+(state names, SV policies, the back end's options) run in ``farm.api.check`` before
+anything is written. ``scenario-farm schema`` prints the JSON Schema (for editors).
+
+A config is code: ``scenario.name = "module:Class"``, ``actions.policy`` and
+``validate.domain_predicate`` import and run Python objects. Configs are as trusted as
+the code they name.
 """
 
 from __future__ import annotations
@@ -12,156 +20,247 @@ import hashlib
 import json
 import math
 import tomllib
-from dataclasses import dataclass
+import warnings
 from pathlib import Path
-from typing import Any, Callable
+from typing import Annotated, Any, Literal
 
-from scenarios.version import __version__
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from coordinator.spe import SPESettings
+
+_SPE = SPESettings()  # the algorithm's defaults are the config's: written once
 
 
 class ConfigError(ValueError):
     """Bad user input: printed as one line, exit code 2."""
 
 
-@dataclass(frozen=True)
-class Field:
-    default: Any
-    check: Callable[[str, Any], Any]
-    affects_result: bool = True
+def _fixed(description: str = "") -> dict:
+    """Field metadata for a key that cannot change a result (hash, resume check)."""
+    return {"json_schema_extra": {"affects_result": False}, "description": description}
 
 
-def _type_name(value) -> str:
-    return type(value).__name__
+class Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
 
 
-def number(lo=-math.inf, hi=math.inf, lo_open=False, hi_open=False):
-    def check(name, v):
-        if isinstance(v, bool) or not isinstance(v, (int, float)):
-            raise ConfigError(f"{name}: expected a number, got {_type_name(v)} {v!r}")
-        v = float(v)
-        rng = f"{'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
-        if not math.isfinite(v) or v < lo or v > hi or (lo_open and v == lo) or (hi_open and v == hi):
-            raise ConfigError(f"{name}: {v!r} is out of range; allowed {rng}")
-        return v
-
-    return check
+Probability = Annotated[float, Field(gt=0.0, lt=1.0)]
+Positive = Annotated[float, Field(gt=0.0)]
+Horizon = Annotated[int, Field(ge=2, le=100_000, description="K: states per run, the start included")]
 
 
-def integer(lo=-(2**63), hi=2**63 - 1):
-    def check(name, v):
-        if isinstance(v, bool) or not isinstance(v, int):
-            raise ConfigError(f"{name}: expected an integer, got {_type_name(v)} {v!r}")
-        if v < lo or v > hi:
-            raise ConfigError(f"{name}: {v} is out of range; allowed [{lo}, {hi}]")
-        return v
+class ScenarioConfig(Section):
+    """[scenario]: the system under test."""
 
-    return check
+    model_config = ConfigDict(extra="allow", strict=True, frozen=True, allow_inf_nan=False)
+    name: Annotated[str, Field(min_length=1, description="lead-follow | fleet3 | toy | 'package.module:Class'")]
+    backend: Annotated[str, Field(min_length=1, description="numpy | sumo | a registered back end")] = "numpy"
+    sv_policy: Annotated[str | None, Field(description="the SV policy (brake | idm; sumo: 'sumo'); default: "
+                                                       "the scenario's first")] = None
+    disturbance: Annotated[float, Field(ge=0.0, le=100.0, description="bound w [m/s^2]")] = 0.0
+    failure_facets: list[str] | None = None
+    sumo: Annotated[dict | None, Field(description="[scenario.sumo]: the SUMO back end's options")] = None
 
+    @model_validator(mode="after")
+    def _backend_tables_only(self):
+        # a back end's own options live in [scenario.<backend>]; anything else is a typo
+        for key, value in (self.model_extra or {}).items():
+            if key != self.backend or not isinstance(value, dict):
+                raise ValueError(f"unknown key {key!r}")
+        return self
 
-def choice(*options):
-    def check(name, v):
-        if v not in options:
-            raise ConfigError(f"{name}: {v!r} is not allowed; allowed: {', '.join(map(str, options))}")
-        return v
-
-    return check
-
-
-def boolean(name, v):
-    if not isinstance(v, bool):
-        raise ConfigError(f"{name}: expected true or false, got {v!r}")
-    return v
-
-
-def string(name, v):
-    if not isinstance(v, str) or not v:
-        raise ConfigError(f"{name}: expected a non-empty string, got {v!r}")
-    return v
+    def options(self) -> dict | None:
+        """The chosen back end's options table, if any."""
+        return getattr(self, self.backend, None) if self.backend != "numpy" else None
 
 
-def optional(check):
-    def wrapped(name, v):
-        return None if v is None else check(name, v)
+class ActionsConfig(Section):
+    """[actions]: how the scenario's actions u are chosen."""
 
-    return wrapped
-
-
-def anything(name, v):
-    return v
+    mode: Literal["uniform", "adversarial", "constant", "feedback"] = "uniform"
+    value: Annotated[float | list[float] | None, Field(description="constant action (one number per action)")] = None
+    policy: Annotated[str | None, Field(description="feedback policy 'package.module:function'")] = None
 
 
-def string_list(name, v):
-    if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
-        raise ConfigError(f"{name}: expected a list of strings, got {v!r}")
-    return list(v)
+class Constraint(Section):
+    a: dict[str, float]
+    b: float
 
 
-def table(name, v):
-    if not isinstance(v, dict):
-        raise ConfigError(f"{name}: expected a table {{ ... }}, got {v!r}")
-    return dict(v)
+class ValidateConfig(Section):
+    """[validate]: certify a claimed domain Phi."""
+
+    algorithm: Literal["delta", "eps", "eps-delta"] = "eps-delta"
+    epsilon: Probability = 0.001
+    beta: Probability = 0.01
+    delta: Positive = 1.0
+    horizon: Horizon = 50
+    boundary: bool = False
+    domain: dict[str, list[float]] | None = None
+    constraints: list[Constraint] | None = None
+    domain_set: Annotated[str | None, Field(min_length=1)] = None
+    domain_predicate: Annotated[str | None, Field(min_length=1)] = None
 
 
-SEED_RANGE = integer(0, 2**63 - 1)
+class QuantifyConfig(Section):
+    """[quantify]: find the maximal safe sub-domain."""
 
-SCHEMA: dict[str, dict[str, Field]] = {
-    "scenario": {
-        "name": Field("lead-follow", string),
-        "backend": Field("numpy", choice("numpy", "sumo")),
-        "sv_policy": Field("idm", string),
-        "disturbance": Field(0.0, number(0.0, 100.0)),
-        "failure_facets": Field(None, optional(string_list)),
-        "sumo": Field(None, optional(table)),
-    },
-    "actions": {
-        "mode": Field("uniform", choice("uniform", "adversarial", "constant", "feedback")),
-        "value": Field(None, anything),
-        "policy": Field(None, optional(string)),
-    },
-    "validate": {
-        "algorithm": Field("eps-delta", choice("delta", "eps", "eps-delta")),
-        "epsilon": Field(0.001, number(0.0, 1.0, lo_open=True, hi_open=True)),
-        "beta": Field(0.01, number(0.0, 1.0, lo_open=True, hi_open=True)),
-        "delta": Field(1.0, number(0.0, lo_open=True)),
-        "horizon": Field(50, integer(2, 100_000)),
-        "boundary": Field(False, boolean),
-        "domain": Field(None, optional(table)),
-        "constraints": Field(None, anything),
-        "domain_set": Field(None, optional(string)),
-        "domain_predicate": Field(None, optional(string)),
-    },
-    "quantify": {
-        "algorithm": Field("spe", choice("spe", "ae", "delta-pruning", "vs")),
-        "epsilon": Field(0.001, number(0.0, 1.0, lo_open=True, hi_open=True)),
-        "beta": Field(0.1, number(0.0, 1.0, lo_open=True, hi_open=True)),
-        "delta0": Field(2.0, number(0.0, lo_open=True)),
-        "gamma": Field(0.5, number(0.0, 1.0, lo_open=True, hi_open=True)),
-        "delta_min": Field(0.5, number(0.0, lo_open=True)),
-        "horizon": Field(50, integer(2, 100_000)),
-        "budget": Field(2_000_000, integer(1, 10**12)),
-        "prioritized": Field(True, boolean),
-        "alpha": Field("identity", choice("identity", "square", "sqrt")),
-        "replay": Field(True, boolean),
-        "replay_capacity": Field(20_000_000, integer(0, 10**10)),
-        "boundary": Field(False, boolean),
-        "reachable": Field("undirected", choice("undirected", "ancestors")),
-        "sides": Field(None, optional(boolean)),
-    },
-    "farm": {
-        "executor": Field("local", choice("ray", "local"), affects_result=False),
-        "workers": Field(2, integer(1, 4096), affects_result=False),
-        "address": Field("local", string, affects_result=False),
-        "batch_size": Field(1024, integer(1, 10_000_000)),
-        "pipeline_depth": Field(2, integer(1, 64)),
-        "seed": Field(0, SEED_RANGE),
-        "checkpoint_every": Field(30.0, number(0.0, 1e9), affects_result=False),
-        "max_retries": Field(3, integer(0, 100), affects_result=False),
-    },
-    "record": {
-        "quantify_runs": Field(64, integer(0, 10**7), affects_result=False),
-        "counterexamples": Field(True, boolean, affects_result=False),
-    },
-}
+    algorithm: Literal["spe", "ae", "delta-pruning", "vs"] = "spe"
+    epsilon: Probability = 0.001
+    beta: Probability = 0.1
+    delta0: Positive = _SPE.delta0
+    gamma: Probability = _SPE.gamma
+    delta_min: Positive = _SPE.delta_min
+    horizon: Horizon = 50
+    budget: Annotated[int, Field(ge=1, le=10**12)] = 2_000_000
+    prioritized: bool = _SPE.prioritized
+    alpha: Literal["identity", "square", "sqrt"] = _SPE.alpha
+    replay: bool = _SPE.replay
+    replay_capacity: Annotated[int, Field(ge=0, le=10**10)] = _SPE.replay_capacity
+    boundary: bool = _SPE.boundary
+    reachable: Literal["undirected", "ancestors"] = _SPE.reachable
+    sides: bool | None = None
+
+    @model_validator(mode="after")
+    def _delta_order(self):
+        if self.delta_min > self.delta0:
+            raise ValueError(f"DELTA_ORDER")
+        return self
+
+    def settings(self) -> SPESettings:
+        return SPESettings(delta0=self.delta0, gamma=self.gamma, delta_min=self.delta_min,
+                           prioritized=self.prioritized, alpha=self.alpha, replay=self.replay,
+                           replay_capacity=self.replay_capacity, reachable=self.reachable, boundary=self.boundary)
+
+
+class FarmConfig(Section):
+    """[farm]: where and how runs are simulated."""
+
+    executor: Annotated[Literal["ray", "local"], Field(**_fixed())] = "local"
+    workers: Annotated[int, Field(ge=1, le=4096, **_fixed("Ray actors"))] = 2
+    address: Annotated[str, Field(min_length=1, **_fixed("'local' or a Ray address ('auto')"))] = "local"
+    batch_size: Annotated[int, Field(ge=1, le=10_000_000, description="runs per drawn batch")] = 1024
+    pipeline_depth: Annotated[int, Field(ge=1, le=64, description="batches drawn ahead")] = 2
+    seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = 0
+    checkpoint_every: Annotated[float, Field(ge=0.0, le=1e9, **_fixed("seconds"))] = 30.0
+    max_retries: Annotated[int, Field(ge=0, le=100, **_fixed())] = 3
+
+
+class RecordConfig(Section):
+    """[record]: which runs are written to MCAP recordings."""
+
+    quantify_runs: Annotated[int, Field(ge=0, le=10**7, **_fixed())] = 64
+    counterexamples: Annotated[bool, Field(**_fixed())] = True
+
+
+with warnings.catch_warnings():
+    # "validate" is a key of the public config format; BaseModel.validate is a deprecated
+    # classmethod it shadows (instances read the field)
+    warnings.filterwarnings("ignore", message='Field name "validate"')
+
+    class Config(Section):
+        scenario: ScenarioConfig
+        actions: ActionsConfig = ActionsConfig()
+        validate: ValidateConfig = ValidateConfig()
+        quantify: QuantifyConfig = QuantifyConfig()
+        farm: FarmConfig = FarmConfig()
+        record: RecordConfig = RecordConfig()
+
+        def with_overrides(self, overrides: dict[str, Any]) -> "Config":
+            """A copy with ``{"farm.workers": 4, ...}`` applied (None values skipped), checked."""
+            raw = self.model_dump()
+            for dotted, value in overrides.items():
+                if value is not None:
+                    section, key = dotted.split(".")
+                    raw[section][key] = value
+            return normalize(raw, flags={k: f"--{k.split('.')[1].replace('_', '-')}" for k in overrides})
+
+
+# -- reading --------------------------------------------------------------------------------
+def normalize(raw: dict, flags: dict[str, str] | None = None) -> Config:
+    """Check a raw config dict and fill defaults. Raises ConfigError (one line)."""
+    if isinstance(raw, Config):
+        return raw
+    if not isinstance(raw, dict):
+        raise ConfigError("config: expected a TOML table at the top level")
+    for section in raw:
+        if section not in Config.model_fields:
+            raise ConfigError(f"unknown section [{section}]{_did_you_mean(section, Config.model_fields)}")
+    try:
+        return Config(**raw)
+    except ValidationError as exc:
+        raise ConfigError(_one_line(exc, raw, flags or {})) from None
+
+
+def load(source, overrides: dict | None = None) -> Config:
+    """A config from a TOML file (str or Path), a TOML string, a dict or a Config."""
+    if isinstance(source, Config):
+        cfg = source
+    elif isinstance(source, dict):
+        cfg = normalize(source)
+    else:
+        cfg = normalize(_read_toml(source))
+    return cfg.with_overrides(overrides) if overrides else cfg
+
+
+def _read_toml(source) -> dict:
+    text, where = None, None
+    if isinstance(source, Path) or (isinstance(source, str) and "\n" not in source and "=" not in source):
+        path = Path(source)
+        where = str(path)
+        try:
+            text = path.read_text()
+        except FileNotFoundError:
+            raise ConfigError(f"{path}: no such config file") from None
+        except IsADirectoryError:
+            raise ConfigError(f"{path}: is a directory, not a config file") from None
+        except (PermissionError, UnicodeDecodeError, OSError) as exc:
+            raise ConfigError(f"{path}: cannot read the config ({exc.__class__.__name__})") from None
+    else:
+        text, where = str(source), "config"
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{where}: not valid TOML ({exc})") from None
+
+
+# -- hashing and resume --------------------------------------------------------------------------
+def result_view(cfg: Config) -> dict:
+    """The part of a config that can change a result (hash input, resume check)."""
+    out = {}
+    for section, values in cfg.model_dump(mode="json").items():
+        fields = type(getattr(cfg, section)).model_fields
+        out[section] = {k: v for k, v in values.items() if _affects_result(fields.get(k))}
+    return out
+
+
+def _affects_result(field) -> bool:
+    extra = getattr(field, "json_schema_extra", None) or {}
+    return extra.get("affects_result", True)
+
+
+def config_hash(cfg: Config) -> str:
+    canonical = json.dumps(result_view(cfg), sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(canonical.encode()).hexdigest()[:16]
+
+
+def changed_fields(old: Config, new: Config) -> list[str]:
+    """Result-relevant fields that differ between two configs."""
+    a, b = result_view(old), result_view(new)
+    return [f"{s}.{k}" for s in a for k in a[s] if a[s].get(k) != b.get(s, {}).get(k)]
+
+
+def schema() -> dict:
+    """JSON Schema of the config (for editors: `scenario-farm schema`)."""
+    out = Config.model_json_schema()
+    out["title"] = "Scenario Farm campaign config"
+    return out
+
+
+# -- one-line errors -------------------------------------------------------------------------
+_KINDS = {"float_type": "a number", "int_type": "an integer", "bool_type": "true or false",
+          "string_type": "a string", "dict_type": "a table { ... }", "list_type": "a list [ ... ]",
+          "model_type": "a table { ... }", "int_from_float": "an integer"}
 
 
 def _did_you_mean(word: str, options) -> str:
@@ -169,64 +268,83 @@ def _did_you_mean(word: str, options) -> str:
     return f"; did you mean {close[0]!r}?" if close else f"; allowed: {', '.join(sorted(options))}"
 
 
-def normalize(raw: dict) -> dict:
-    """Check a raw config dict and fill defaults. Raises ConfigError (one line)."""
-    if not isinstance(raw, dict):
-        raise ConfigError("config: expected a TOML table at the top level")
-    out: dict[str, dict] = {}
-    for section in raw:
-        if section not in SCHEMA:
-            raise ConfigError(f"unknown section [{section}]{_did_you_mean(section, SCHEMA)}")
-    for section, fields in SCHEMA.items():
-        given = raw.get(section, {})
-        if not isinstance(given, dict):
-            raise ConfigError(f"[{section}]: expected a table")
-        for key in given:
-            if key not in fields:
-                raise ConfigError(f"{section}.{key}: unknown key{_did_you_mean(key, fields)}")
-        out[section] = {key: (f.check(f"{section}.{key}", given[key]) if key in given else f.default)
-                        for key, f in fields.items()}
-    q = out["quantify"]
-    if q["delta_min"] > q["delta0"]:
-        raise ConfigError(f"quantify.delta_min: {q['delta_min']} exceeds quantify.delta0 = {q['delta0']}; allowed (0, delta0]")
+def _field_name(loc) -> str:
+    parts = []
+    for item in loc:
+        if isinstance(item, int):
+            parts[-1] += f"[{item}]"
+        elif item in ("float", "int", "list[float]", "str", "dict[str,float]") or "[" in str(item):
+            continue  # a branch of a union type, not a key
+        else:
+            parts.append(str(item))
+    return ".".join(parts)
+
+
+def _constraints(loc) -> dict:
+    model: type[BaseModel] = Config
+    info = None
+    for item in loc:
+        if not isinstance(item, str) or model is None or item not in model.model_fields:
+            break
+        info = model.model_fields[item]
+        annotation = info.annotation
+        model = annotation if isinstance(annotation, type) and issubclass(annotation, BaseModel) else None
+    out = {}
+    for meta in getattr(info, "metadata", []) if info is not None else []:
+        for key in ("gt", "ge", "lt", "le"):
+            if getattr(meta, key, None) is not None:
+                out[key] = getattr(meta, key)
     return out
 
 
-def load(path: str | Path, overrides: dict | None = None) -> dict:
-    path = Path(path)
-    try:
-        raw = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise ConfigError(f"{path}: no such config file") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{path}: not valid TOML ({exc})") from None
-    cfg = normalize(raw)
-    for dotted, value in (overrides or {}).items():
-        if value is None:
-            continue
-        section, key = dotted.split(".")
-        cfg[section][key] = SCHEMA[section][key].check(f"--{key.replace('_', '-')}", value)
-    return cfg
+def _range(c: dict) -> str:
+    lo = "(" if "gt" in c else "["
+    hi = ")" if "lt" in c else "]"
+    low = c.get("gt", c.get("ge", -math.inf))
+    high = c.get("lt", c.get("le", math.inf))
+    text = [str(v) if isinstance(v, int) else f"{v:g}" for v in (low, high)]
+    return f"{lo}{text[0]}, {text[1]}{hi}"
 
 
-def result_view(cfg: dict) -> dict:
-    """The part of a config that can change a result (hash input, resume check)."""
-    return {
-        section: {k: v for k, v in values.items() if SCHEMA[section][k].affects_result}
-        for section, values in cfg.items()
-    }
+def _one_line(exc: ValidationError, raw: dict, flags: dict) -> str:
+    err = exc.errors()[0]
+    loc, kind, value = err["loc"], err["type"], err.get("input")
+    field = _field_name(loc)
+    field = flags.get(field, field)
+    if kind == "missing":
+        if field in ("scenario", "scenario.name"):
+            return 'scenario.name: required (e.g. [scenario] name = "lead-follow")'
+        return f"{field}: required"
+    if kind == "extra_forbidden" or (kind == "value_error" and "unknown key" in err["msg"]):
+        section = loc[0]
+        key = loc[-1] if kind == "extra_forbidden" else err["msg"].split("'")[1]
+        fields = Config.model_fields[section].annotation.model_fields
+        return f"{section}.{key}: unknown key{_did_you_mean(str(key), fields)}"
+    if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal", "finite_number"):
+        shown = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) \
+            and "float" in str(_annotation(loc)) else value
+        return f"{field}: {shown!r} is out of range; allowed {_range(_constraints(loc))}"
+    if kind == "literal_error":
+        allowed = err["ctx"]["expected"].replace("'", "").replace(" or ", ", ")
+        return f"{field}: {value!r} is not allowed; allowed: {allowed}"
+    if kind in ("string_too_short",):
+        return f"{field}: expected a non-empty string, got {value!r}"
+    if kind in _KINDS:
+        return f"{field}: expected {_KINDS[kind]}, got {type(value).__name__} {value!r}"
+    if kind == "value_error" and "DELTA_ORDER" in err["msg"]:
+        q = raw.get("quantify", {})
+        return (f"quantify.delta_min: {float(q.get('delta_min', _SPE.delta_min))} exceeds quantify.delta0 = "
+                f"{float(q.get('delta0', _SPE.delta0))}; allowed (0, delta0]")
+    return f"{field}: {err['msg']} (got {value!r})"
 
 
-def config_hash(cfg: dict) -> str:
-    canonical = json.dumps(result_view(cfg), sort_keys=True, separators=(",", ":"), default=str)
-    return hashlib.sha256(canonical.encode()).hexdigest()[:16]
-
-
-def changed_fields(old: dict, new: dict) -> list[str]:
-    """Result-relevant fields that differ between two normalized configs."""
-    a, b = result_view(old), result_view(new)
-    return [f"{s}.{k}" for s in a for k in a[s] if a[s].get(k) != b.get(s, {}).get(k)]
-
-
-def stamp() -> dict:
-    return {"scenario_farm_version": __version__}
+def _annotation(loc):
+    model: type[BaseModel] = Config
+    info = None
+    for item in loc:
+        if not isinstance(item, str) or model is None or item not in model.model_fields:
+            break
+        info = model.model_fields[item]
+        model = info.annotation if isinstance(info.annotation, type) and issubclass(info.annotation, BaseModel) \
+            else None
+    return info.annotation if info is not None else None

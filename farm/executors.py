@@ -1,74 +1,22 @@
-"""Executors: where batches of runs are simulated. The coordinator sees one interface:
+"""The in-process executor (coordinator/executor.py has the contract).
 
-    submit(first_index, starts) -> handle     start simulating runs first_index.. on starts
-    ready(handles) -> handles                 those finished (non-blocking poll)
-    result(handle) -> RunBatch                wait for one batch
-    cancel(handle)                            drop a batch (its runs are not committed)
-
-Workers are stateless: they hold a scenario back end built from a plain spec and the
-campaign seed, and simulate whatever they are sent. ``LocalExecutor`` simulates in the
-coordinator's process when a result is asked for (so a dropped batch costs nothing).
+``LocalExecutor`` simulates in the coordinator's process when a result is asked for, so
+a dropped batch costs nothing, and screens against the live coverage (always current).
+Each batch is one chunk.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from coordinator.executor import Chunk, chunk_of, summarize
 from farm.memory import keep_freed_memory
-from scenarios.streams import RunStreams
-from scenarios import make_scenario
-from scenarios.actions import make_action_policy
-from scenarios.run import RunBatch, ScenarioError, run_scenario
+from scenarios.simulator import SimSpec, Simulator
 
 
-@dataclass(frozen=True)
-class SimSpec:
-    """Everything a worker needs to simulate: plain data, cheap to ship."""
-
-    scenario: dict  # the [scenario] config section
-    actions: dict  # the [actions] config section
-    horizon: int
-    seed: int
-
-
-def build_simulator(spec: SimSpec):
+def build_simulator(spec: SimSpec, check_step_bound: bool = False) -> Simulator:
     keep_freed_memory()  # this process simulates batches from now on
-    sc_cfg = spec.scenario
-    scenario = make_scenario(sc_cfg["name"], backend=sc_cfg.get("backend", "numpy"),
-                             sv_policy=sc_cfg.get("sv_policy", "idm"), disturbance=sc_cfg.get("disturbance", 0.0),
-                             failure_facets=sc_cfg.get("failure_facets"), sumo=sc_cfg.get("sumo"))
-    act = spec.actions
-    policy = make_action_policy(act.get("mode", "uniform"), scenario, act.get("value"), act.get("policy"))
-    return scenario, policy
-
-
-def simulate(scenario, policy, spec: SimSpec, first_index: int, starts: np.ndarray) -> RunBatch:
-    indices = np.arange(first_index, first_index + len(starts), dtype=np.uint64)
-    try:
-        batch = run_scenario(scenario, starts, spec.horizon, policy, RunStreams.of(spec.seed, indices))
-    except ScenarioError:
-        raise
-    except Exception as exc:  # a user scenario raised: name the run, not just the batch
-        raise _culprit(scenario, policy, spec, indices, starts, exc) from None
-    keep = int(batch.lengths.max())  # ship only the rows some run used
-    return RunBatch(batch.indices, np.ascontiguousarray(batch.trajectories[:keep]), batch.lengths, batch.outcomes)
-
-
-def _culprit(scenario, policy, spec, indices, starts, exc) -> ScenarioError:
-    """Bisect the batch (runs depend on their own key only) down to the first run that
-    raises on its own."""
-    lo, hi = 0, len(starts)
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        try:
-            run_scenario(scenario, starts[lo:mid], spec.horizon, policy, RunStreams.of(spec.seed, indices[lo:mid]))
-            lo = mid
-        except Exception:  # noqa: BLE001 - any error narrows the search
-            hi = mid
-    return ScenarioError(f"scenario {scenario.name!r} raised {type(exc).__name__}: {exc} on sample index "
-                         f"{int(indices[lo])} (start state {starts[lo].tolist()})")
+    return Simulator(spec, check_step_bound)
 
 
 class LocalExecutor:
@@ -77,26 +25,23 @@ class LocalExecutor:
     name = "local"
     workers = 1
 
-    def __init__(self, spec: SimSpec):
+    def __init__(self, spec: SimSpec, check_step_bound: bool = False):
         self.spec = spec
-        self.scenario, self.policy = build_simulator(spec)
-        self._jobs: dict[int, tuple[int, np.ndarray]] = {}
+        self.simulator = build_simulator(spec, check_step_bound)
+        self._jobs: dict[int, tuple[int, np.ndarray, object]] = {}
         self._next = 0
-        self.runs_simulated = 0
-        self.steps_simulated = 0
 
-    def submit(self, first_index: int, starts: np.ndarray) -> int:
+    def submit(self, first_index: int, starts: np.ndarray, screen=None) -> list[int]:
         handle = self._next
         self._next += 1
-        self._jobs[handle] = (first_index, starts)
-        return handle
+        self._jobs[handle] = (first_index, starts, screen)
+        return [handle]
 
-    def result(self, handle: int) -> RunBatch:
-        first_index, starts = self._jobs.pop(handle)
-        batch = simulate(self.scenario, self.policy, self.spec, first_index, starts)
-        self.runs_simulated += len(batch)
-        self.steps_simulated += batch.steps
-        return batch
+    def result(self, handle: int) -> Chunk:
+        first_index, starts, screen = self._jobs.pop(handle)
+        batch = self.simulator.simulate(first_index, starts)
+        summary, visited = summarize(batch, screen)
+        return chunk_of(summary, lambda: visited)
 
     def cancel(self, handle: int) -> None:
         self._jobs.pop(handle, None)

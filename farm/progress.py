@@ -5,22 +5,14 @@ from __future__ import annotations
 import sys
 import time
 
+from farm.status import snapshot
+
 
 class Progress:
     def __init__(self, enabled: bool | None = None, stream=None):
         self.stream = stream or sys.stderr
         self.enabled = self.stream.isatty() if enabled is None else enabled
-        self._t0 = time.monotonic()
         self._last = 0.0
-        self._committed0 = None
-
-    def snapshot(self, algorithm, campaign, n_eps: int) -> dict:
-        c = campaign.counters
-        counts = algorithm.counts()
-        return {"round": counts.get("round", 0), "delta": counts.get("delta"), "boxes": counts.get("boxes"),
-                "n_eps_counter": c.quiet, "n_eps": n_eps, "runs_committed": c.committed,
-                "runs_simulated": c.runs_simulated, "changes": c.changes, "elapsed_s": round(c.elapsed_s, 1),
-                "runs_per_s": round(c.committed / c.elapsed_s, 1) if c.elapsed_s > 0 else None}
 
     def update(self, label: str, algorithm, campaign, n_eps: int) -> None:
         if not self.enabled:
@@ -29,7 +21,7 @@ class Progress:
         if now - self._last < 0.5 and not campaign.counters.done:
             return
         self._last = now
-        s = self.snapshot(algorithm, campaign, n_eps)
+        s = snapshot(algorithm, campaign, n_eps)
         line = (f"[{label}] round {s['round']}  delta {s['delta']:g}  boxes {s['boxes']}  "
                 f"N_eps {s['n_eps_counter']}/{n_eps}  runs {s['runs_committed']}  "
                 f"{s['runs_per_s'] or 0:,.0f} runs/s  {s['elapsed_s']:.0f}s")

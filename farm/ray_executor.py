@@ -1,11 +1,20 @@
 """The Ray executor: stateless actors, each holding one scenario back end (for SUMO, one
-libsumo simulation per actor process).
+libsumo simulation per actor process) and a mirror of the coverage its runs are
+screened against.
 
-A batch is split into one chunk per worker so that even a pipeline depth of 1 keeps
-every worker busy; chunks go to the actor with the fewest chunks queued. Results are
-plain numpy arrays (compact: only the trajectory rows some run used). An actor whose
-process dies is restarted by Ray and its chunk retried (bounded); an exception inside a
-scenario surfaces as a one-line error naming the sample index and start state.
+A batch is cut into one chunk per worker, so that even a pipeline depth of 1 keeps
+every worker busy; chunks go to the actor with the fewest chunks queued. With each chunk
+goes what its actor's mirror lacks: the coverage changes since the version the actor
+was last sent (put in the object store once, shared by every actor that needs the same
+range), or a whole snapshot for a new or restarted actor. A chunk returns two objects:
+a small per-run summary (outcome, length, screening), which comes back to the driver,
+and the visited states, which stay in the worker node's object store until the driver
+asks for them (re-screening, experience replay, recordings) or drops them.
+
+An actor whose process dies is restarted by Ray and its chunk retried on another actor
+(bounded); an exception inside a scenario surfaces as a one-line error naming the
+sample index and start state. The mirror is a cache, not state: an actor that lost it
+asks for a snapshot.
 """
 
 from __future__ import annotations
@@ -16,8 +25,12 @@ import time
 
 import numpy as np
 
-from farm.executors import SimSpec, build_simulator, simulate
-from scenarios.run import RunBatch
+from coordinator.coverage import Coverage
+from coordinator.executor import Chunk, chunk_of, summarize
+from farm.executors import build_simulator
+from scenarios.simulator import SimSpec
+
+RESYNC = "resync"  # a worker's answer when its mirror cannot reach the chunk's version
 
 
 class WorkerError(RuntimeError):
@@ -29,20 +42,45 @@ def _actor_class():
 
     @ray.remote(num_cpus=1)
     class SimWorker:
-        """Holds a scenario back end; simulates whatever batch it is sent."""
+        """Holds a scenario back end and a coverage mirror; simulates and screens
+        whatever chunk it is sent."""
 
-        def __init__(self, spec: dict):
-            self.spec = SimSpec(**spec)
-            self.scenario, self.policy = build_simulator(self.spec)
+        def __init__(self, spec: dict, check_step_bound: bool):
+            self.simulator = build_simulator(SimSpec(**spec), check_step_bound)
+            self.mirror: Coverage | None = None
+            self.static = (None, None)
             self.busy_s = 0.0
             self.tasks = 0
 
-        def run(self, first_index: int, starts: np.ndarray):
+        @ray.method(num_returns=2)
+        def run(self, first_index: int, starts: np.ndarray, message):
             t0 = time.perf_counter()
-            b = simulate(self.scenario, self.policy, self.spec, first_index, starts)
+            screen = self._screen(message)
+            if screen is RESYNC:
+                return RESYNC, None
+            batch = self.simulator.simulate(first_index, starts)
+            summary, visited = summarize(batch, screen)
             self.busy_s += time.perf_counter() - t0
             self.tasks += 1
-            return b.indices, b.trajectories, b.lengths, b.outcomes
+            return summary, visited
+
+        def _screen(self, message):
+            kind, payload, base = message
+            if kind == "none":
+                return None
+            if kind == "static":  # fetched once per screen
+                if self.static[0] != payload.hex():
+                    self.static = (payload.hex(), ray.get(payload))
+                return self.static[1]
+            if kind == "snapshot":  # a whole coverage, as plain arrays
+                self.mirror = Coverage.from_state(ray.get(payload))
+                return self.mirror
+            # "changes": refs of change blocks applying after version ``base``
+            if self.mirror is None or self.mirror.version < base:
+                return RESYNC
+            for block in ray.get(payload):
+                self.mirror.sync(block)
+            return self.mirror
 
         def stats(self) -> dict:
             return {"busy_s": self.busy_s, "tasks": self.tasks, "pid": os.getpid()}
@@ -54,21 +92,37 @@ def _actor_class():
 
 
 def connect(address: str, workers: int) -> None:
+    """Start a private local Ray (``address = "local"``) or join a cluster. Local Ray's
+    workers get the working directory on their path, as the CLI has it: a config's
+    'module:Class' imports there as it does in the coordinator."""
     import ray
 
     if ray.is_initialized():
         return
     if address == "local":
-        ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False,
-                 configure_logging=False)
+        path = os.pathsep.join(p for p in (os.getcwd(), os.environ.get("PYTHONPATH")) if p)
+        ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, configure_logging=False,
+                 runtime_env={"env_vars": {"PYTHONPATH": path}})
     else:
         ray.init(address=address, log_to_driver=False, configure_logging=False)
+
+
+@dataclasses.dataclass
+class _Part:
+    ref: object  # the summary's object ref
+    visited_ref: object
+    actor: int
+    first: int
+    starts: np.ndarray
+    screen: object
+    tries: int = 0
 
 
 class RayExecutor:
     name = "ray"
 
-    def __init__(self, spec: SimSpec, workers: int, address: str = "local", max_retries: int = 3):
+    def __init__(self, spec: SimSpec, workers: int, address: str = "local", max_retries: int = 3,
+                 check_step_bound: bool = False):
         import ray
 
         connect(address, workers)
@@ -81,12 +135,14 @@ class RayExecutor:
         cpus = float(ray.cluster_resources().get("CPU", workers))
         per_actor = min(1.0, cpus / workers)
         cls = _actor_class().options(num_cpus=per_actor, max_restarts=max_retries, max_task_retries=max_retries)
-        self.actors = [cls.remote(dataclasses.asdict(spec)) for _ in range(workers)]
+        self.actors = [cls.remote(dataclasses.asdict(spec), check_step_bound) for _ in range(workers)]
         self._queued = [0] * workers
-        self._jobs: dict[int, list] = {}
+        self._synced: list[tuple[int, int, int] | None] = [None] * workers  # (coverage id, epoch, version) sent
+        self._blocks: dict[tuple, object] = {}  # (coverage id, from version, to version) -> ref
+        self._static: dict[int, object] = {}  # id(screen) -> ref of a fixed screen
+        self._snapshot: tuple = (None, None)  # (coverage id, epoch, version), ref of its state
+        self._jobs: dict[int, _Part] = {}
         self._next = 0
-        self.runs_simulated = 0
-        self.steps_simulated = 0
 
     def pids(self) -> list[int]:
         return self.ray.get([a.pid.remote() for a in self.actors])
@@ -95,64 +151,98 @@ class RayExecutor:
         """Busy seconds and tasks per actor (for idle-fraction measurements)."""
         return self.ray.get([a.stats.remote() for a in self.actors])
 
-    def submit(self, first_index: int, starts: np.ndarray) -> int:
-        chunks = np.array_split(np.arange(len(starts)), min(self.workers, len(starts)))
-        parts = []
-        for rows in chunks:
+    # -- what a chunk's actor needs to screen it ------------------------------------------
+    def _message(self, actor: int, screen, fresh: bool = False):
+        if screen is None:
+            return ("none", None, 0)
+        if not isinstance(screen, Coverage):
+            key = id(screen)
+            if key not in self._static:
+                self._static = {key: self.ray.put(screen)}
+            return ("static", self._static[key], 0)
+        screen.start_log()
+        now = (id(screen), screen.epoch, screen.version)
+        sent = self._synced[actor]
+        self._synced[actor] = now
+        if fresh or sent is None or sent[:2] != now[:2]:
+            if self._snapshot[0] != now:
+                self._snapshot = (now, self.ray.put(screen.state()))
+            return ("snapshot", self._snapshot[1], 0)
+        if sent[2] == now[2]:
+            return ("changes", [], sent[2])
+        key = (id(screen), sent[2], now[2])
+        if key not in self._blocks:
+            self._blocks = {k: v for k, v in self._blocks.items() if k[2] == now[2]}  # older ranges are done
+            self._blocks[key] = self.ray.put(screen.changes_since(sent[2]))
+        self._trim(screen)
+        return ("changes", [self._blocks[key]], sent[2])
+
+    def _trim(self, screen: Coverage) -> None:
+        synced = [s[2] for s in self._synced if s is not None and s[0] == id(screen)]
+        if len(synced) == self.workers:
+            screen.trim_log(min(synced))
+
+    # -- the contract -------------------------------------------------------------------
+    def submit(self, first_index: int, starts: np.ndarray, screen=None) -> list[int]:
+        handles = []
+        for rows in np.array_split(np.arange(len(starts)), min(self.workers, max(len(starts), 1))):
             if len(rows) == 0:
                 continue
-            w = int(np.argmin(self._queued))
-            self._queued[w] += 1
-            ref = self.actors[w].run.remote(first_index + int(rows[0]), starts[rows])
-            parts.append([ref, w, first_index + int(rows[0]), starts[rows], 0])
-        handle = self._next
-        self._next += 1
-        self._jobs[handle] = parts
-        return handle
+            actor = int(np.argmin(self._queued))
+            first = first_index + int(rows[0])
+            part = _Part(None, None, actor, first, starts[rows], screen)
+            self._launch(part)
+            self._jobs[self._next] = part
+            handles.append(self._next)
+            self._next += 1
+        return handles
 
-    def _get(self, part):
-        ref, w, first, starts, tries = part
+    def _launch(self, part: _Part, fresh: bool = False) -> None:
+        self._queued[part.actor] += 1
+        message = self._message(part.actor, part.screen, fresh)
+        part.ref, part.visited_ref = self.actors[part.actor].run.remote(part.first, part.starts, message)
+
+    def result(self, handle: int) -> Chunk:
+        part = self._jobs.pop(handle)
+        while True:
+            summary = self._get(part)
+            if not (isinstance(summary, str) and summary == RESYNC):
+                break
+            self._launch(part, fresh=True)  # the actor lost its mirror (restarted)
+        visited_ref = part.visited_ref
+        return chunk_of(summary, lambda: self.ray.get(visited_ref))
+
+    def _get(self, part: _Part):
+        ray = self.ray
         while True:
             try:
-                return self.ray.get(ref)
-            except self.ray.exceptions.RayTaskError as exc:
+                summary = ray.get(part.ref)
+                self._queued[part.actor] -= 1
+                return summary
+            except ray.exceptions.RayTaskError as exc:
+                self._queued[part.actor] -= 1
                 cause = exc.cause if getattr(exc, "cause", None) is not None else exc
-                raise WorkerError(f"worker failed on runs from sample index {first}: {cause}") from None
-            except (self.ray.exceptions.RayActorError, self.ray.exceptions.WorkerCrashedError,
-                    self.ray.exceptions.ObjectLostError) as exc:
-                tries += 1
-                if tries > self.max_retries:
-                    raise WorkerError(f"runs from sample index {first} failed {tries} times "
+                raise WorkerError(f"worker failed on runs from sample index {part.first}: {cause}") from None
+            except (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError,
+                    ray.exceptions.ObjectLostError) as exc:
+                self._queued[part.actor] -= 1
+                part.tries += 1
+                if part.tries > self.max_retries:
+                    raise WorkerError(f"runs from sample index {part.first} failed {part.tries} times "
                                       f"(last: {type(exc).__name__}); giving up") from None
-                w = (w + 1) % self.workers  # try another actor; Ray restarts the dead one
-                ref = self.actors[w].run.remote(first, starts)
-
-    def result(self, handle: int) -> RunBatch:
-        parts = self._jobs.pop(handle)
-        out = []
-        for part in parts:
-            self._queued[part[1]] -= 1
-            out.append(self._get(part))
-        k = max(p[1].shape[0] for p in out)
-        n = out[0][1].shape[2]
-        traj = np.zeros((k, sum(len(p[0]) for p in out), n))
-        col = 0
-        for idx, tr, _, _ in out:
-            traj[: tr.shape[0], col : col + len(idx)] = tr
-            col += len(idx)
-        batch = RunBatch(np.concatenate([p[0] for p in out]), traj, np.concatenate([p[2] for p in out]),
-                         np.concatenate([p[3] for p in out]))
-        self.runs_simulated += len(batch)
-        self.steps_simulated += batch.steps
-        return batch
+                self._synced[part.actor] = None  # Ray restarts it without its mirror
+                part.actor = (part.actor + 1) % self.workers  # try another actor meanwhile
+                self._launch(part, fresh=True)
 
     def cancel(self, handle: int) -> None:
-        for part in self._jobs.pop(handle, []):
-            self._queued[part[1]] -= 1
-            try:
-                self.ray.cancel(part[0])
-            except Exception:  # noqa: BLE001 - an actor task already running just finishes
-                pass
+        part = self._jobs.pop(handle, None)
+        if part is None:
+            return
+        self._queued[part.actor] -= 1
+        try:
+            self.ray.cancel(part.ref)
+        except Exception:  # noqa: BLE001 - an actor task already running just finishes
+            pass
 
     def close(self) -> None:
         for a in self.actors:
@@ -160,9 +250,10 @@ class RayExecutor:
         self.actors = []
 
 
-def make_executor(kind: str, spec: SimSpec, workers: int, address: str, max_retries: int):
+def make_executor(kind: str, spec: SimSpec, workers: int, address: str, max_retries: int,
+                  check_step_bound: bool = False):
     if kind == "ray":
-        return RayExecutor(spec, workers, address, max_retries)
+        return RayExecutor(spec, workers, address, max_retries, check_step_bound)
     from farm.executors import LocalExecutor
 
-    return LocalExecutor(spec)
+    return LocalExecutor(spec, check_step_bound)

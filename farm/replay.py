@@ -13,14 +13,13 @@ from pathlib import Path
 import numpy as np
 import pyarrow.dataset as ds
 
-from farm.executors import SimSpec, build_simulator
-from scenarios.streams import RunStreams
+from farm.executors import build_simulator
 from scenarios.base import OUTCOME_NAMES
-from scenarios.run import run_scenario
+from scenarios.simulator import SimSpec
 
 
-def rerun(scenario, policy, horizon: int, seed: int, index: int, start: np.ndarray):
-    batch = run_scenario(scenario, start[None, :], horizon, policy, RunStreams.of(seed, [index]))
+def rerun(simulator, index: int, start: np.ndarray):
+    batch = simulator.simulate(index, start[None, :])
     return batch.trajectory(0), OUTCOME_NAMES[int(batch.outcomes[0])]
 
 
@@ -50,17 +49,20 @@ def replay(directory: Path, index: int) -> tuple[bool, str]:
     directory = Path(directory)
     if (directory / "certificate.json").exists():
         return _replay_counterexample(directory, index)
-    from farm.quantify import load_frozen_config
+    from farm.quantification import load_frozen_config
 
     cfg = load_frozen_config(directory)
+    if not 0 <= index < 2**63:
+        raise ValueError(f"--sample: {index} is out of range; allowed [0, 2**63)")
     rows = ds.dataset(directory / "ledger").to_table(filter=ds.field("sample_index") == index).to_pylist()
     if not rows:
         raise ValueError(f"{directory}: sample {index} is not in the ledger (not committed)")
     row = rows[0]
-    spec = SimSpec(dict(cfg["scenario"]), dict(cfg["actions"]), cfg["quantify"]["horizon"], cfg["farm"]["seed"])
-    scenario, policy = build_simulator(spec)
+    spec = SimSpec(cfg.scenario.model_dump(), cfg.actions.model_dump(), cfg.quantify.horizon, cfg.farm.seed)
+    simulator = build_simulator(spec)
+    scenario = simulator.scenario
     start = np.array([row[name] for name in scenario.state_names])
-    traj, outcome = rerun(scenario, policy, spec.horizon, spec.seed, index, start)
+    traj, outcome = rerun(simulator, index, start)
     checks = [("outcome", outcome == row["outcome"], f"{outcome} (ledger: {row['outcome']})"),
               ("steps", len(traj) - 1 == row["steps"], f"{len(traj) - 1} (ledger: {row['steps']})")]
     path, recorded = _recorded(directory, index)
@@ -81,11 +83,13 @@ def _replay_counterexample(directory: Path, index: int) -> tuple[bool, str]:
     ce = cert.get("counterexample")
     if not ce or ce["sample_index"] != index:
         raise ValueError(f"{directory}: certificate.json holds no counterexample with sample index {index}")
-    cfg = json.loads((directory / "config.json").read_text())["config"]
-    spec = SimSpec(dict(cfg["scenario"]), dict(cfg["actions"]), cfg["validate"]["horizon"], cfg["farm"]["seed"])
-    scenario, policy = build_simulator(spec)
-    start = np.array([ce["start_state"][name] for name in scenario.state_names])
-    traj, outcome = rerun(scenario, policy, spec.horizon, spec.seed, index, start)
+    from farm.quantification import load_frozen_config
+
+    cfg = load_frozen_config(directory)
+    spec = SimSpec(cfg.scenario.model_dump(), cfg.actions.model_dump(), cfg.validate.horizon, cfg.farm.seed)
+    simulator = build_simulator(spec)
+    start = np.array([ce["start_state"][name] for name in simulator.scenario.state_names])
+    traj, outcome = rerun(simulator, index, start)
     expected = np.array(ce["trajectory"])
     k = ce["violating_step"]
     same = len(traj) > k and np.array_equal(traj[: k + 1], expected)

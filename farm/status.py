@@ -1,4 +1,10 @@
-"""`scenario-farm status DIR`: a campaign's state from its files alone."""
+"""Live status of a campaign, from its files alone.
+
+``StatusWriter`` rewrites ``DIR/status.json`` atomically every ``EVERY_S`` seconds while a
+campaign runs (independent of checkpoints): state, part, round, delta, boxes, the N_eps
+counter, committed runs, runs/s. ``describe`` (``scenario-farm status DIR``) reads it,
+and tells a live campaign from a dead one by the directory lock, not by a heartbeat.
+"""
 
 from __future__ import annotations
 
@@ -6,33 +12,72 @@ import json
 import time
 from pathlib import Path
 
-from farm.storage import pid_alive, read_status
+from farm.files import write_json
+from farm.storage import MARKER, CampaignDir
+
+EVERY_S = 2.0
+
+
+class StatusWriter:
+    def __init__(self, directory: Path):
+        self.dir = Path(directory)
+        self._last = 0.0
+        self._started = time.time()
+
+    def write(self, fields: dict) -> None:
+        write_json(self.dir / "status.json", {**fields, "updated": time.time(), "started": self._started})
+
+    def update(self, label: str, algorithm, campaign, n_eps: int, *, state: str = "running", force: bool = False):
+        now = time.monotonic()
+        if not force and now - self._last < EVERY_S:
+            return
+        self._last = now
+        self.write({"state": state, "part": label, **snapshot(algorithm, campaign, n_eps)})
+
+
+def snapshot(algorithm, campaign, n_eps: int) -> dict:
+    c = campaign.counters
+    counts = algorithm.counts()
+    return {"round": counts.get("round", 0), "delta": counts.get("delta"), "boxes": counts.get("boxes"),
+            "n_eps_counter": c.quiet, "n_eps": n_eps, "runs_committed": c.committed,
+            "runs_simulated": c.runs_simulated, "changes": c.changes, "elapsed_s": round(c.elapsed_s, 1),
+            "runs_per_s": round(c.committed / c.elapsed_s, 1) if c.elapsed_s > 0 else None}
+
+
+def read_status(directory: Path) -> dict | None:
+    try:
+        data = json.loads((Path(directory) / "status.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
 
 
 def describe(directory: Path) -> str:
     directory = Path(directory)
-    if not (directory / "config.json").exists():
-        raise ValueError(f"{directory}: not a campaign directory (no config.json)")
+    if not (directory / MARKER).exists() or not (directory / "config.json").exists():
+        raise ValueError(f"{directory}: not a campaign directory (no {MARKER} or config.json)")
     lines = [f"campaign {directory}"]
-    cfg = json.loads((directory / "config.json").read_text())
-    c = cfg["config"]
-    lines.append(f"  scenario {c['scenario']['name']} / {c['scenario']['sv_policy']} / {c['quantify']['algorithm']}, "
-                 f"config hash {cfg['config_hash']}")
-    for label, path in [("total", directory)] + [(p.name, p) for p in sorted((directory / "sides").glob("*"))]:
-        st = read_status(path)
-        if st is None:
-            lines.append(f"  [{label}] not started")
-            continue
+    try:
+        frozen = json.loads((directory / "config.json").read_text())
+        c = frozen["config"]
+        lines.append(f"  scenario {c['scenario']['name']} / {c['scenario'].get('sv_policy')} / "
+                     f"{c['quantify']['algorithm']}, config hash {frozen['config_hash']}")
+    except (OSError, ValueError, KeyError, TypeError):
+        raise ValueError(f"{directory}/config.json: unreadable") from None
+    holder = CampaignDir(directory).holder()
+    st = read_status(directory)
+    if st is None:
+        lines.append("  not started" if holder is None else f"  starting (pid {holder})")
+    else:
         state = st.get("state", "?")
-        age = time.time() - st.get("heartbeat", 0)
-        if state == "running" and not pid_alive(int(st.get("pid", -1))):
-            state = "stopped (process gone; continue with `scenario-farm resume`)"
-        elif state == "running":
-            state = f"running (pid {st['pid']}, last checkpoint {age:.0f} s ago)"
-        fields = ["round", "delta", "boxes", "n_eps_counter", "n_eps", "runs_committed", "runs_simulated",
+        if state in ("running", "finishing") and holder is None:
+            state = f"stopped while {state} (process gone; continue with `scenario-farm resume {directory}`)"
+        elif holder is not None:
+            state = f"{state} (pid {holder}, updated {time.time() - st.get('updated', 0):.0f} s ago)"
+        fields = ["part", "round", "delta", "boxes", "n_eps_counter", "n_eps", "runs_committed", "runs_simulated",
                   "runs_per_s", "elapsed_s", "result_hash"]
         detail = ", ".join(f"{k} {st[k]}" for k in fields if st.get(k) is not None)
-        lines.append(f"  [{label}] {state}" + (f": {detail}" if detail else ""))
+        lines.append(f"  {state}" + (f": {detail}" if detail else ""))
     if (directory / "summary.json").exists():
         s = json.loads((directory / "summary.json").read_text())
         lines.append(f"  finished: {s['boxes']} boxes, volume {s['volume_union']:.6g}, result hash {s['result_hash']}")

@@ -1,35 +1,41 @@
-"""A campaign directory: frozen config, checkpoint, run ledger, results.
+"""A campaign directory: what this tool writes, and nothing of anyone else's.
 
+    DIR/.scenario-farm.json   the marker: this tool wrote DIR (kind, format version)
+    DIR/.lock                 an advisory lock held by the process working in DIR (the
+                              kernel releases it on exit, kill -9 included)
     DIR/config.toml           the config as given (frozen copy)
     DIR/config.json           the normalized config with its hash
-    DIR/checkpoint.npz        algorithm + driver state: numpy arrays only (no pickle),
-                              written aside, fsynced, then os.replace'd
-    DIR/ledger/segment-NNNNNN.parquet   committed runs, appended in segments
-    DIR/status.json           live status (pid, heartbeat, counters) for `status`
-    DIR/safe_set.parquet, summary.json, plots/, recordings/
+    DIR/checkpoint.npz, DIR/checkpoint/   the checkpoint (farm/journal.py)
+    DIR/ledger/segment-NNNNNN.parquet     committed runs, appended in segments
+    DIR/status.json           live status (farm/status.py)
+    DIR/safe_set.parquet, summary.json, plots/, recordings/, report.html
 
-The checkpoint names how many ledger segments belong to it; segments written after the
-last checkpoint are the uncommitted tail of a killed process and are discarded on resume.
+``--force`` replaces only a directory with the marker; a second process is refused
+with the lock holder's pid; temp files of dead writers are removed when a campaign is
+opened again.
 """
 
 from __future__ import annotations
 
-import io
+import errno
+import fcntl
 import json
 import os
 import re
+import shutil
 import time
-import zipfile
 from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from farm.files import TEMP_MARK, atomic_write, sha256_file, write_json
 from scenarios.version import __version__
-from farm.files import atomic_write_bytes, write_json
 
-CHECKPOINT_FORMAT = 1
+MARKER = ".scenario-farm.json"
+LOCK = ".lock"
+DIRECTORY_FORMAT = 2
 SEGMENT = re.compile(r"segment-(\d{6})\.parquet$")
 
 
@@ -37,42 +43,142 @@ class CampaignError(RuntimeError):
     """A campaign directory that cannot be used as asked (printed as one line, exit 2)."""
 
 
-def save_checkpoint(path: Path, arrays: dict[str, np.ndarray], meta: dict) -> None:
-    meta = {**meta, "format": CHECKPOINT_FORMAT, "scenario_farm_version": __version__}
-    payload = dict(arrays)
-    payload["__meta__"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
-    buf = io.BytesIO()
-    np.savez(buf, **payload)
-    atomic_write_bytes(Path(path), buf.getvalue())
+class CampaignDir:
+    """A directory this tool writes, locked while a process works in it."""
 
+    def __init__(self, path):
+        self.path = Path(path)
+        self._lock_fd: int | None = None
 
-def load_checkpoint(path: Path) -> tuple[dict[str, np.ndarray], dict]:
-    path = Path(path)
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {k: data[k] for k in data.files}
-    except FileNotFoundError:
-        raise CampaignError(f"{path}: no checkpoint") from None
-    except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
-        raise CampaignError(f"{path}: checkpoint is truncated or corrupt ({exc}); nothing was changed") from None
-    try:
-        meta = json.loads(arrays.pop("__meta__").tobytes().decode())
-    except (KeyError, ValueError) as exc:
-        raise CampaignError(f"{path}: checkpoint has no readable metadata ({exc}); nothing was changed") from None
-    if meta.get("format") != CHECKPOINT_FORMAT:
-        raise CampaignError(f"{path}: checkpoint format {meta.get('format')} is not {CHECKPOINT_FORMAT}")
-    return arrays, meta
+    # -- opening ---------------------------------------------------------------------------
+    def marker(self) -> dict | None:
+        try:
+            data = json.loads((self.path / MARKER).read_text())
+            return data if isinstance(data, dict) else None
+        except (OSError, ValueError):
+            return None
+
+    def check_writable(self) -> None:
+        """Refuse, before any work, a path that cannot become a campaign directory."""
+        p = self.path
+        if p.exists() and not p.is_dir():
+            raise CampaignError(f"{p}: exists and is not a directory")
+        parent = p if p.exists() else next((a for a in p.parents if a.exists()), Path("."))
+        if not os.access(parent, os.W_OK | os.X_OK):
+            raise CampaignError(f"{parent}: not writable; choose another --out")
+
+    def create(self, kind: str, *, force: bool) -> None:
+        """A fresh campaign directory. A non-empty path is refused, unless ``force`` and
+        this tool wrote it (marker present): then it is replaced."""
+        self.check_writable()
+        p = self.path
+        if p.exists() and any(p.iterdir()):
+            if not force:
+                raise CampaignError(f"{p}: directory is not empty; pass --resume to continue the campaign in it "
+                                    f"or --force to replace it")
+            if self.marker() is None:
+                raise CampaignError(f"{p}: not a directory this tool wrote (no {MARKER}); refusing to replace it "
+                                    f"with --force")
+            self.lock()  # not while another process works there
+            for child in p.iterdir():
+                if child.name != LOCK:
+                    shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
+        else:
+            try:
+                p.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise CampaignError(f"{p}: cannot create the directory ({exc.strerror})") from None
+            self.lock()
+        write_json(p / MARKER, {"tool": "scenario-farm", "kind": kind, "format": DIRECTORY_FORMAT,
+                                "scenario_farm_version": __version__, "created": time.time()})
+
+    def open(self, kind: str | None = None) -> dict:
+        """An existing campaign directory, locked; returns its marker."""
+        p = self.path
+        if not p.is_dir():
+            raise CampaignError(f"{p}: not a campaign directory ({'no such directory' if not p.exists() else 'a file'})")
+        marker = self.marker()
+        if marker is None:
+            raise CampaignError(f"{p}: not a campaign directory (no {MARKER})")
+        if marker.get("format") != DIRECTORY_FORMAT:
+            raise CampaignError(f"{p}: written in directory format {marker.get('format')} by scenario-farm "
+                                f"{marker.get('scenario_farm_version')}; this is format {DIRECTORY_FORMAT}")
+        if kind is not None and marker.get("kind") != kind:
+            raise CampaignError(f"{p}: a {marker.get('kind')} directory, not a {kind} campaign")
+        return marker
+
+    # -- the lock ---------------------------------------------------------------------------
+    def lock(self, announce: bool = True) -> None:
+        """Hold DIR/.lock for this process's lifetime; refuse if another holds it.
+        ``announce``: write this pid into it now (else with ``announce()``, once the
+        process is sure to work there: a refused resume leaves every file as it was)."""
+        if self._lock_fd is not None:
+            return
+        fd = os.open(self.path / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            if exc.errno not in (errno.EAGAIN, errno.EACCES):
+                raise
+            holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "?"
+            os.close(fd)
+            raise CampaignError(f"{self.path}: in use by process {holder} (a campaign runs there); wait for it "
+                                f"to finish or stop it first") from None
+        self._lock_fd = fd
+        if announce:
+            self.announce()
+
+    def announce(self) -> None:
+        os.ftruncate(self._lock_fd, 0)
+        os.pwrite(self._lock_fd, f"{os.getpid()}\n".encode(), 0)
+
+    def unlock(self) -> None:
+        if self._lock_fd is not None:
+            os.close(self._lock_fd)  # closing releases the flock
+            self._lock_fd = None
+
+    def holder(self) -> int | None:
+        """The pid working in DIR now, or None (for `status`)."""
+        try:
+            fd = os.open(self.path / LOCK, os.O_RDONLY)
+        except OSError:
+            return None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+            return None  # nobody holds it
+        except OSError:
+            text = os.pread(fd, 64, 0).decode(errors="replace").strip()
+            return int(text) if text.isdigit() else -1
+        finally:
+            os.close(fd)
+
+    # -- housekeeping -------------------------------------------------------------------------
+    def remove_stale_temp_files(self) -> list[Path]:
+        """Temp files (".<name>.tmp-<pid>") of writers that are gone: a kill -9 or a full
+        disk in the middle of a write. Call with the lock held."""
+        removed = []
+        for tmp in self.path.rglob(f"*{TEMP_MARK}*"):
+            pid = tmp.name.rsplit(TEMP_MARK, 1)[-1]
+            if not pid.isdigit() or int(pid) != os.getpid():
+                tmp.unlink(missing_ok=True)
+                removed.append(tmp)
+        return removed
 
 
 class Ledger:
     """Committed runs as Parquet segments: sample_index, round, delta, one column per
-    state variable (the start state), outcome, steps, changed, counted."""
+    state variable (the start state), outcome, steps, changed, counted. Each segment's
+    sha256 goes into the checkpoint, so a changed or swapped segment is noticed."""
 
     def __init__(self, directory: Path, state_names):
         self.dir = Path(directory)
         self.state_names = list(state_names)
-        self.segments = 0
+        self.digests: list[str] = []
         self.rows = 0
+
+    @property
+    def segments(self) -> int:
+        return len(self.digests)
 
     def append(self, log: dict[str, np.ndarray] | None) -> None:
         if not log:
@@ -86,61 +192,39 @@ class Ledger:
         names = np.array([OUTCOME_NAMES[o] for o in range(1, 4)])
         cols["outcome"] = names[log["outcome"] - 1]
         cols.update(steps=log["steps"], changed=log["changed"], counted=log["counted"])
-        table = pa.table(cols)
         path = self.dir / f"segment-{self.segments:06d}.parquet"
-        tmp = path.with_name("." + path.name + ".tmp")
-        pq.write_table(table, tmp)
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        self.segments += 1
+        atomic_write(path, lambda fh: pq.write_table(pa.table(cols), fh))
+        self.digests.append(sha256_file(path))
         self.rows += len(log["sample_index"])
 
-    def verify_and_trim(self, segments: int, rows: int) -> None:
-        """On resume: the first ``segments`` must be intact and hold ``rows`` rows; later
-        segments are an uncheckpointed tail and are removed."""
+    def verify_and_trim(self, digests: list[str], rows: int) -> None:
+        """On resume: the segments the checkpoint names must be there, unchanged, and hold
+        ``rows`` rows; later segments are an uncheckpointed tail and are removed."""
         found = 0
-        for i in range(segments):
+        for i, digest in enumerate(digests):
             path = self.dir / f"segment-{i:06d}.parquet"
             try:
+                actual = sha256_file(path)
                 found += pq.ParquetFile(path).metadata.num_rows
             except FileNotFoundError:
                 raise CampaignError(f"{path}: ledger segment missing; the checkpoint needs it") from None
             except (pa.ArrowInvalid, OSError) as exc:
                 raise CampaignError(f"{path}: ledger segment is corrupt ({exc}); nothing was changed") from None
+            if actual != digest:
+                raise CampaignError(f"{path}: ledger segment differs from the one checkpointed (sha256 "
+                                    f"{actual[:12]}..., expected {digest[:12]}...); nothing was changed")
         if found != rows:
-            raise CampaignError(f"{self.dir}: ledger holds {found} rows in its first {segments} segments, the "
+            raise CampaignError(f"{self.dir}: ledger holds {found} rows in its first {len(digests)} segments, the "
                                 f"checkpoint expects {rows}; nothing was changed")
         if self.dir.exists():
             for path in self.dir.iterdir():
                 m = SEGMENT.search(path.name)
-                if (m and int(m.group(1)) >= segments) or path.name.endswith(".tmp"):
+                if m and int(m.group(1)) >= len(digests):
                     path.unlink()
         recordings = self.dir.parent / "recordings"
         if recordings.exists():  # recordings flushed with a later, lost checkpoint
             for path in recordings.glob("runs-*.mcap"):
-                if int(path.stem.split("-")[1]) >= segments:
+                stem = path.stem.split("-")[-1]
+                if stem.isdigit() and int(stem) >= len(digests):
                     path.unlink()
-        self.segments, self.rows = segments, rows
-
-
-def write_status(directory: Path, status: dict) -> None:
-    write_json(Path(directory) / "status.json", {**status, "pid": os.getpid(), "heartbeat": time.time()})
-
-
-def read_status(directory: Path) -> dict | None:
-    path = Path(directory) / "status.json"
-    try:
-        return json.loads(path.read_text())
-    except (FileNotFoundError, ValueError):
-        return None
-
-
-def pid_alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
+        self.digests, self.rows = list(digests), rows

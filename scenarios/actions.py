@@ -7,13 +7,14 @@ its key (seed, index), never on its batch-mates.
 
 from __future__ import annotations
 
-import importlib
+import inspect
 from dataclasses import dataclass
 
 import numpy as np
 
 from scenarios.streams import PURPOSE_ACTION, RunStreams
 from scenarios.base import Scenario
+from scenarios.registry import load_object
 
 
 class ActionPolicy:
@@ -74,7 +75,7 @@ class FeedbackActions(ActionPolicy):
     deterministic: bool = True
 
     def __post_init__(self):
-        self._fn = load_object(self.target, "actions.policy")
+        self._fn = load_callable(self.target, "actions.policy", "states (B, n) -> actions (B, m)")
 
     @property
     def description(self) -> str:  # type: ignore[override]
@@ -85,19 +86,18 @@ class FeedbackActions(ActionPolicy):
         return np.clip(u.reshape(len(states), scenario.m), scenario.action_lower, scenario.action_upper)
 
 
-def load_object(target: str, field: str):
-    """Import ``package.module:attr``; a clear error naming ``field`` otherwise."""
-    module_name, sep, attr = target.partition(":")
-    if not sep or not module_name or not attr:
-        raise ValueError(f"{field}: expected 'package.module:Name', got {target!r}")
+def load_callable(target: str, field: str, signature: str):
+    """A plugin function: import it and check it is a callable taking one argument."""
+    fn = load_object(target, field)
+    if not callable(fn) or isinstance(fn, type):
+        raise ValueError(f"{field}: {target!r} is not a function; expected a function {signature}")
     try:
-        module = importlib.import_module(module_name)
-    except ImportError as exc:
-        raise ValueError(f"{field}: cannot import module {module_name!r} ({exc})") from None
-    try:
-        return getattr(module, attr)
-    except AttributeError:
-        raise ValueError(f"{field}: module {module_name!r} has no attribute {attr!r}") from None
+        inspect.signature(fn).bind(None)
+    except TypeError:
+        raise ValueError(f"{field}: {target!r} does not take one argument; expected a function {signature}") from None
+    except ValueError:  # builtins without a signature: let the call decide
+        pass
+    return fn
 
 
 def make_action_policy(mode: str, scenario: Scenario, value=None, policy: str | None = None) -> ActionPolicy:
@@ -108,7 +108,11 @@ def make_action_policy(mode: str, scenario: Scenario, value=None, policy: str | 
     if mode == "constant":
         if value is None:
             raise ValueError("actions.value: required for mode = 'constant'")
-        vals = tuple(float(v) for v in np.atleast_1d(value))
+        values = value if isinstance(value, list) else [value]
+        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
+            raise ValueError(f"actions.value: expected {scenario.m} number(s) ({', '.join(scenario.action_names)}), "
+                             f"got {value!r}")
+        vals = tuple(float(v) for v in values)
         if len(vals) != scenario.m:
             raise ValueError(f"actions.value: expected {scenario.m} numbers ({', '.join(scenario.action_names)})")
         for v, lo, hi, name in zip(vals, scenario.action_lower, scenario.action_upper, scenario.action_names):

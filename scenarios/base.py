@@ -17,6 +17,8 @@ import numpy as np
 FACET_TOLERANCE = 1e-9
 
 CONTINUE, TRUNCATED, FAILURE, HORIZON = 0, 1, 2, 3
+NO_SV = "none"  # the sv_policy of a scenario without an SV policy (e.g. the toy)
+EXTERNAL_SV = "external"  # the SV is simulated by the back end (e.g. SUMO's car following)
 OUTCOME_NAMES = {TRUNCATED: "truncated", FAILURE: "failure", HORIZON: "horizon"}
 
 
@@ -75,6 +77,9 @@ class Scenario(ABC):
       action_lower, action_upper  (m,) bounds of Gamma
       adversarial_actions  (k, m) the finite adversarial set Gamma*
       dt              time step [s]
+      sv_policies     SV policy name -> function (v0, v1, gap) -> SV acceleration;
+                      empty for a scenario without an SV (or whose SV is the back end's)
+      noise_width     U[0,1) draws per step for the disturbance (0: none supported)
       units           state name -> unit, for labels (e.g. {"v0": "m/s"})
       sides           named sub-studies: side name -> the failure facets that count
                       (e.g. fleet3's {"lead": ("p10",), "rear": ("p20",)}); quantified
@@ -91,12 +96,28 @@ class Scenario(ABC):
     action_upper: np.ndarray
     adversarial_actions: np.ndarray
     dt: float = 0.1
+    sv_policies: dict = {}  # name -> SV policy function; empty: the scenario has none
+    noise_width: int = 0  # how many U[0,1) draws per step the disturbance needs
+    adversary_settle_steps: int | None = None  # see reference_safe
     units: dict[str, str] = {}
     sides: dict[str, tuple[str, ...]] = {}
 
-    def __init__(self, failure_facets: tuple[str, ...] | None = None, disturbance: float = 0.0):
-        """``failure_facets`` selects which failure facets count (default: all); the
-        others act as truncating facets. ``disturbance`` is the bound w [m/s^2]."""
+    def __init__(self, sv_policy: str | None = None, failure_facets: tuple[str, ...] | None = None,
+                 disturbance: float = 0.0):
+        """``sv_policy`` names one of ``sv_policies`` (default: the first), or
+        ``EXTERNAL_SV`` when a simulator back end drives the SV itself. ``failure_facets``
+        selects which failure facets count (default: all); the others act as truncating
+        facets. ``disturbance`` is the bound w [m/s^2]."""
+        if sv_policy is None:
+            sv_policy = next(iter(self.sv_policies), NO_SV)
+        if sv_policy == EXTERNAL_SV or (sv_policy == NO_SV and not self.sv_policies):
+            self._policy = None
+        elif sv_policy in self.sv_policies:
+            self._policy = self.sv_policies[sv_policy]
+        else:
+            allowed = ", ".join(self.sv_policies) or NO_SV
+            raise ValueError(f"scenario.sv_policy: {sv_policy!r} is not an SV policy of {self.name!r}; allowed: {allowed}")
+        self.sv_policy_name = sv_policy
         names = tuple(self.failure_sides) if failure_facets is None else tuple(failure_facets)
         unknown = [f for f in names if f not in self.failure_sides]
         if unknown:
@@ -106,6 +127,10 @@ class Scenario(ABC):
             )
         if not names:
             raise ValueError("scenario.failure_facets: at least one failure facet must count")
+        if not (isinstance(disturbance, (int, float)) and disturbance >= 0 and np.isfinite(disturbance)):
+            raise ValueError(f"scenario.disturbance: {disturbance!r} is out of range; allowed [0, inf)")
+        if disturbance and not self.noise_width:
+            raise ValueError(f"scenario.disturbance: scenario {self.name!r} has no disturbance input; allowed: 0")
         self.failure_facets = names
         self.disturbance = float(disturbance)
         self.lower = np.asarray(self.lower, dtype=float)
@@ -123,6 +148,17 @@ class Scenario(ABC):
                 self._failure_mask_upper[axis] = True
             else:
                 self._failure_mask_lower[axis] = True
+
+    @property
+    def external_sv(self) -> bool:
+        """The SV is simulated by the back end (no model of it here)."""
+        return bool(self.sv_policies) and self._policy is None
+
+    @property
+    def sv_policy(self):
+        """The SV policy function (v0, v1, gap) -> acceleration, or None for an
+        external SV (simulated by the back end)."""
+        return self._policy
 
     # -- declared geometry -------------------------------------------------------------
     @property
@@ -195,8 +231,6 @@ class Scenario(ABC):
         self.step_into(states, actions, noise, out)
         return out.T
 
-    noise_width: int = 0  # how many U[0,1) draws per step the disturbance needs
-
     # -- classification --------------------------------------------------------------------
     def classify(self, states: np.ndarray) -> np.ndarray:
         """(B, n) -> (B,) int8: CONTINUE, TRUNCATED or FAILURE (failure wins ties).
@@ -218,6 +252,15 @@ class Scenario(ABC):
         # a failure also left Sigma, so left + failed is 0, 1 (TRUNCATED) or 2 (FAILURE)
         return np.add(left, failed, dtype=np.int8)
 
+    # -- model-based reference (for `compare`) ------------------------------------------
+    def reference_safe(self, points: np.ndarray) -> np.ndarray | None:
+        """Membership of the maximal safe set from the model, (G, n) -> (G,) bool, or
+        None when the scenario has no model (the default). ``compare`` then simulates
+        each point under the single adversarial action for ``adversary_settle_steps``
+        steps, if the scenario declares that an adversarial run has settled by then (no
+        failure can come later), and refuses otherwise."""
+        return None
+
     def describe(self) -> dict:
         return {
             "name": self.name,
@@ -231,4 +274,5 @@ class Scenario(ABC):
             "adversarial_actions": self.adversarial_actions.tolist(),
             "dt": self.dt,
             "disturbance": self.disturbance,
+            "sv_policy": self.sv_policy_name,
         }

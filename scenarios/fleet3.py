@@ -6,9 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenarios.base import Scenario, Slices, View
+from scenarios.base import Scenario, ScenarioError, Slices, View
 from scenarios.kinematics import advance, disturb
-from scenarios.policies import BRAKE_ACCEL, sv_policy as lookup_sv_policy
+from scenarios.policies import BRAKE_ACCEL, SV_POLICIES
+from scenarios.reference import safe_until_standstill
 
 VEHICLE_LENGTH = 5.0  # [m]
 
@@ -26,16 +27,29 @@ class Fleet3(Scenario):
     noise_width = 3
     units = {"v0": "m/s", "v1": "m/s", "v2": "m/s", "p10": "m", "p20": "m"}
     sides = {"lead": ("p10",), "rear": ("p20",)}  # the paper's Fig. 4 / Table 2 measures
+    sv_policies = SV_POLICIES
+    adversary_settle_steps = 400
+    vehicle_roles = ("sv", "lead", "follower")  # as vehicles on one lane (see LeadFollow)
+    sv_accel_bound = abs(BRAKE_ACCEL)  # [m/s^2] |SV acceleration| (brake, idm); a simulator SV may widen it
+    vehicle_length = VEHICLE_LENGTH
 
-    def __init__(self, sv_policy: str = "idm", failure_facets=None, disturbance: float = 0.0):
-        super().__init__(failure_facets, disturbance)
-        self.sv_policy_name = sv_policy
-        self._policy = lookup_sv_policy(sv_policy)
+    def to_vehicles(self, states):
+        fronts = np.zeros((len(states), 3))
+        fronts[:, 1] = states[:, 3]  # p10, p20 are front-to-front offsets from the SV
+        fronts[:, 2] = states[:, 4]
+        return fronts, states[:, :3].copy()
+
+    def from_vehicles(self, fronts, speeds):
+        return np.column_stack([speeds[:, 0], speeds[:, 1], speeds[:, 2], fronts[:, 1] - fronts[:, 0],
+                                fronts[:, 2] - fronts[:, 0]])
 
     def step(self, states, actions, noise):
         return self._step_via_into(states, actions, noise)
 
     def step_into(self, states, actions, noise, out):
+        if self._policy is None:
+            raise ScenarioError(f"scenario {self.name!r}: the SV is simulated by the back end; a functional step "
+                                f"needs an SV policy ({', '.join(self.sv_policies)})")
         v0, v1, v2 = states[:, 0], states[:, 1], states[:, 2]
         p10, p20 = states[:, 3], states[:, 4]
         a0 = self._policy(v0, v1, p10 - VEHICLE_LENGTH)  # the SV sees the lead only
@@ -52,6 +66,9 @@ class Fleet3(Scenario):
         np.subtract(x2, x0, out=out[4])
         out[4] += p20
 
+    def reference_safe(self, points):
+        return None if self.external_sv else safe_until_standstill(self, points)
+
     def views(self):
         # the paper's Fig. 4: the lead side (gap to the lead must be large enough) and the
         # rear side (the follower must stay far enough behind: p20 small enough)
@@ -62,6 +79,6 @@ class Fleet3(Scenario):
         return [Slices("v0", "p10", "v1"), Slices("v0", "p20", "v2")]
 
     def step_bound(self) -> float:
-        a_max = max(abs(BRAKE_ACCEL), 7.0) + self.disturbance
+        a_max = max(self.sv_accel_bound, 7.0) + self.disturbance
         v_max = float(self.upper[0])
         return max(a_max * self.dt, v_max * self.dt + 0.5 * a_max * self.dt**2)

@@ -6,9 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenarios.base import Scenario
+from scenarios.base import Scenario, ScenarioError
 from scenarios.kinematics import advance, disturb
-from scenarios.policies import BRAKE_ACCEL, sv_policy as lookup_sv_policy
+from scenarios.policies import BRAKE_ACCEL, SV_POLICIES
+from scenarios.reference import safe_until_standstill
 
 
 class LeadFollow(Scenario):
@@ -22,17 +23,31 @@ class LeadFollow(Scenario):
     action_upper = np.array([3.0])
     adversarial_actions = np.array([[-5.0]])  # maximal braking of the lead
     noise_width = 2
+    sv_policies = SV_POLICIES
     units = {"v0": "m/s", "v1": "m/s", "p10": "m"}
+    adversary_settle_steps = 400  # the lead stops within 4 s, any sane SV within 40 s
+    # As vehicles on one lane (for simulator back ends): the SV, then one commanded
+    # vehicle per action column; 5 m cars, positions are front bumpers.
+    vehicle_roles = ("sv", "lead")
+    sv_accel_bound = abs(BRAKE_ACCEL)  # [m/s^2] |SV acceleration| (brake, idm); a simulator SV may widen it
+    vehicle_length = 5.0  # [m]
 
-    def __init__(self, sv_policy: str = "idm", failure_facets=None, disturbance: float = 0.0):
-        super().__init__(failure_facets, disturbance)
-        self.sv_policy_name = sv_policy
-        self._policy = lookup_sv_policy(sv_policy)
+    def to_vehicles(self, states):
+        """(B, n) -> front positions relative to the SV's front [m], speeds [m/s] (B, R)."""
+        fronts = np.zeros((len(states), 2))
+        fronts[:, 1] = states[:, 2] + self.vehicle_length  # p10 is the bumper gap
+        return fronts, states[:, :2].copy()
+
+    def from_vehicles(self, fronts, speeds):
+        return np.column_stack([speeds[:, 0], speeds[:, 1], fronts[:, 1] - self.vehicle_length - fronts[:, 0]])
 
     def step(self, states, actions, noise):
         return self._step_via_into(states, actions, noise)
 
     def step_into(self, states, actions, noise, out):
+        if self._policy is None:
+            raise ScenarioError(f"scenario {self.name!r}: the SV is simulated by the back end; a functional step "
+                                f"needs an SV policy ({', '.join(self.sv_policies)})")
         v0, v1, p10 = states[:, 0], states[:, 1], states[:, 2]
         a0 = self._policy(v0, v1, p10)
         a1 = actions[:, 0]
@@ -44,8 +59,13 @@ class LeadFollow(Scenario):
         np.subtract(x1, x0, out=out[2])
         out[2] += p10
 
+    def reference_safe(self, points):
+        # Under the single adversarial action the system is deterministic: one rollout
+        # per point until failure, truncation or standstill decides membership exactly.
+        return None if self.external_sv else safe_until_standstill(self, points)
+
     def step_bound(self) -> float:
-        a_max = max(abs(BRAKE_ACCEL), 5.0, 3.0) + self.disturbance
+        a_max = max(self.sv_accel_bound, 5.0, 3.0) + self.disturbance
         v_max = float(self.upper[0])
         # speed change <= a_max*dt; gap change <= one vehicle's travel in a step
         return max(a_max * self.dt, v_max * self.dt + 0.5 * a_max * self.dt**2)

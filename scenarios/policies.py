@@ -51,11 +51,4 @@ def idm(v0: np.ndarray, v1: np.ndarray, gap: np.ndarray) -> np.ndarray:
     return accel
 
 
-SV_POLICIES = {"brake": brake, "idm": idm}
-
-
-def sv_policy(name: str):
-    try:
-        return SV_POLICIES[name]
-    except KeyError:
-        raise ValueError(f"scenario.sv_policy: unknown policy {name!r}; allowed: {sorted(SV_POLICIES)}") from None
+SV_POLICIES = {"idm": idm, "brake": brake}  # the first is the default

@@ -32,11 +32,6 @@ class Toy(Scenario):
     action_upper = np.array([0.3, 1.0])
     adversarial_actions = np.array([[-0.3, -1.0], [-0.3, 1.0], [0.3, -1.0], [0.3, 1.0]])
 
-    def __init__(self, sv_policy: str = "none", failure_facets=None, disturbance: float = 0.0):
-        if disturbance:
-            raise ValueError("scenario.disturbance: the toy scenario has no disturbance; allowed: 0")
-        super().__init__(failure_facets, 0.0)
-
     @staticmethod
     def safe(states: np.ndarray) -> np.ndarray:
         """Closed-form membership of the maximal safe set, (B, 2) -> (B,) bool."""
@@ -46,6 +41,9 @@ class Toy(Scenario):
             in_wells |= (x >= lo) & (x <= hi)
         inside = (states >= 0.0).all(axis=1) & (states <= 10.0).all(axis=1)
         return in_wells & inside
+
+    def reference_safe(self, points):
+        return self.safe(points)
 
     def step(self, states, actions, noise):
         x, y = states[:, 0], states[:, 1]

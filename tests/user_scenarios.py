@@ -17,9 +17,6 @@ class UnitSquare(Scenario):
     action_upper = np.array([1.0])
     adversarial_actions = np.array([[1.0]])
 
-    def __init__(self, sv_policy="none", failure_facets=None, disturbance=0.0):
-        super().__init__(failure_facets, disturbance)
-
 
 class NaNScenario(UnitSquare):
     """Produces NaN for states with a > 0.5."""

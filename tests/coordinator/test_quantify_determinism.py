@@ -3,7 +3,7 @@ import subprocess
 import sys
 
 from farm import config as config_mod
-from farm.quantify import run
+from farm.quantification import run
 
 
 def small_config(**quantify):
@@ -17,8 +17,7 @@ def test_same_config_and_seed_give_the_same_result_hash(tmp_path):
     a = run(small_config(), tmp_path / "a", resume=False)
     b = run(small_config(), tmp_path / "b", resume=False)
     assert a["result_hash"] == b["result_hash"] and a["runs_committed"] == b["runs_committed"]
-    cfg = small_config()
-    cfg["farm"]["seed"] = 4
+    cfg = small_config().with_overrides({"farm.seed": 4})
     assert run(cfg, tmp_path / "c", resume=False)["result_hash"] != a["result_hash"]
 
 

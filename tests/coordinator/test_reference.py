@@ -3,30 +3,38 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 
-from coordinator.reference import compare_boxes, falsify, grid, reference_safe, safe_under_adversary
+from coordinator.reference import NoReference, compare_boxes, falsify, grid, reference_safe
 from invariant_sets import min_future_gap_brake
-from scenarios import make_scenario
+from scenarios import NumpyBackend, make_scenario
+from scenarios.reference import safe_until_standstill
 from scenarios.toy import Toy
 
 
 def test_toy_reference_is_its_closed_form():
     sc = make_scenario("toy", sv_policy="none")
     pts = grid(sc, 101)
-    np.testing.assert_array_equal(reference_safe(sc, pts), Toy.safe(pts))
+    np.testing.assert_array_equal(reference_safe(NumpyBackend(sc), pts), Toy.safe(pts))
 
 
 def test_brake_reference_is_the_min_future_gap_set_and_survives_falsification():
     sc = make_scenario("lead-follow", sv_policy="brake")
     pts = sc.lower + (sc.upper - sc.lower) * np.random.default_rng(0).random((20000, 3))
-    safe = safe_under_adversary(sc, pts)
+    safe = safe_until_standstill(sc, pts)
     np.testing.assert_array_equal(safe, min_future_gap_brake(pts) >= -1e-9)
-    assert safe_under_adversary(sc, np.array([[0.0, 0.0, 0.5], [20.0, 0.0, 1.0]])).tolist() == [True, False]
-    assert falsify(sc, pts[safe][:3000]) == 0  # Gamma* is the worst case for brake
+    assert safe_until_standstill(sc, np.array([[0.0, 0.0, 0.5], [20.0, 0.0, 1.0]])).tolist() == [True, False]
+    assert falsify(NumpyBackend(sc), pts[safe][:3000]) == 0  # Gamma* is the worst case for brake
+
+
+def test_a_scenario_without_a_model_or_settling_adversary_has_no_reference():
+    sc = make_scenario("user_scenarios:NaNScenario")
+    with pytest.raises(NoReference, match="scenario 'nan' has no reference safe set"):
+        reference_safe(NumpyBackend(sc), np.zeros((3, 2)))
 
 
 def test_compare_scores_a_perfect_and_a_shifted_set():
-    sc = make_scenario("toy", sv_policy="none")
+    sc = NumpyBackend(make_scenario("toy", sv_policy="none"))
     xs = np.concatenate([np.arange(1.25, 4.0, 0.5), np.arange(6.25, 9.0, 0.5)])
     centres = np.stack(np.meshgrid(xs, np.arange(0.25, 10.0, 0.5), indexing="ij"), -1).reshape(-1, 2)
     perfect = compare_boxes(sc, centres, 0.25, grid_points_per_axis=200)

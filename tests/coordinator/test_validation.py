@@ -3,34 +3,31 @@
 import numpy as np
 import pytest
 
-from coordinator.domain import Domain
-from coordinator.validation import plan, validate
-from farm.executors import LocalExecutor, SimSpec, build_simulator
-from scenarios.streams import RunStreams
+from farm import api
 from scenarios.base import FAILURE
-from scenarios.run import run_scenario
+from scenarios.simulator import SimSpec, Simulator
 
 
 def run_validation(scenario_cfg, actions, section, *, algorithm="eps", seed=0, eps=0.001, beta=0.01, delta=1.0,
                    boundary=False, horizon=50):
-    spec = SimSpec(scenario_cfg, actions, horizon, seed)
-    scenario, policy = build_simulator(spec)
-    domain = Domain.from_config(scenario, section)
-    p = plan(domain, algorithm, eps, beta, delta, boundary, policy.deterministic and scenario.disturbance == 0)
-    result = validate(domain, p, LocalExecutor(spec), seed=seed, delta=delta, batch_size=512, pipeline_depth=2)
-    return result, p, scenario, policy
+    cert = api.validate({"scenario": scenario_cfg, "actions": actions,
+                         "validate": {**section, "algorithm": algorithm, "epsilon": eps, "beta": beta,
+                                      "delta": delta, "boundary": boundary, "horizon": horizon},
+                         "farm": {"executor": "local", "seed": seed, "batch_size": 512, "pipeline_depth": 2}})
+    return cert.data, cert, Simulator(SimSpec(scenario_cfg, actions, horizon, seed))
 
 
 LF_BRAKE = {"name": "lead-follow", "sv_policy": "brake"}
 
 
 def test_sigma_is_rejected_and_the_counterexample_fails_again_from_its_key():
-    result, p, scenario, policy = run_validation(LF_BRAKE, {"mode": "uniform"}, {})
+    result, _, simulator = run_validation(LF_BRAKE, {"mode": "uniform"}, {})
     assert result["verdict"] == "counterexample"
     ce = result["counterexample"]
-    assert ce["reason"].startswith("failure: crossed p10 < 0")
-    start = np.array([[ce["start_state"][k] for k in scenario.state_names]])
-    again = run_scenario(scenario, start, 50, policy, RunStreams.of(ce["stream_key"]["seed"], [ce["stream_key"]["index"]]))
+    assert ce["reason"].startswith("failure: crossed p10 < 0") and ce["outcome"] == "failure"
+    start = np.array([[ce["start_state"][k] for k in simulator.scenario.state_names]])
+    assert ce["stream_key"]["seed"] == 0
+    again = simulator.simulate(ce["stream_key"]["index"], start)
     assert again.outcomes[0] == FAILURE
     np.testing.assert_array_equal(again.trajectory(0), np.array(ce["trajectory"]))
     assert result["n_run"] == ce["sample_index"] + 1  # the first violation in index order
@@ -38,9 +35,9 @@ def test_sigma_is_rejected_and_the_counterexample_fails_again_from_its_key():
 
 def test_superlevel_set_of_min_future_gap_is_certified():
     section = {"domain_predicate": "invariant_sets:brake_superlevel_5"}
-    result, p, *_ = run_validation(LF_BRAKE, {"mode": "uniform"}, section)
+    result, *_ = run_validation(LF_BRAKE, {"mode": "uniform"}, section)
     assert result["verdict"] == "certified"
-    assert result["n_run"] == p.n_required == 4603
+    assert result["n_run"] == result["n_required"] == 4603
 
 
 def test_linear_cut_domain_is_certified_and_a_shifted_cut_is_not():

@@ -8,10 +8,11 @@ from farm.config import ConfigError
 
 
 def test_defaults_and_hash_ignore_fields_that_cannot_change_the_result():
-    a = config_mod.normalize({})
-    b = config_mod.normalize({"farm": {"workers": 16, "executor": "ray", "address": "auto"}})
+    sc = {"name": "lead-follow"}
+    a = config_mod.normalize({"scenario": sc})
+    b = config_mod.normalize({"scenario": sc, "farm": {"workers": 16, "executor": "ray", "address": "auto"}})
     assert config_mod.config_hash(a) == config_mod.config_hash(b)
-    c = config_mod.normalize({"farm": {"seed": 1}})
+    c = config_mod.normalize({"scenario": sc, "farm": {"seed": 1}})
     assert config_mod.config_hash(a) != config_mod.config_hash(c)
     assert config_mod.changed_fields(a, c) == ["farm.seed"]
 
@@ -30,7 +31,7 @@ def test_defaults_and_hash_ignore_fields_that_cannot_change_the_result():
 ])
 def test_bad_values_name_the_field_and_the_allowed_range(raw, message):
     with pytest.raises(ConfigError) as err:
-        config_mod.normalize(raw)
+        config_mod.normalize({"scenario": {"name": "lead-follow"}, **raw})
     assert message in str(err.value)
     assert "\n" not in str(err.value)
 
@@ -43,13 +44,14 @@ def run_cli(*args):
     ('[validate]\nepsilon = 2.0\n', "validate.epsilon"),
     ('[validate]\ndomain = { p10 = [30.0, 90.0] }\n', "validate.domain.p10"),
     ('[validate]\ndomain = { p11 = [30.0, 60.0] }\n', "validate.domain.p11"),
-    ('[scenario]\nsv_policy = "aggressive"\n', "scenario.sv_policy"),
+    ('[scenario]\nname = "lead-follow"\nsv_policy = "aggressive"\n', "scenario.sv_policy"),
+    ("", "scenario.name: required"),
     ('[actions]\nmode = "constant"\nvalue = [9.0]\n', "actions.value"),
     ('[scenario]\nname = "nosuch.module:Thing"\n', "scenario.name"),
 ])
 def test_cli_bad_input_is_one_line_exit_2_no_traceback(tmp_path, body, field):
     cfg = tmp_path / "c.toml"
-    cfg.write_text(body)
+    cfg.write_text(body if not body or body.startswith("[scenario]") else '[scenario]\nname = "lead-follow"\n' + body)
     r = run_cli("validate", str(cfg))
     assert r.returncode == 2
     assert r.stderr.count("\n") == 1 and field in r.stderr and "Traceback" not in r.stderr

@@ -9,7 +9,7 @@ import pytest
 
 from coordinator.covering import n_eps
 from farm import config as config_mod
-from farm.quantify import run
+from farm.quantification import run
 
 
 def contract_config(executor="local", workers=2, **quantify):
@@ -54,10 +54,10 @@ def test_n_eps_rule_is_exact_in_the_committed_record(reference, tmp_path):
 
 
 def test_a_killed_worker_costs_time_not_results(ray_local, reference, tmp_path):
-    from farm import quantify
+    from farm import quantification
 
     killed = []
-    original = quantify.Part.run
+    original = quantification.Part.run
 
     def run_and_kill(self, *args, **kwargs):
         from farm import ray_executor
@@ -79,24 +79,24 @@ def test_a_killed_worker_costs_time_not_results(ray_local, reference, tmp_path):
             ex.result = result_then_kill
             return ex
 
-        quantify.make_executor = make_and_arm
+        quantification.make_executor = make_and_arm
         try:
             return original(self, *args, **kwargs)
         finally:
-            quantify.make_executor = make
+            quantification.make_executor = make
 
-    quantify.Part.run = run_and_kill
+    quantification.Part.run = run_and_kill
     try:
         summary = run(contract_config("ray", 2), tmp_path / "c", resume=False)
     finally:
-        quantify.Part.run = original
+        quantification.Part.run = original
     assert killed
     assert summary["result_hash"] == reference["result_hash"]
 
 
 def test_an_exception_in_a_scenario_names_the_sample_and_does_not_hang(ray_local, tmp_path):
     from farm.ray_executor import RayExecutor, WorkerError
-    from farm.executors import SimSpec
+    from scenarios.simulator import SimSpec
 
     spec = SimSpec({"name": "user_scenarios:Raising", "sv_policy": "none"}, {"mode": "uniform"}, 10, 0)
     ex = RayExecutor(spec, 2, "local", max_retries=1)
@@ -104,6 +104,7 @@ def test_an_exception_in_a_scenario_names_the_sample_and_does_not_hang(ray_local
         starts = np.tile([[0.2, 0.2]], (64, 1))
         starts[37] = [0.9, 0.9]
         with pytest.raises(WorkerError, match=r"ValueError: boom.*sample index 1037 \(start state \[0.9, 0.9\]\)"):
-            ex.result(ex.submit(1000, starts))
+            for handle in ex.submit(1000, starts):
+                ex.result(handle)
     finally:
         ex.close()

@@ -91,12 +91,25 @@ def test_refuses_non_empty_directory_and_changed_config(tmp_path, uninterrupted)
     assert (out / "summary.json").read_bytes() != b"" and before
 
 
+def stopped_campaign(tmp_path):
+    """A campaign stopped by SIGINT after a few checkpoints (resumable, unfinished)."""
+    (tmp_path / "c.toml").write_text(CONFIG.replace("delta_min = 1.0", "delta_min = 0.25"))
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "farm", "quantify", str(tmp_path / "c.toml"), "--out", str(out),
+                             "--checkpoint-every", "0"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while not list((out / "ledger").glob("segment-00000[2-9].parquet")) and time.time() < deadline:
+        time.sleep(0.1)
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(60) == 130, proc.stderr.read()
+    assert not (out / "summary.json").exists()
+    return out
+
+
 @pytest.mark.parametrize("damage", ["truncate_checkpoint", "garbage_checkpoint", "truncate_segment",
                                     "drop_checkpoint"])
 def test_damaged_campaign_files_give_a_clear_error_and_touch_nothing(tmp_path, damage):
-    (tmp_path / "c.toml").write_text(CONFIG)
-    out = tmp_path / "out"
-    assert cli("quantify", str(tmp_path / "c.toml"), "--out", str(out)).returncode == 0
+    out = stopped_campaign(tmp_path)
     ckpt = out / "checkpoint.npz"
     seg = sorted((out / "ledger").glob("segment-*.parquet"))[0]
     if damage == "truncate_checkpoint":

@@ -4,8 +4,8 @@ import pytest
 from scenarios.streams import RunStreams
 from scenarios import make_scenario
 from scenarios.actions import make_action_policy
-from scenarios.base import FAILURE, HORIZON, TRUNCATED
-from scenarios.run import ScenarioError, run_scenario
+from scenarios.base import FAILURE, HORIZON, TRUNCATED, ScenarioError
+from scenarios.rollout import run_scenario
 
 
 def test_run_ends_at_first_non_continue_state_and_counts_the_start():

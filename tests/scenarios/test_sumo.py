@@ -6,11 +6,11 @@ import pytest
 pytest.importorskip("libsumo")
 
 from scenarios.streams import RunStreams  # noqa: E402
-from scenarios import make_scenario  # noqa: E402
+from scenarios import make_backend, make_scenario  # noqa: E402
 from scenarios.actions import AdversarialActions, UniformActions  # noqa: E402
-from scenarios.base import FAILURE  # noqa: E402
+from scenarios.base import FAILURE, ScenarioError  # noqa: E402
 from scenarios.policies import IDM_A, IDM_B, IDM_DELTA, IDM_MIN, IDM_S0, IDM_T, IDM_V_DES  # noqa: E402
-from scenarios.run import run_scenario  # noqa: E402
+from scenarios.rollout import run_scenario  # noqa: E402
 
 # SUMO's IDM with the spec's parameters. minGap is IDM's jam distance s0 (SUMO adds it
 # back to the gap it hands to IDM, so IDM sees the bumper gap, as the spec's IDM does);
@@ -28,11 +28,21 @@ GAP_TOL, SPEED_TOL, EXACT_TOL = 0.01, 0.01, 1e-9
 
 
 def sumo(name="lead-follow", **config):
-    return make_scenario(name, backend="sumo", sv_policy="sumo", sumo=config)
+    """The SUMO back end for ``name`` (its scenario geometry is ``.scenario``)."""
+    return make_backend({"name": name, "backend": "sumo", "sv_policy": "sumo", "sumo": config})
 
 
-def uniform_starts(sc, count, seed=0):
+def uniform_starts(backend, count, seed=0):
+    sc = backend.scenario
     return sc.lower + (sc.upper - sc.lower) * np.random.default_rng(seed).random((count, sc.n))
+
+
+def inserted(backend, starts):
+    """The states SUMO reads back right after inserting runs at ``starts``."""
+    try:
+        return backend.insert(starts, 2)
+    finally:
+        backend.clear()
 
 
 def same_runs(a, b):
@@ -45,10 +55,11 @@ def test_a_run_starts_exactly_at_the_requested_state(name):
     sc = sumo(name, **IDM_MATCHED)
     starts = uniform_starts(sc, 200, seed=1)
     # Edge cases SUMO's insertion rules would refuse or change: contact, standstill, top speed.
-    corner = sc.lower.copy()
-    corner[: 3 if name == "fleet3" else 2] = sc.upper[0]
-    starts[:2] = [sc.lower, corner]
-    back = sc.inserted_states(starts)
+    geo = sc.scenario
+    corner = geo.lower.copy()
+    corner[: 3 if name == "fleet3" else 2] = geo.upper[0]
+    starts[:2] = [geo.lower, corner]
+    back = inserted(sc, starts)
     np.testing.assert_allclose(back, starts, rtol=0, atol=1e-12)
     # ... and the first step starts from there: the lead's speed after one step is the
     # commanded v1 + u*dt (the same stream gives the same u in both back ends).
@@ -70,7 +81,7 @@ def test_sumo_idm_matches_the_numpy_idm(name):
     np.testing.assert_array_equal(got.outcomes, ref.outcomes)
     np.testing.assert_array_equal(got.lengths, ref.lengths)
     speeds = list(range(3 if name == "fleet3" else 2))
-    gaps = [a for a in range(sc.n) if a not in speeds]
+    gaps = [a for a in range(sc.scenario.n) if a not in speeds]
     exact = commanded_stops = 0
     for i in range(count):
         a, b = got.trajectory(i), ref.trajectory(i)
@@ -101,8 +112,8 @@ def test_braking_into_the_lead_fails_at_the_same_step_as_numpy(name, start):
     ref = run_scenario(ref_sc, starts, 50, policy, RunStreams.of(0, [0]))
     assert got.outcomes[0] == ref.outcomes[0] == FAILURE
     assert got.lengths[0] == ref.lengths[0] < 50
-    gap = sc.state_names.index("p10")
-    contact = sc.lower[gap]
+    gap = sc.scenario.state_names.index("p10")
+    contact = sc.scenario.lower[gap]
     assert got.trajectory(0)[-1, gap] < contact <= got.trajectory(0)[-2, gap]
 
 
@@ -132,13 +143,11 @@ def test_krauss_with_sigma_zero_is_deterministic_and_random_settings_are_refused
 
 
 def test_batches_larger_than_one_simulation_run_in_chunks_with_the_same_results(monkeypatch):
-    import scenarios.sumo.rollout as rollout
-
     sc = sumo(**IDM_MATCHED)
     starts = uniform_starts(sc, 100, seed=5)
     streams = RunStreams.of(7, np.arange(100))
     whole = run_scenario(sc, starts, 30, UniformActions(), streams)
-    monkeypatch.setattr(rollout, "MAX_SLOTS", 32)
+    monkeypatch.setattr(sc, "max_batch", 32)
     chunked = run_scenario(sc, starts, 30, UniformActions(), streams)
     assert same_runs(whole, chunked)
 
@@ -156,7 +165,7 @@ def test_batches_larger_than_one_simulation_run_in_chunks_with_the_same_results(
 def test_config_errors_name_the_field(kwargs, message):
     args = {"sv_policy": "sumo", **kwargs}
     with pytest.raises(ValueError, match=message):
-        make_scenario("lead-follow", backend="sumo", **args)
+        make_backend({"name": "lead-follow", "backend": "sumo", **args})
     # a refused vType leaves the process's simulation usable
     sc = sumo()
     assert run_scenario(sc, uniform_starts(sc, 3), 5, UniformActions(), RunStreams.of(0, [0, 1, 2])).lengths.min() >= 2
@@ -164,11 +173,11 @@ def test_config_errors_name_the_field(kwargs, message):
 
 def test_geometry_is_the_numpy_scenarios():
     for name in ("lead-follow", "fleet3"):
-        sc, ref = sumo(name), make_scenario(name, sv_policy="idm")
+        sc, ref = sumo(name).scenario, make_scenario(name, sv_policy="idm")
         assert isinstance(sc, type(ref))
         assert sc.state_names == ref.state_names and sc.failure_facets == ref.failure_facets
         np.testing.assert_array_equal(sc.lower, ref.lower)
         np.testing.assert_array_equal(sc.adversarial_actions, ref.adversarial_actions)
         assert sc.step_bound() == ref.step_bound()  # SUMO's default emergencyDecel 9 < the numpy SVs' 10
-        with pytest.raises(NotImplementedError):
+        with pytest.raises(ScenarioError, match="simulated by the back end"):
             sc.step(ref.lower[None], ref.adversarial_actions, None)

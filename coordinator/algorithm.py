@@ -1,0 +1,129 @@
+"""The quantification-algorithm contract: ask/tell over explicit state.
+
+``coordinator.campaign`` drives every algorithm the same way (the parallel contract):
+
+    draw(streams)             ask: start states and their vertex ids for a batch, from
+                              the state as it is now (its ``version``)
+    events(rescreen, lo, ids) which runs lo.. of a screened chunk change the state now
+    apply(event)              tell: a run that changes the state (prune, explore, ...)
+    record(chunk, rows, ids)  tell: committed runs that changed nothing
+    end_round()               the round ended by the N_eps rule: decay delta
+
+Everything a run is screened against lives in ``coverage`` and changes only through
+``coverage.apply``, so that workers can screen runs on mirrors of it (see
+coordinator/coverage.py). ``version`` counts changes; a run counts toward N_eps only if
+it was drawn at the current version.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from coordinator.coverage import Coverage, Rescreen
+from scenarios.streams import PURPOSE_START, RunStreams
+
+
+class EmptySetError(RuntimeError):
+    """Every candidate was pruned: the quantified safe set is empty."""
+
+
+@dataclass(frozen=True)
+class Event:
+    """A committed run that changes the algorithm state."""
+
+    index: int  # its global sample index (the stream key with the seed)
+    start: np.ndarray  # (n,) its start state
+    start_id: int  # the vertex it was drawn from
+    failed: bool
+    states: np.ndarray  # (s, n) its visited states that can be new now, in time order
+
+
+class Algorithm(ABC):
+    name: str = ""
+    decays: bool = True  # delta shrinks round by round (False: a single round)
+    coverage: Coverage
+    version: int = 0
+    round: int = 0
+
+    @property
+    def delta(self) -> float:
+        return self.coverage.delta
+
+    @property
+    def vertices(self):
+        return self.coverage.vertices
+
+    @property
+    @abstractmethod
+    def final_round(self) -> bool:
+        """The current round is the last one (its end ends the campaign)."""
+
+    @abstractmethod
+    def draw(self, streams: RunStreams) -> tuple[np.ndarray, np.ndarray]:
+        """(B, n) start states and (B,) vertex ids, one per stream, from the current state."""
+
+    def events(self, rescreen: Rescreen, lo: int, start_ids: np.ndarray) -> np.ndarray:
+        """(k - lo,) bool: runs lo.. of a chunk that change the state now."""
+        return rescreen.events(lo)
+
+    @abstractmethod
+    def apply(self, event: Event) -> str:
+        """Apply one run's change; bump ``version``; return what happened."""
+
+    def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray) -> None:
+        """Committed runs that changed nothing (e.g. for experience replay)."""
+
+    @abstractmethod
+    def end_round(self) -> bool:
+        """Decay delta (the round ended by the N_eps rule); False after the last round."""
+
+    def result(self) -> tuple[np.ndarray, float]:
+        """The quantified set: (M, n) alive centres and the half-width."""
+        return self.vertices.alive_points(), self.delta
+
+    def failure_points(self) -> np.ndarray:
+        """(F, n) start states of runs that failed and pruned (PhiBar), if kept."""
+        return np.empty((0, self.coverage.n))
+
+    def counts(self) -> dict:
+        return {"boxes": self.vertices.alive_count, "vertices": self.vertices.count, "delta": self.delta,
+                "round": self.round}
+
+    def sampling_description(self) -> str:
+        return "start states uniform over the alive centres"
+
+    @abstractmethod
+    def state(self) -> dict[str, np.ndarray]:
+        """The whole algorithm state as named numpy arrays (no pickle)."""
+
+    @abstractmethod
+    def load_state(self, state: dict[str, np.ndarray]) -> None: ...
+
+    # arrays of ``state()`` that only grow by appended rows between resets of
+    # ``state_epoch``: a checkpoint writes only their new rows
+    append_only: tuple[str, ...] = ()
+    state_epoch: int = 0
+
+
+def uniform_pick(ids: np.ndarray, streams: RunStreams) -> np.ndarray:
+    """One of ``ids`` per stream, uniformly, from each run's start stream."""
+    if len(ids) == 0:
+        raise EmptySetError("the safe set is empty: every centre was pruned")
+    u = streams.uniform(0, PURPOSE_START, 1)[:, 0]
+    return ids[np.minimum((u * len(ids)).astype(np.int64), len(ids) - 1)]
+
+
+def greedy_uncovered(points: np.ndarray, delta: float) -> np.ndarray:
+    """Indices of ``points`` kept when adding them in order and skipping any point
+    within l-inf ``delta`` of one already kept (line 15 applied point by point)."""
+    kept: list[int] = []
+    covered = np.zeros(len(points), dtype=bool)
+    for i in range(len(points)):
+        if covered[i]:
+            continue
+        kept.append(i)
+        covered[i:] |= np.abs(points[i:] - points[i]).max(axis=1) <= delta + 1e-9
+    return np.asarray(kept, dtype=np.int64)

@@ -1,0 +1,281 @@
+"""The state a run is screened against, and the screening itself.
+
+A ``Coverage`` holds what decides whether a committed run changes a quantification:
+the alive centres (``vertices``: is a visited state within delta of the covering?) and,
+for SPE, the failure start states PhiBar (``failures``: is it within delta of a known
+failure?). It is changed only through ``apply(change)``, so a *mirror* on a worker that
+applies the same changes in the same order answers every query exactly as the
+coordinator's copy does (queries are exact: see coordinator/spatial.py).
+
+Screening a run against coverage version v (``screen``) gives its *event*: FAIL (it
+reached a failure facet), EXPLORE (a visited state is neither within delta of an alive
+centre nor of a failure: a new state) or QUIET; ESCAPED marks a quiet run that left the
+covering only near a failure. It also gives, per run, the *witnesses* (ids of the alive
+centres that covered its states) and its explore states. That lets the coordinator
+re-decide a run at a later version c without its trajectory (``Rescreen``):
+
+- a failure is a failure;
+- a quiet run stays quiet as long as all its witnesses are alive (failures only grow,
+  so a state near one stays near; a state whose witness lives stays covered);
+- an explore run stays one iff one of its explore states is still uncovered and not
+  near a failure; its other states cannot have become new (same two reasons);
+- only runs with a killed witness need their visited states again.
+
+delta is fixed within a round and every run drawn in a round is committed or dropped
+in it, so a run is never re-decided at another delta.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from coordinator.spatial import PointIndex
+from scenarios.base import FAILURE
+
+QUIET, FAIL, EXPLORE = 0, 1, 2
+
+
+# -- changes --------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Insert:
+    points: np.ndarray  # (k, n) new alive centres (ids continue the count)
+
+
+@dataclass(frozen=True)
+class Kill:
+    ids: np.ndarray
+
+
+@dataclass(frozen=True)
+class AddFailures:
+    points: np.ndarray
+
+
+@dataclass(frozen=True)
+class Recell:
+    delta: float  # a new round: new half-width, cells of 2 * delta
+
+
+@dataclass(frozen=True)
+class Reset:
+    state: dict  # a whole coverage (``Coverage.state()``): e.g. a restart of AE
+
+
+@dataclass
+class Screening:
+    """Per-run screening of a chunk of k runs at coverage (``epoch``, ``version``)."""
+
+    version: int
+    epoch: int
+    event: np.ndarray  # (k,) int8 QUIET / FAIL / EXPLORE
+    escaped: np.ndarray  # (k,) bool
+    witness_offsets: np.ndarray  # (k + 1,) run r's witnesses: witnesses[off[r]:off[r + 1]]
+    witnesses: np.ndarray  # (W,) int64 vertex ids
+    explore_offsets: np.ndarray  # (k + 1,)
+    explore_states: np.ndarray  # (E, n)
+
+    def __len__(self) -> int:
+        return len(self.event)
+
+
+class Coverage:
+    """Alive centres and failure points at half-width ``delta`` (see module docstring)."""
+
+    def __init__(self, n: int, delta: float, origin, bounds=None, failures: bool = True):
+        self.n = n
+        self.delta = float(delta)
+        self.vertices = PointIndex(n, 2 * delta, origin, bounds=bounds)
+        self.failures = PointIndex(n, 2 * delta, origin) if failures else None
+        self.version = 0  # the algorithm version of the last change applied
+        self.epoch = 0  # bumped by Reset: vertex ids of older screenings mean nothing
+        self.kill_version = -1  # version of the last Kill (witness checks needed after it)
+        self._log: list[tuple[int, object]] | None = None
+
+    # -- changes ---------------------------------------------------------------------------
+    def apply(self, change, version: int) -> None:
+        if isinstance(change, Insert):
+            if len(change.points):
+                self.vertices.insert(change.points)
+        elif isinstance(change, Kill):
+            self.vertices.kill(change.ids)
+            self.kill_version = version
+        elif isinstance(change, AddFailures):
+            self.failures.insert(change.points)
+        elif isinstance(change, Recell):
+            self.delta = float(change.delta)
+            self.vertices.recell(2 * change.delta)
+            if self.failures is not None:
+                self.failures.recell(2 * change.delta)
+        elif isinstance(change, Reset):
+            self._load(change.state)
+            self.epoch += 1
+        else:
+            raise TypeError(f"not a coverage change: {change!r}")
+        self.version = version
+        if self._log is not None:
+            self._log.append((version, change))
+
+    def start_log(self) -> None:
+        """Keep the changes applied from now on (for mirrors on other processes)."""
+        if self._log is None:
+            self._log = []
+
+    def changes_since(self, version: int) -> list[tuple[int, object]]:
+        return [(v, c) for v, c in (self._log or []) if v > version]
+
+    def trim_log(self, version: int) -> None:
+        """Forget changes every mirror has applied (up to ``version``)."""
+        if self._log:
+            self._log = [(v, c) for v, c in self._log if v > version]
+
+    def sync(self, changes) -> None:
+        """Apply the changes of versions after this mirror's (a version may hold
+        several changes: a prune adds a failure and kills a tree)."""
+        base = self.version
+        for version, change in changes:
+            if version > base:
+                self.apply(change, version)
+
+    # -- snapshot -------------------------------------------------------------------------
+    def state(self) -> dict:
+        out = {f"vertices.{k}": v for k, v in self.vertices.state().items()}
+        if self.failures is not None:
+            out.update({f"failures.{k}": v for k, v in self.failures.state().items()})
+        out["coverage"] = np.array([self.delta, self.version, self.epoch, self.kill_version], dtype=float)
+        return out
+
+    def _load(self, state: dict) -> None:
+        self.vertices = PointIndex.from_state({k[9:]: v for k, v in state.items() if k.startswith("vertices.")})
+        if any(k.startswith("failures.") for k in state):
+            self.failures = PointIndex.from_state({k[9:]: v for k, v in state.items() if k.startswith("failures.")})
+        else:
+            self.failures = None
+        delta, _, _, kill_version = state["coverage"]
+        self.delta, self.kill_version = float(delta), int(kill_version)
+
+    @classmethod
+    def from_state(cls, state: dict) -> "Coverage":
+        cov = cls.__new__(cls)
+        cov.n = state["vertices.points"].shape[1]
+        cov._log = None
+        cov._load(state)
+        _, version, epoch, _ = state["coverage"]
+        cov.version, cov.epoch = int(version), int(epoch)
+        return cov
+
+    # -- screening -------------------------------------------------------------------------
+    def classify_states(self, states: np.ndarray):
+        """(S, n) -> witness ids (S,) (-1: not covered) and near (S,) bool (uncovered
+        and within delta of a failure)."""
+        witness = self.vertices.cover(states, self.delta)
+        near = np.zeros(len(states), dtype=bool)
+        if self.failures is not None and self.failures.count:
+            uncovered = np.flatnonzero(witness < 0)
+            near[uncovered] = self.failures.any_within(states[uncovered], self.delta)
+        return witness, near
+
+    def screen(self, states: np.ndarray, offsets: np.ndarray, outcomes: np.ndarray) -> Screening:
+        """Screen k runs (visited states in CSR form, see RunBatch.visited) now."""
+        k = len(outcomes)
+        counts = np.diff(offsets)
+        run = np.repeat(np.arange(k), counts)
+        witness, near = self.classify_states(states)
+        covered = witness >= 0
+        explore = ~covered & ~near
+        event = np.where(np.bincount(run[explore], minlength=k) > 0, EXPLORE, QUIET).astype(np.int8)
+        event[outcomes == FAILURE] = FAIL
+        escaped = np.bincount(run[~covered & near], minlength=k) > 0
+        # witnesses of a run, consecutive repeats dropped (a run lingers in a cell)
+        w_keep = covered.copy()
+        prev_same = np.zeros(len(states), dtype=bool)
+        prev_same[1:] = (witness[1:] == witness[:-1]) & (run[1:] == run[:-1])
+        w_keep &= ~prev_same
+        w_off = np.zeros(k + 1, dtype=np.int64)
+        np.cumsum(np.bincount(run[w_keep], minlength=k), out=w_off[1:])
+        e_off = np.zeros(k + 1, dtype=np.int64)
+        np.cumsum(np.bincount(run[explore], minlength=k), out=e_off[1:])
+        return Screening(self.version, self.epoch, event, escaped, w_off, witness[w_keep], e_off, states[explore])
+
+
+@dataclass
+class Rescreen:
+    """Re-decides the runs of one screened chunk at the coverage's current version."""
+
+    coverage: Coverage
+    screening: Screening
+    outcomes: np.ndarray
+    visited: object  # () -> (states, offsets): the chunk's visited states, fetched on demand
+    _full: dict = field(default_factory=dict)  # row -> visited states, for rows re-screened in full
+    _checked_kills: int = -2  # kill version up to which the witnesses were checked
+
+    def events(self, lo: int) -> np.ndarray:
+        """(k - lo,) bool: does run lo + i change the state at the current version?"""
+        cov, sc = self.coverage, self.screening
+        rows = np.arange(lo, len(sc))
+        if sc.epoch == cov.epoch and sc.version == cov.version:
+            return sc.event[lo:] != QUIET
+        if sc.epoch != cov.epoch:
+            return self._full_events(rows)
+        event = sc.event[lo:].copy()
+        changes = event == FAIL
+        # witness check: only a Kill since the screening (or since the last check) can
+        # uncover a state
+        suspect = np.zeros(len(rows), dtype=bool)
+        if cov.kill_version > max(sc.version, self._checked_kills):
+            suspect = self._dead_witness(rows)
+        explore_rows = np.flatnonzero((event == EXPLORE) & ~suspect)
+        if len(explore_rows):
+            changes[explore_rows] = self._explore_still(rows[explore_rows])
+        # rows already re-screened in full: their states are at hand
+        full_rows = np.flatnonzero(suspect | np.isin(rows, list(self._full)))
+        full_rows = full_rows[event[full_rows] != FAIL]
+        if len(full_rows):
+            changes[full_rows] = self._full_events(rows[full_rows])
+        return changes
+
+    def candidates(self, row: int) -> np.ndarray:
+        """The states of run ``row`` that can be new at the current version, in time
+        order: its explore states, or all its visited states once re-screened in full."""
+        if row in self._full or self.screening.epoch != self.coverage.epoch:
+            return self._states_of(row)
+        sc = self.screening
+        return sc.explore_states[sc.explore_offsets[row] : sc.explore_offsets[row + 1]]
+
+    def _dead_witness(self, rows: np.ndarray) -> np.ndarray:
+        sc = self.screening
+        offsets = sc.witness_offsets[rows[0] : rows[-1] + 2]
+        dead = ~self.coverage.vertices.alive[sc.witnesses[offsets[0] : offsets[-1]]]
+        dead_before = np.zeros(len(dead) + 1, dtype=np.int64)
+        np.cumsum(dead, out=dead_before[1:])
+        rel = offsets - offsets[0]
+        suspect = dead_before[rel[1:]] > dead_before[rel[:-1]]
+        self._checked_kills = self.coverage.kill_version
+        for row in rows[suspect]:
+            self._full.setdefault(int(row), None)
+        return suspect
+
+    def _explore_still(self, rows: np.ndarray) -> np.ndarray:
+        sc = self.screening
+        parts = [sc.explore_states[sc.explore_offsets[r] : sc.explore_offsets[r + 1]] for r in rows]
+        states = np.concatenate(parts)
+        witness, near = self.coverage.classify_states(states)
+        new = (witness < 0) & ~near
+        run = np.repeat(np.arange(len(rows)), [len(p) for p in parts])
+        return np.bincount(run[new], minlength=len(rows)) > 0
+
+    def _states_of(self, row: int) -> np.ndarray:
+        states, offsets = self.visited()
+        return states[offsets[row] : offsets[row + 1]]
+
+    def _full_events(self, rows: np.ndarray) -> np.ndarray:
+        for row in rows:
+            self._full.setdefault(int(row), None)
+        states, offsets = self.visited()
+        parts = [states[offsets[r] : offsets[r + 1]] for r in rows]
+        flat = np.concatenate(parts) if parts else np.empty((0, self.coverage.n))
+        witness, near = self.coverage.classify_states(flat)
+        new = (witness < 0) & ~near
+        run = np.repeat(np.arange(len(rows)), [len(p) for p in parts])
+        return (np.bincount(run[new], minlength=len(rows)) > 0) | (self.outcomes[rows] == FAILURE)

@@ -1,0 +1,239 @@
+"""The Python API: everything the CLI does, as documented functions.
+
+    from farm import quantify, validate, compare, open_campaign
+
+    result = quantify("examples/lead_follow_idm.toml", out="runs/lf-idm")
+    result.volume_union, result.guarantee           # figures and the guarantee
+    result.contains([[10.0, 10.0, 40.0]])           # is this state in the safe set?
+    cert = validate({"scenario": {"name": "lead-follow", "sv_policy": "brake"},
+                     "validate": {"domain_set": "runs/lf-idm/safe_set.parquet"}})
+    cert.certified, cert.statement
+
+A config is a path to a TOML file, a TOML string, a dict or a ``farm.config.Config``.
+What these functions write is a normal campaign directory: every CLI command accepts it.
+"""
+
+from __future__ import annotations
+
+import json
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from farm import config as config_mod
+from farm.config import Config
+from farm.files import read_safe_set, write_json
+from farm.storage import CampaignDir, CampaignError
+
+
+def load_config(source, **overrides) -> Config:
+    """A checked config from a TOML path or string, a dict or a Config; keyword
+    overrides name fields as ``section__key`` (``farm__workers=4``)."""
+    cfg = config_mod.load(source)
+    if overrides:
+        cfg = cfg.with_overrides({k.replace("__", "."): v for k, v in overrides.items()})
+    return cfg
+
+
+# -- quantification -----------------------------------------------------------------------
+@dataclass(frozen=True)
+class QuantifyResult:
+    """A finished quantification: the safe set (a union of boxes centre +- half_width),
+    its figures and guarantee, and the campaign directory that holds it all."""
+
+    directory: Path
+    summary: dict
+    state_names: tuple[str, ...]
+    centres: np.ndarray  # (M, n)
+    half_width: float
+    _index: list = field(default_factory=list, repr=False, compare=False)
+
+    @classmethod
+    def load(cls, directory, side: str | None = None) -> "QuantifyResult":
+        directory = Path(directory)
+        CampaignDir(directory).open("quantify")
+        try:
+            summary = json.loads((directory / "summary.json").read_text())
+        except FileNotFoundError:
+            raise CampaignError(f"{directory}: the campaign has not finished (no summary.json); see "
+                                f"`scenario-farm status {directory}`") from None
+        from farm.quantification import load_frozen_config
+        from scenarios.registry import scenario_class
+
+        cfg = load_frozen_config(directory)
+        names = scenario_class(cfg.scenario.name).state_names
+        path = directory / (f"safe_set_{side}_side.parquet" if side else "safe_set.parquet")
+        centres, h = read_safe_set(path, names)
+        return cls(directory, summary, tuple(names), centres, h)
+
+    @property
+    def guarantee(self) -> str:
+        return self.summary["guarantee"]
+
+    @property
+    def volume_union(self) -> float:
+        return self.summary["volume_union"]
+
+    @property
+    def volume_hull(self) -> float:
+        return self.summary["volume_hull"]
+
+    @property
+    def result_hash(self) -> str:
+        return self.summary["result_hash"]
+
+    def contains(self, states) -> np.ndarray:
+        """(B, n) states -> (B,) bool: inside the quantified safe set (l-inf boxes)."""
+        from coordinator.spatial import PointIndex
+
+        states = np.atleast_2d(np.asarray(states, dtype=float))
+        if states.shape[1] != len(self.state_names):
+            raise ValueError(f"contains: states need {len(self.state_names)} columns ({', '.join(self.state_names)}), "
+                             f"got {states.shape[1]}")
+        if not self._index:
+            index = PointIndex(len(self.state_names), 2 * self.half_width, self.centres.min(0) if len(self.centres)
+                               else np.zeros(len(self.state_names)))
+            if len(self.centres):
+                index.insert(self.centres)
+            self._index.append(index)
+        return self._index[0].any_within(states, self.half_width)
+
+    def table(self):
+        """The safe set as a pyarrow Table (the columns of safe_set.parquet)."""
+        import pyarrow.parquet as pq
+
+        return pq.read_table(self.directory / "safe_set.parquet")
+
+    def plot(self, out_dir=None) -> list[Path]:
+        """Redraw the figures (into DIR/plots by default); -> the files written."""
+        from farm.plots import draw
+        from farm.quantification import load_frozen_config, spec_of
+        from scenarios.registry import make_backend
+
+        cfg = load_frozen_config(self.directory)
+        scenario = make_backend(spec_of(cfg).scenario).scenario
+        return draw(Path(out_dir) if out_dir else self.directory / "plots", scenario, self.centres, self.half_width,
+                    self.summary)
+
+
+def quantify(config, out=None, *, resume: bool = False, force: bool = False, progress: bool = False,
+             **overrides) -> QuantifyResult:
+    """Find the maximal safe set of ``config`` (a quantification campaign) in directory
+    ``out`` (default: a new temporary directory). ``resume`` continues a stopped
+    campaign in ``out``; ``force`` replaces a campaign directory there. Keyword
+    overrides as in ``load_config`` (``farm__executor="ray"``)."""
+    from farm.progress import Progress
+    from farm.quantification import run
+
+    cfg = load_config(config, **overrides)
+    out = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="scenario-farm-")) / "campaign"
+    text = Path(config).read_text() if isinstance(config, (str, Path)) and _is_file(config) else None
+    run(cfg, out, resume=resume, force=force, progress=Progress(enabled=progress), config_text=text)
+    return QuantifyResult.load(out)
+
+
+def open_campaign(directory) -> QuantifyResult:
+    """The result of a finished campaign directory."""
+    return QuantifyResult.load(directory)
+
+
+def _is_file(source) -> bool:
+    try:
+        return Path(source).is_file()
+    except (OSError, ValueError):
+        return False
+
+
+# -- validation ------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Certificate:
+    """The answer of a validation: certified, or the first counterexample. ``data`` is
+    the content of certificate.json."""
+
+    data: dict
+
+    @property
+    def certified(self) -> bool:
+        return self.data["verdict"] == "certified"
+
+    @property
+    def statement(self) -> str:
+        return self.data["statement"]
+
+    @property
+    def counterexample(self) -> dict | None:
+        return self.data["counterexample"]
+
+    def __getitem__(self, key):
+        return self.data[key]
+
+
+def validate(config, *, out=None, force: bool = False, progress=None, **overrides) -> Certificate:
+    """Certify the domain of ``config``'s [validate] section or find the first
+    counterexample; with ``out``, write certificate.json (and counterexample.mcap)."""
+    from coordinator.domain import Domain
+    from coordinator.validation import plan, validate as run_validation, verdict_sentence
+    from farm.executors import build_simulator
+    from farm.ray_executor import make_executor
+    from scenarios.simulator import SimSpec
+    from scenarios.version import __version__
+
+    cfg = load_config(config, **overrides)
+    v, farm = cfg.validate, cfg.farm
+    spec = SimSpec(cfg.scenario.model_dump(), cfg.actions.model_dump(), v.horizon, farm.seed)
+    simulator = build_simulator(spec)
+    scenario, policy = simulator.scenario, simulator.policy
+    set_boxes = read_safe_set(v.domain_set, scenario.state_names) if v.domain_set else None
+    domain = Domain.from_config(scenario, v.model_dump(), set_boxes)
+    p = plan(domain, v.algorithm, v.epsilon, v.beta, v.delta, v.boundary, simulator.deterministic)
+    directory = CampaignDir(out) if out is not None else None
+    if directory is not None:  # before the runs: a bad --out must not cost a validation
+        directory.check_writable()
+        if (Path(out) / "certificate.json").exists() and not force:
+            raise CampaignError(f"{out}/certificate.json exists; pass --force to replace it")
+    executor = make_executor(farm.executor, spec, farm.workers, farm.address, farm.max_retries,
+                             check_step_bound=v.boundary)
+    try:
+        result = run_validation(domain, p, executor, seed=farm.seed, delta=v.delta, batch_size=farm.batch_size,
+                                pipeline_depth=farm.pipeline_depth, progress=progress)
+    finally:
+        executor.close()
+    sentence = verdict_sentence(result, p, epsilon=v.epsilon, beta=v.beta, delta=v.delta, seed=farm.seed,
+                                action_description=policy.description, adversarial=cfg.actions.mode == "adversarial")
+    cert = {"verdict": result["verdict"], "statement": sentence, "algorithm": p.algorithm,
+            "epsilon": v.epsilon, "beta": v.beta, "delta": v.delta, "n_required": p.n_required,
+            "n_run": result["n_run"], "runs_simulated": result["runs_simulated"],
+            "steps_simulated": result["steps_simulated"], "seed": farm.seed,
+            "config_hash": config_mod.config_hash(cfg), "scenario": cfg.scenario.name,
+            "sv_policy": scenario.sv_policy_name, "domain": domain.describe(), "sampling": p.description,
+            "actions": policy.description, "boundary": v.boundary,
+            "counterexample": result["counterexample"], "scenario_farm_version": __version__}
+    if directory is not None:
+        if directory.path.exists() and directory.marker() is not None:
+            directory.open("validate")
+            directory.lock()
+        else:
+            directory.create("validate", force=force)
+        try:
+            write_json(directory.path / "config.json", {"config": cfg.model_dump(mode="json"),
+                                                        "config_hash": cert["config_hash"]})
+            write_json(directory.path / "certificate.json", cert)
+            if result["counterexample"] and cfg.record.counterexamples:
+                from farm.replay import record_counterexample
+
+                record_counterexample(directory.path / "counterexample.mcap", scenario, cert)
+        finally:
+            directory.unlock()
+    return Certificate(cert)
+
+
+# -- comparison -------------------------------------------------------------------------------
+def compare(target, *, grid: int | None = None) -> dict:
+    """A finished campaign (directory or QuantifyResult) against the reference safe set:
+    IoU, precision, recall, Hausdorff; writes compare.json and plots/compare.png."""
+    from farm.compare import compare as run_compare
+
+    directory = target.directory if isinstance(target, QuantifyResult) else Path(target)
+    return run_compare(directory, grid=grid)

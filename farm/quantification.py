@@ -1,0 +1,371 @@
+"""A quantification campaign in a directory: check, start, checkpoint, stop, resume, finish.
+
+The coordinator state (algorithm + driver) is checkpointed every ``farm.checkpoint_every``
+seconds at a chunk boundary, together with the draws not yet committed, so a resumed
+campaign re-simulates exactly what it had drawn and reaches the very result an
+uninterrupted run reaches. SIGINT and SIGTERM stop the campaign at the next chunk
+boundary with a checkpoint (a second SIGINT aborts at once; the last checkpoint stands).
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from coordinator.baselines import make_algorithm
+from coordinator.campaign import Campaign, Counters
+from coordinator.covering import n_eps
+from coordinator.results import result_hash
+from coordinator.volume import hull_volume, union_volume
+from farm import config as config_mod
+from farm.config import Config
+from farm.executors import build_simulator
+from farm.files import write_json, write_safe_set
+from farm.journal import Journal
+from farm.progress import Progress
+from farm.ray_executor import make_executor
+from farm.status import StatusWriter
+from farm.storage import CampaignDir, CampaignError, Ledger
+from scenarios.simulator import SimSpec
+from scenarios.version import __version__
+
+
+class Stopped(Exception):
+    """The campaign was stopped by a signal; it is checkpointed and can be resumed."""
+
+
+def spec_of(cfg: Config, failure_facets=None) -> SimSpec:
+    scenario = cfg.scenario.model_dump()
+    if failure_facets is not None:
+        scenario["failure_facets"] = list(failure_facets)
+    return SimSpec(scenario, cfg.actions.model_dump(), cfg.quantify.horizon, cfg.farm.seed)
+
+
+def part_facets(cfg: Config, scenario) -> dict[str, list | None]:
+    """The sub-campaigns: "total" (the configured failure facets) and, for a scenario
+    that declares sides (fleet3: lead, rear), one per side."""
+    facets = {"total": cfg.scenario.failure_facets}
+    sides = cfg.quantify.sides
+    if sides is None:
+        sides = bool(scenario.sides) and cfg.scenario.failure_facets is None
+    if sides:
+        if not scenario.sides:
+            raise config_mod.ConfigError(f"quantify.sides: scenario {scenario.name!r} declares no sides; allowed: false")
+        facets.update({label: list(side) for label, side in scenario.sides.items()})
+    return facets
+
+
+def load_frozen_config(out: Path) -> Config:
+    path = Path(out) / "config.json"
+    try:
+        raw = json.loads(path.read_text())["config"]
+    except FileNotFoundError:
+        raise CampaignError(f"{out}: not a campaign directory (no config.json)") from None
+    except (ValueError, KeyError, TypeError) as exc:
+        raise CampaignError(f"{path}: unreadable ({type(exc).__name__}: {exc})") from None
+    try:
+        return config_mod.normalize(raw)
+    except config_mod.ConfigError as exc:
+        raise CampaignError(f"{path}: not a valid frozen config ({exc})") from None
+
+
+@dataclass
+class Part:
+    """One SPE (or baseline) campaign over one set of failure facets, in ``directory``."""
+
+    cfg: Config
+    directory: Path
+    failure_facets: list | None
+    label: str = "total"
+    campaign: Campaign | None = field(default=None, init=False)
+
+    def __post_init__(self):
+        self.directory = Path(self.directory)
+        self.spec = spec_of(self.cfg, self.failure_facets)
+        self.simulator = build_simulator(self.spec)  # checks scenario, back end and actions now
+        self.scenario, self.policy = self.simulator.scenario, self.simulator.policy
+        q = self.cfg.quantify
+        self.n_eps = n_eps(q.epsilon, q.beta)
+        self.algorithm = make_algorithm(q.algorithm, self.scenario, q.settings(), self.cfg.farm.seed,
+                                        self.simulator.deterministic)
+        self.ledger = Ledger(self.directory / "ledger", self.scenario.state_names)
+        self.journal = Journal(self.directory)
+        self.config_hash = config_mod.config_hash(self.cfg)
+
+    # -- checkpoints -----------------------------------------------------------------------
+    def checkpoint(self) -> None:
+        campaign = self.campaign
+        self.ledger.append(campaign.log.take())
+        if campaign.recordings:
+            from farm.recording import write_recording
+
+            rec_dir = self.directory / "recordings"
+            rec_dir.mkdir(exist_ok=True)
+            # named by the ledger segment they go with (just written), so that resume can drop
+            # recordings of a checkpoint that never completed
+            write_recording(rec_dir / f"runs-{self.ledger.segments - 1:06d}.mcap", scenario_name=self.scenario.name,
+                            state_names=list(self.scenario.state_names), dt=self.scenario.dt,
+                            runs=campaign.recordings,
+                            metadata={"config_hash": self.config_hash, "seed": str(self.cfg.farm.seed),
+                                      "part": self.label, "scenario_farm_version": __version__})
+            campaign.recordings = []
+        arrays = {f"algo.{k}": v for k, v in self.algorithm.state().items()}
+        arrays.update(campaign.pending_state())
+        meta = {"config_hash": self.config_hash, "algorithm": self.algorithm.name, "part": self.label,
+                "counters": campaign.counters.__dict__, "final_distribution": campaign.final_distribution,
+                "ledger_digests": self.ledger.digests, "ledger_rows": self.ledger.rows}
+        self.journal.save(arrays, {f"algo.{k}" for k in self.algorithm.append_only}, self.algorithm.state_epoch, meta)
+
+    def restore(self) -> None:
+        arrays, meta = self.journal.load()
+        if meta.get("config_hash") != self.config_hash:
+            raise CampaignError(f"{self.journal.main}: stamped with config hash {meta.get('config_hash')}, "
+                                f"the config hashes to {self.config_hash}; nothing was changed")
+        try:
+            self.ledger.verify_and_trim(meta["ledger_digests"], meta["ledger_rows"])
+            self.algorithm.load_state({k[5:]: v for k, v in arrays.items() if k.startswith("algo.")})
+            self.algorithm.state_epoch = int(meta.get("epoch", 0))
+            self.campaign.load_pending(arrays)
+            self.campaign.counters = Counters(**meta["counters"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CampaignError(f"{self.journal.main}: checkpoint lacks {exc} (damaged?); nothing was changed") \
+                from None
+        self.campaign.final_distribution = meta.get("final_distribution", "")
+
+    # -- running ------------------------------------------------------------------------------
+    def prepare(self, resume: bool, progress: Progress, status: StatusWriter) -> None:
+        """Set up the campaign driver; when resuming, load and check the checkpoint
+        (nothing is written here)."""
+        cfg, farm = self.cfg, self.cfg.farm
+        last = [time.monotonic()]
+
+        def on_chunk(c: Campaign) -> None:
+            progress.update(self.label, self.algorithm, c, self.n_eps)
+            status.update(self.label, self.algorithm, c, self.n_eps)
+            if time.monotonic() - last[0] >= farm.checkpoint_every:
+                self.checkpoint()
+                last[0] = time.monotonic()
+
+        self.campaign = Campaign(self.algorithm, None, n_eps=self.n_eps, budget=cfg.quantify.budget,
+                                 batch_size=farm.batch_size, pipeline_depth=farm.pipeline_depth, seed=farm.seed,
+                                 on_batch=on_chunk, record_limit=cfg.record.quantify_runs)
+        if resume and self.journal.exists():
+            self.restore()
+        elif resume and any((self.directory / "ledger").glob("segment-*.parquet")):
+            raise CampaignError(f"{self.directory}: ledger segments exist but checkpoint.npz is missing; refusing "
+                                f"to restart the campaign from scratch over them")
+
+    def run(self, status: StatusWriter) -> Campaign:
+        if self.campaign.counters.done:
+            return self.campaign
+        farm = self.cfg.farm
+        self.directory.mkdir(parents=True, exist_ok=True)
+        t0 = time.monotonic()
+        executor = make_executor(farm.executor, self.spec, farm.workers, farm.address, farm.max_retries,
+                                 check_step_bound=self.cfg.quantify.boundary)
+        self.startup_s = time.monotonic() - t0
+        self.campaign.executor = executor
+        try:
+            with stop_on_signals(self.campaign):
+                self.campaign.run()
+        finally:
+            executor.close()
+        self.checkpoint()
+        if not self.campaign.counters.done:
+            status.update(self.label, self.algorithm, self.campaign, self.n_eps, state="stopped", force=True)
+            raise Stopped(f"stopped at {self.campaign.counters.committed} committed runs")
+        return self.campaign
+
+
+class stop_on_signals:
+    """SIGINT / SIGTERM ask the campaign to stop at the next chunk boundary; a second
+    SIGINT aborts at once (the last checkpoint stands, like after kill -9)."""
+
+    def __init__(self, campaign: Campaign):
+        self.campaign = campaign
+
+    def _handle(self, signum, frame):
+        if self.campaign._stop and signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        self.campaign.stop()
+
+    def __enter__(self):
+        self.previous = {s: signal.signal(s, self._handle) for s in (signal.SIGINT, signal.SIGTERM)}
+        return self
+
+    def __exit__(self, *exc):
+        for s, handler in self.previous.items():
+            signal.signal(s, handler)
+        return False
+
+
+def guarantee_sentence(cfg: Config, campaign: Campaign, n_eps_value: int, policy_description: str,
+                       delta: float) -> str:
+    q, c = cfg.quantify, campaign.counters
+    if not c.converged:
+        return (f"No guarantee: the budget of {q.budget} runs was used up before a round at delta = "
+                f"{q.delta_min:g} saw N_eps = {n_eps_value} consecutive runs that changed nothing.")
+    gamma = "Gamma*" if cfg.actions.mode == "adversarial" else "Gamma"
+    escaped = c.escaped_in_streak
+    core = (f"The last {n_eps_value} committed runs (N_eps = ceil(ln {q.beta:g} / ln(1 - {q.epsilon:g}))), "
+            f"drawn i.i.d. from the final set ({campaign.final_distribution}; actions {policy_description}), "
+            f"neither failed nor found a new state")
+    if escaped == 0:
+        return (core + f", and none left Phi_delta: the set is ({q.epsilon:g}, {delta:g})-almost robustly "
+                f"controlled forward invariant w.r.t. {gamma} with confidence {1 - q.beta:g} for that "
+                f"sampling distribution.")
+    return (core + f"; {escaped} of them left Phi_delta only within delta of a known failure, so the "
+            f"{q.epsilon:g}-almost statement holds for 'no failure and no new state' with confidence "
+            f"{1 - q.beta:g}, not for staying in Phi_delta.")
+
+
+def finish(cfg: Config, out: Path, parts: dict[str, Part]) -> dict:
+    part = parts["total"]
+    campaign, scenario = part.campaign, part.scenario
+    centres, h = part.algorithm.result()
+    centres = centres[np.lexsort(centres.T[::-1])]
+    c = campaign.counters
+    chash = config_mod.config_hash(cfg)
+    rhash = result_hash(centres, h)
+    bounds = (scenario.lower, scenario.upper)
+    counters = [p.campaign.counters for p in parts.values()]
+    summary = {
+        "scenario": cfg.scenario.name,
+        "sv_policy": scenario.sv_policy_name,
+        "backend": cfg.scenario.backend,
+        "algorithm": cfg.quantify.algorithm,
+        "epsilon": cfg.quantify.epsilon,
+        "beta": cfg.quantify.beta,
+        "n_eps": part.n_eps,
+        "delta_final": h,
+        "rounds": c.rounds_completed,
+        "converged": c.converged,
+        "runs_committed": sum(k.committed for k in counters),
+        "runs_simulated": sum(k.runs_simulated for k in counters),
+        "runs_dropped": sum(k.runs_dropped for k in counters),
+        "steps_simulated": sum(k.steps_simulated for k in counters),
+        "boxes": int(len(centres)),
+        "volume_union": union_volume(centres, h, bounds=bounds),
+        "volume_hull": hull_volume(centres, h, bounds=bounds),
+        "volume_sigma": scenario.volume,
+        "seed": cfg.farm.seed,
+        "config_hash": chash,
+        "result_hash": rhash,
+        "elapsed_s": round(sum(k.elapsed_s for k in counters), 3),
+        "startup_s": round(sum(getattr(p, "startup_s", 0.0) for p in parts.values()), 3),
+        "guarantee": guarantee_sentence(cfg, campaign, part.n_eps, part.policy.description, h),
+        "actions": part.policy.description,
+        "failure_facets": list(scenario.failure_facets),
+        "round_ends": list(c.round_ends),
+        "scenario_farm_version": __version__,
+    }
+    for label, side in parts.items():
+        if label == "total":
+            continue
+        sc, sh = side.algorithm.result()
+        summary[f"volume_{label}_side"] = union_volume(sc, sh, bounds=bounds)
+        summary[f"volume_hull_{label}_side"] = hull_volume(sc, sh, bounds=bounds)
+        summary[f"result_hash_{label}_side"] = result_hash(sc, sh)
+        summary[f"guarantee_{label}_side"] = guarantee_sentence(cfg, side.campaign, side.n_eps,
+                                                                side.policy.description, sh)
+        write_safe_set(out / f"safe_set_{label}_side.parquet", sc, sh, side.scenario.state_names,
+                       {"config_hash": chash, "side": label})
+    write_safe_set(out / "safe_set.parquet", centres, h, scenario.state_names,
+                   {"config_hash": chash, "result_hash": rhash})
+    write_json(out / "summary.json", summary)
+    from farm.plots import draw
+
+    draw(out / "plots", scenario, centres, h, summary)
+    for label, side in parts.items():
+        if label != "total":
+            sc, sh = side.algorithm.result()
+            draw(out / "plots" / f"{label}_side", side.scenario, sc, sh, {**summary, "algorithm": f"{label} side"})
+    return summary
+
+
+def run(cfg: Config, out: Path, *, resume: bool = False, force: bool = False, progress: Progress | None = None,
+        config_text: str | None = None) -> dict:
+    """Run (or continue) the campaign of ``cfg`` in directory ``out``; -> summary.
+
+    Everything is checked before anything is written: the config, the scenario, the back
+    end, the actions. ``resume`` continues a stopped or killed campaign (a finished one
+    is left untouched and its summary returned); ``force`` replaces a campaign directory."""
+    out = Path(out)
+    progress = progress or Progress(enabled=False)
+    directory = CampaignDir(out)
+    directory.check_writable()
+    if resume:
+        directory.open("quantify")
+        changed = config_mod.changed_fields(load_frozen_config(out), cfg)
+        if changed:
+            raise CampaignError(f"{out}: the config differs from the campaign's frozen config in "
+                                f"{', '.join(changed)}; only farm.workers, farm.executor and farm.address may "
+                                f"change on resume")
+        finished = _finished_summary(out)
+        if finished is not None:
+            return finished
+    scenario = build_simulator(spec_of(cfg)).scenario
+    parts = {label: Part(cfg, out if label == "total" else out / "sides" / label, facets, label)
+             for label, facets in part_facets(cfg, scenario).items()}  # builds (checks) every part first
+    status = StatusWriter(out)
+    try:
+        if resume:
+            directory.lock(announce=False)
+            for part in parts.values():  # every checkpoint is checked before anything is written
+                part.prepare(resume, progress, status)
+            directory.announce()
+            directory.remove_stale_temp_files()
+        else:
+            directory.create("quantify", force=force)
+            (out / "config.toml").write_text(config_text if config_text is not None else _toml_of(cfg))
+            write_json(out / "config.json", {"config": cfg.model_dump(mode="json"),
+                                             "config_hash": config_mod.config_hash(cfg),
+                                             "scenario_farm_version": __version__})
+            for part in parts.values():
+                part.prepare(resume, progress, status)
+        for part in parts.values():
+            part.run(status)
+        progress.close()
+        status.write({"state": "finishing"})
+        summary = finish(cfg, out, parts)
+        status.write({"state": "done", "result_hash": summary["result_hash"]})
+        return summary
+    finally:
+        directory.unlock()
+
+
+def _finished_summary(out: Path) -> dict | None:
+    try:
+        summary = json.loads((out / "summary.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return summary if isinstance(summary, dict) and "result_hash" in summary else None
+
+
+def _toml_of(cfg: Config) -> str:
+    """The normalized config as TOML (for a campaign started from Python)."""
+    lines = []
+    for section, values in cfg.model_dump(mode="json", exclude_none=True).items():
+        lines.append(f"[{section}]")
+        lines += [f"{k} = {_toml_value(v)}" for k, v in values.items()]
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)  # a TOML basic string
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{json.dumps(k)} = {_toml_value(v)}" for k, v in value.items()) + " }"
+    raise TypeError(f"no TOML form for {value!r}")

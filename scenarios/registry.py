@@ -1,0 +1,120 @@
+"""Where scenarios and back ends are found by name: one dict each, lazy imports.
+
+A new scenario or back end is one file plus one registration:
+
+    register_scenario("my-scenario", "mypackage.scenarios:MyScenario")
+    register_backend("carla", "mypackage.carla:CarlaBackend")
+
+or, for an installed package, an entry point in the groups ``scenario_farm.scenarios`` /
+``scenario_farm.backends``. A config may also name any class directly as
+``"package.module:Class"`` (imported from the working directory too). Heavy back ends
+(SUMO) are imported only when chosen, like Ray Tune's lazy search registry.
+
+A config is code: naming ``module:Class`` imports and runs that module. Only the kind of
+object is checked (a Scenario subclass, a back-end class); configs are as trusted as
+the code they name.
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+from importlib.metadata import entry_points
+
+from scenarios.base import EXTERNAL_SV, Scenario
+
+SCENARIOS: dict[str, str | type] = {
+    "lead-follow": "scenarios.lead_follow:LeadFollow",
+    "fleet3": "scenarios.fleet3:Fleet3",
+    "toy": "scenarios.toy:Toy",
+}
+BACKENDS: dict[str, str | type] = {
+    "numpy": "scenarios.backend:NumpyBackend",
+    "sumo": "scenarios.sumo.backend:SumoBackend",
+}
+_GROUPS = {"scenario": "scenario_farm.scenarios", "backend": "scenario_farm.backends"}
+
+
+def register_scenario(name: str, target: str | type) -> None:
+    SCENARIOS[name] = target
+
+
+def register_backend(name: str, target: str | type) -> None:
+    BACKENDS[name] = target
+
+
+def load_object(target: str, field: str):
+    """Import ``package.module:attr``; a one-line error naming ``field`` otherwise."""
+    module_name, sep, attr = target.partition(":")
+    if not sep or not module_name or not attr:
+        raise ValueError(f"{field}: expected 'package.module:Name', got {target!r}")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise ValueError(f"{field}: cannot import module {module_name!r} ({exc}); is it on the path or in the "
+                         f"working directory?") from None
+    except Exception as exc:  # noqa: BLE001 - the user's module raised while importing
+        raise ValueError(f"{field}: importing {module_name!r} raised {type(exc).__name__}: {exc}") from None
+    try:
+        return getattr(module, attr)
+    except AttributeError:
+        raise ValueError(f"{field}: module {module_name!r} has no attribute {attr!r}") from None
+
+
+def _lookup(kind: str, table: dict, name: str, field: str):
+    target = table.get(name)
+    if target is None:
+        for ep in entry_points(group=_GROUPS[kind]):
+            if ep.name == name:
+                target = ep.value
+    if target is None and ":" in name:
+        target = name
+    if target is None:
+        raise ValueError(f"{field}: unknown {kind} {name!r}; allowed: {', '.join(table)} or 'package.module:Class'")
+    return load_object(target, field) if isinstance(target, str) else target
+
+
+def scenario_class(name: str) -> type[Scenario]:
+    cls = _lookup("scenario", SCENARIOS, name, "scenario.name")
+    if not (isinstance(cls, type) and issubclass(cls, Scenario)):
+        raise ValueError(f"scenario.name: {name!r} is not a subclass of scenarios.Scenario")
+    if inspect.isabstract(cls):
+        missing = ", ".join(sorted(cls.__abstractmethods__))
+        raise ValueError(f"scenario.name: {name!r} does not implement {missing}")
+    return cls
+
+
+def backend_class(name: str) -> type:
+    cls = _lookup("backend", BACKENDS, name, "scenario.backend")
+    if not isinstance(cls, type) or not all(callable(getattr(cls, m, None)) for m in ("insert", "step", "keep", "clear")):
+        raise ValueError(f"scenario.backend: {name!r} is not a back end (a class with insert, step, keep, clear)")
+    return cls
+
+
+def make_scenario(name: str, sv_policy: str | None = None, failure_facets=None, disturbance: float = 0.0) -> Scenario:
+    cls = scenario_class(name)
+    try:
+        return cls(sv_policy=sv_policy, failure_facets=failure_facets, disturbance=disturbance)
+    except TypeError as exc:
+        raise ValueError(f"scenario.name: {name!r} could not be constructed ({exc}); a Scenario subclass's __init__ "
+                         f"must accept the keywords sv_policy, failure_facets and disturbance (or not be defined)") \
+            from None
+
+
+def make_backend(scenario: dict):
+    """The back end for a ``[scenario]`` config section (plain dict): builds the
+    scenario and hands it to the back end with the back end's own options table
+    ``[scenario.<backend>]``."""
+    name = scenario.get("backend", "numpy")
+    cls = backend_class(name)
+    external = getattr(cls, "external_sv", None)  # the SV is the simulator's own model
+    sv_policy = scenario.get("sv_policy")
+    if external is not None:
+        if sv_policy not in (None, external):
+            raise ValueError(f"scenario.sv_policy: the {name} back end's SV is the simulator's own model; "
+                             f"allowed: {external} (got {sv_policy!r})")
+        sv_policy = EXTERNAL_SV
+    sc = make_scenario(scenario["name"], sv_policy, scenario.get("failure_facets"), scenario.get("disturbance", 0.0))
+    if external is not None:
+        sc.sv_policy_name = external
+    return cls(sc, scenario.get(name))

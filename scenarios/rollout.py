@@ -1,0 +1,184 @@
+"""The shared rollout core: ``run_scenario`` (paper Alg. 1) for a batch of runs on any
+back end, with every piece of bookkeeping done here once.
+
+Every step's new states are classified continue / truncated / failure (failure wins);
+a run ends at its first non-continue state or after K states (the start counts as the
+first). The returned trajectories hold every state of every run, the terminal one
+included, so a run can be checked and replayed state by state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenarios.base import CONTINUE, FAILURE, HORIZON, TRUNCATED, Scenario, ScenarioError
+from scenarios.streams import PURPOSE_DISTURBANCE, RunStreams
+
+START_TOLERANCE = 1e-9  # a back end must start a run within this of the requested state
+STEP_BOUND_SLACK = 1e-9  # rounding room when checking sigma-bar against observed steps
+
+
+@dataclass
+class RunBatch:
+    """Results of a batch of runs.
+
+    indices       (B,) uint64 global sample indices (the runs' stream keys with the seed)
+    trajectories  (K, B, n) states; entries past a run's length are meaningless
+    lengths       (B,) int32 number of states in each run (start included, >= 1)
+    outcomes      (B,) int8 FAILURE / TRUNCATED / HORIZON
+    """
+
+    indices: np.ndarray
+    trajectories: np.ndarray
+    lengths: np.ndarray
+    outcomes: np.ndarray
+
+    @property
+    def starts(self) -> np.ndarray:
+        return self.trajectories[0]
+
+    @property
+    def steps(self) -> int:
+        return int(self.lengths.sum() - len(self.lengths))
+
+    def __len__(self) -> int:
+        return len(self.indices)
+
+    def trajectory(self, row: int) -> np.ndarray:
+        """(length, n) states of one run."""
+        return self.trajectories[: self.lengths[row], row]
+
+    def last_states(self) -> np.ndarray:
+        """(B, n) the terminal state of every run."""
+        return self.trajectories[self.lengths - 1, np.arange(len(self))]
+
+    def visited(self) -> tuple[np.ndarray, np.ndarray]:
+        """The states after the start that lie inside Sigma, run by run in time order:
+        (S, n) states and (B + 1,) offsets (run r's states are ``states[off[r]:off[r+1]]``).
+        A failed or truncated run's terminal state is left out: it is outside Sigma."""
+        ends = self.lengths.astype(np.int64) - np.isin(self.outcomes, (FAILURE, TRUNCATED))
+        counts = np.maximum(ends - 1, 0)
+        offsets = np.zeros(len(self) + 1, dtype=np.int64)
+        np.cumsum(counts, out=offsets[1:])
+        total = int(offsets[-1])
+        run = np.repeat(np.arange(len(self)), counts)
+        t = np.arange(total) - np.repeat(offsets[:-1], counts) + 1
+        return self.trajectories[t, run], offsets
+
+
+def run_scenario(backend, starts: np.ndarray, horizon: int, policy, streams: RunStreams, *,
+                 check_step_bound: bool = False) -> RunBatch:
+    """Run a batch from ``starts`` (B, n) for up to ``horizon`` states each on ``backend``
+    (a ``scenarios.backend.Backend``). ``check_step_bound``: verify that no step moves
+    farther (l-inf) than the scenario's ``step_bound()`` (Assumption 1), which the
+    boundary-band options rely on; an error names the run that breaks it. A bare
+    ``Scenario`` runs on its own vectorized dynamics (the numpy back end)."""
+    if isinstance(backend, Scenario):
+        from scenarios.backend import NumpyBackend
+
+        backend = NumpyBackend(backend)
+    scenario: Scenario = backend.scenario
+    if horizon < 2:
+        raise ValueError(f"horizon: K must be >= 2, got {horizon}")
+    starts = np.asarray(starts, dtype=float)
+    if starts.ndim != 2 or starts.shape[1] != scenario.n:
+        raise ScenarioError(f"start states have shape {starts.shape}, scenario {scenario.name!r} needs (B, {scenario.n})")
+    if len(streams) != len(starts):
+        raise ScenarioError(f"{len(starts)} start states but {len(streams)} run streams")
+    batch, n = starts.shape
+    # Stored as (K, n, B) so that each step writes n contiguous rows; exposed as (K, B, n).
+    store = np.empty((horizon, n, batch))
+    store[0] = starts.T
+    lengths = np.full(batch, horizon, dtype=np.int32)
+    outcomes = np.full(batch, HORIZON, dtype=np.int8)
+    piece = getattr(backend, "max_batch", None) or max(batch, 1)
+    for lo in range(0, batch, piece):
+        hi = min(batch, lo + piece)
+        part = streams if (lo, hi) == (0, batch) else streams.subset(np.arange(lo, hi))
+        _run_piece(backend, starts[lo:hi], horizon, policy, part, check_step_bound,
+                   store[:, :, lo:hi] if (lo, hi) != (0, batch) else store, lengths[lo:hi], outcomes[lo:hi])
+    return RunBatch(streams.indices, store.transpose(0, 2, 1), lengths, outcomes)
+
+
+def _run_piece(backend, starts, horizon, policy, streams, check_step_bound, store, lengths, outcomes) -> None:
+    """One simulation of the runs ``starts``; fills ``store`` (K, n, b), lengths, outcomes."""
+    scenario = backend.scenario
+    batch, n = starts.shape
+    disturbed = scenario.disturbance > 0.0 and scenario.noise_width > 0
+    bound = scenario.step_bound() + STEP_BOUND_SLACK if check_step_bound else None
+    try:
+        states = backend.insert(starts, horizon)
+        if states is not starts:
+            _check_start(scenario, states, starts, streams)
+        rows = np.arange(batch)  # batch rows still held by the back end (some may have ended)
+        running = np.ones(batch, dtype=bool)  # ... of which these have not ended
+        full = True  # rows == arange(batch)
+        row_streams = streams
+        for t in range(1, horizon):
+            actions = policy(scenario, states, t, row_streams)
+            noise = row_streams.uniform(t, PURPOSE_DISTURBANCE, scenario.noise_width) if disturbed else None
+            # all rows held: straight into the store; after compaction: scattered there
+            slab = store[t] if full else np.empty((n, len(rows)))
+            backend.step(states, actions, noise, slab)
+            nxt = slab.T
+            status = scenario.classify(nxt)
+            if not full:
+                store[t][:, rows] = slab
+            # one pass: a sum is finite iff every term is (or it overflowed, which the exact
+            # per-row check below then clears); the per-row search only on error
+            if not np.isfinite(np.add.reduce(slab, axis=None)):
+                bad = ~np.isfinite(nxt).all(axis=1) & running
+                if bad.any():
+                    _raise_bad_state(scenario, nxt, rows, bad, streams, starts, t)
+            if bound is not None:
+                _check_step(scenario, bound, states, nxt, running, rows, streams, t)
+            ended = running & (status != CONTINUE)
+            if ended.any():
+                done = rows[ended]
+                outcomes[done] = status[ended]
+                lengths[done] = t + 1
+                running &= ~ended
+                alive = int(running.sum())
+                if alive == 0:
+                    break
+                # Ended rows keep being stepped until they are a share of the held rows
+                # (for numpy cheaper than a gather every step): then compact.
+                if alive < backend.compact_below * len(rows):
+                    backend.keep(running)
+                    rows, nxt = rows[running], np.compress(running, nxt.T, axis=1).T
+                    row_streams = row_streams.subset(running)
+                    running = np.ones(len(rows), dtype=bool)
+                    full = False
+            states = nxt
+    finally:
+        backend.clear()  # also after an error: the next batch must find an empty simulator
+
+
+def _check_start(scenario, states, starts, streams) -> None:
+    states = np.asarray(states, dtype=float)
+    bad = ~(np.abs(states - starts) <= START_TOLERANCE).all(axis=1)
+    if bad.any():
+        row = int(np.nonzero(bad)[0][0])
+        raise ScenarioError(f"the back end did not start sample index {int(streams.indices[row])} at its start "
+                            f"state {starts[row].tolist()}: read back {states[row].tolist()}")
+
+
+def _check_step(scenario, bound, states, nxt, running, rows, streams, t) -> None:
+    moved = np.abs(nxt[running] - states[running]).max(axis=1) if running.any() else np.zeros(0)
+    if len(moved) and moved.max() > bound:
+        k = int(np.argmax(moved))
+        run = int(rows[np.nonzero(running)[0][k]])
+        raise ScenarioError(f"scenario {scenario.name!r}: step_bound() = {scenario.step_bound():g} but sample index "
+                            f"{int(streams.indices[run])} moved {moved[k]:g} (l-inf) in step {t}; step_bound() must "
+                            f"bound every step (Assumption 1)")
+
+
+def _raise_bad_state(scenario, nxt, rows, bad, streams, starts, t):
+    row = int(np.nonzero(bad)[0][0])
+    run = int(rows[row])
+    raise ScenarioError(
+        f"scenario {scenario.name!r} produced a non-finite state at step {t} of sample index "
+        f"{int(streams.indices[run])} (start state {starts[run].tolist()}): {nxt[row].tolist()}"
+    )

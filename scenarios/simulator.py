@@ -1,0 +1,77 @@
+"""What a worker holds: a scenario on a back end, an action policy, the horizon and the
+campaign seed. Built from ``SimSpec``, plain data that is cheap to ship to a process."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenarios.actions import make_action_policy
+from scenarios.base import ScenarioError
+from scenarios.registry import make_backend
+from scenarios.rollout import RunBatch, run_scenario
+from scenarios.streams import RunStreams
+
+
+@dataclass(frozen=True)
+class SimSpec:
+    """Everything a worker needs to simulate: plain data, cheap to ship."""
+
+    scenario: dict  # the [scenario] config section
+    actions: dict  # the [actions] config section
+    horizon: int
+    seed: int
+
+
+class Simulator:
+    """Simulates batches of runs ``first_index, first_index + 1, ...`` from given starts.
+
+    Every simulator checks the scenario's ``step_bound()`` against the steps it observes
+    in its first batch (and in every batch when ``check_step_bound``): a wrong sigma-bar
+    would silently break the boundary-band guarantees (Theorem 3)."""
+
+    def __init__(self, spec: SimSpec, check_step_bound: bool = False):
+        self.spec = spec
+        self.backend = make_backend(spec.scenario)
+        self.scenario = self.backend.scenario
+        act = spec.actions
+        self.policy = make_action_policy(act.get("mode", "uniform"), self.scenario, act.get("value"),
+                                         act.get("policy"))
+        self.check_step_bound = check_step_bound
+        self._checked = False
+
+    @property
+    def deterministic(self) -> bool:
+        """A run is a function of its start state alone (one action, no disturbance)."""
+        return self.policy.deterministic and self.scenario.disturbance == 0 and self.backend.deterministic
+
+    def simulate(self, first_index: int, starts: np.ndarray) -> RunBatch:
+        indices = np.arange(first_index, first_index + len(starts), dtype=np.uint64)
+        check = self.check_step_bound or not self._checked
+        try:
+            batch = run_scenario(self.backend, starts, self.spec.horizon, self.policy,
+                                 RunStreams.of(self.spec.seed, indices), check_step_bound=check)
+        except ScenarioError:
+            raise
+        except Exception as exc:  # a user scenario raised: name the run, not just the batch
+            raise self._culprit(indices, starts, exc) from None
+        self._checked = True
+        keep = int(batch.lengths.max()) if len(batch) else 1  # only the rows some run used
+        return RunBatch(batch.indices, np.ascontiguousarray(batch.trajectories[:keep]), batch.lengths,
+                        batch.outcomes)
+
+    def _culprit(self, indices, starts, exc) -> ScenarioError:
+        """Bisect the batch (runs depend on their own key only) down to the first run that
+        raises on its own."""
+        lo, hi = 0, len(starts)
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            try:
+                run_scenario(self.backend, starts[lo:mid], self.spec.horizon, self.policy,
+                             RunStreams.of(self.spec.seed, indices[lo:mid]))
+                lo = mid
+            except Exception:  # noqa: BLE001 - any error narrows the search
+                hi = mid
+        return ScenarioError(f"scenario {self.scenario.name!r} raised {type(exc).__name__}: {exc} on sample index "
+                             f"{int(indices[lo])} (start state {starts[lo].tolist()})")
