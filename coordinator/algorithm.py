@@ -4,10 +4,12 @@
 
     draw(streams)             ask: start states and their vertex ids for a batch, from
                               the state as it is now (its ``version``)
-    events(rescreen, lo, ids) which runs lo.. of a screened chunk change the state now
+    next_event(rescreen, lo, ids)  the first run lo.. of a screened chunk that changes
+                              the state now
     apply(event)              tell: a run that changes the state (prune, explore, ...)
-    record(chunk, rows, ids)  tell: committed runs that changed nothing
-    end_round()               the round ended by the N_eps rule: decay delta
+    record(chunk, rows, ids, starts)  tell: the committed runs of a chunk
+    end_round(executor)       the round ended by the N_eps rule: decay delta (the executor
+                              screens stored states for experience replay)
 
 Everything a run is screened against lives in ``coverage`` and changes only through
 ``coverage.apply``, so that workers can screen runs on mirrors of it (see
@@ -65,19 +67,20 @@ class Algorithm(ABC):
     def draw(self, streams: RunStreams) -> tuple[np.ndarray, np.ndarray]:
         """(B, n) start states and (B,) vertex ids, one per stream, from the current state."""
 
-    def events(self, rescreen: Rescreen, lo: int, start_ids: np.ndarray) -> np.ndarray:
-        """(k - lo,) bool: runs lo.. of a chunk that change the state now."""
-        return rescreen.events(lo)
+    def next_event(self, rescreen: Rescreen, lo: int, start_ids: np.ndarray) -> int:
+        """The first run at or after ``lo`` of a screened chunk that changes the state
+        now (the chunk's length if none)."""
+        return rescreen.next_event(lo)
 
     @abstractmethod
     def apply(self, event: Event) -> str:
         """Apply one run's change; bump ``version``; return what happened."""
 
-    def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray) -> None:
-        """Committed runs that changed nothing (e.g. for experience replay)."""
+    def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray, starts: np.ndarray) -> None:
+        """The committed runs of a chunk (e.g. for experience replay)."""
 
     @abstractmethod
-    def end_round(self) -> bool:
+    def end_round(self, executor=None) -> bool:
         """Decay delta (the round ended by the N_eps rule); False after the last round."""
 
     def result(self) -> tuple[np.ndarray, float]:

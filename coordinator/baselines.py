@@ -98,7 +98,7 @@ class AdaptiveExploration(_CoverageOnly):
         self.coverage.apply(Insert(states[greedy_uncovered(states, self.delta)]), self.version)
         return "explored"
 
-    def end_round(self) -> bool:
+    def end_round(self, executor=None) -> bool:
         if self.final_round:
             return False
         self.version += 1
@@ -131,16 +131,16 @@ class DeltaPruning(_CoverageOnly):
         lattice = Lattice.tiling(scenario.lower, scenario.upper, self._delta0)
         self.coverage = self._fresh(lattice.box_centres(self._delta0), scenario.lower, scenario.upper, bounded=True)
 
-    def events(self, rescreen, lo, start_ids):
+    def next_event(self, rescreen, lo, start_ids):
         # a stale draw's centre may be pruned already: pruning it again changes nothing
-        return rescreen.events(lo) & self.vertices.alive[start_ids[lo:]]
+        return rescreen.next_event(lo, allowed=self.vertices.alive[start_ids])
 
     def apply(self, event: Event) -> str:
         self.version += 1
         self.coverage.apply(Kill(np.array([event.start_id])), self.version)
         return "pruned"
 
-    def end_round(self) -> bool:
+    def end_round(self, executor=None) -> bool:
         return False
 
 
@@ -178,7 +178,7 @@ class VanillaSampling(_CoverageOnly):
         self._replace(self._new_box(RunStreams.of(self.seed, [event.index])))
         return "rejected"
 
-    def end_round(self) -> bool:
+    def end_round(self, executor=None) -> bool:
         return False
 
     def _extra_state(self):

@@ -81,7 +81,7 @@ class CommitLog:
     counted: list = field(default_factory=list)
 
     def add(self, first_index: int, starts: np.ndarray, chunk: Chunk, rows: np.ndarray, rnd: int, delta: float,
-            changed: bool, counted: bool) -> None:
+            changed: np.ndarray, counted: np.ndarray) -> None:
         if len(rows) == 0:
             return
         self.sample_index.append(first_index + rows.astype(np.int64))
@@ -90,8 +90,8 @@ class CommitLog:
         self.start.append(starts[rows])
         self.outcome.append(chunk.outcomes[rows].astype(np.int8))
         self.steps.append((chunk.lengths[rows] - 1).astype(np.int32))
-        self.changed.append(np.full(len(rows), changed))
-        self.counted.append(np.full(len(rows), counted))
+        self.changed.append(changed)
+        self.counted.append(counted)
 
     def take(self) -> dict[str, np.ndarray] | None:
         if not self.sample_index:
@@ -155,47 +155,36 @@ class Campaign:
         k = len(chunk)
         starts, ids = p.starts[at : at + k], p.start_ids[at : at + k]
         rescreen = Rescreen(algo.coverage, chunk.screening, chunk.outcomes, chunk.visited)
-        pos = 0
+        changed = np.zeros(k, dtype=bool)
+        counted = np.zeros(k, dtype=bool)
+        rnd, delta = algo.round, algo.delta
+        pos, ended = 0, False
         while pos < k:
-            changes = algo.events(rescreen, pos, ids)
-            offset = int(np.argmax(changes)) if changes.any() else k - pos
-            quiet = np.arange(pos, pos + offset)
-            counted = p.version == algo.version
-            if counted and c.quiet + offset >= self.n_eps:
-                quiet = quiet[: self.n_eps - c.quiet]
-                self._commit_quiet(chunk, starts, ids, quiet, counted)
-                p.done = at + quiet[-1] + 1 if len(quiet) else at + pos
-                return True
-            self._commit_quiet(chunk, starts, ids, quiet, counted)
+            offset = algo.next_event(rescreen, pos, ids) - pos
+            if p.version == algo.version:  # drawn from the state as it is now: counts
+                if c.quiet + offset >= self.n_eps:
+                    offset, ended = self.n_eps - c.quiet, True
+                counted[pos : pos + offset] = True
+                c.quiet += offset
+                c.escaped_in_streak += int(np.count_nonzero(chunk.screening.escaped[pos : pos + offset]))
             pos += offset
-            if pos == k:
+            if ended or pos == k:
                 break
-            row = np.array([pos])
             event = Event(chunk.first_index + pos, starts[pos], int(ids[pos]), bool(chunk.outcomes[pos] == FAILURE),
                           rescreen.candidates(pos))
-            self.log.add(chunk.first_index, starts, chunk, row, algo.round, algo.delta, True, False)
             algo.apply(event)
             self._maybe_record(chunk, pos, starts[pos])
-            algo.record(chunk, row, ids[row])
+            changed[pos] = True
             c.quiet = 0
             c.escaped_in_streak = 0
             c.changes += 1
-            c.committed += 1
             pos += 1
-        p.done = at + k
-        return False
-
-    def _commit_quiet(self, chunk: Chunk, starts, ids, rows, counted: bool) -> None:
-        if len(rows) == 0:
-            return
-        c = self.counters
-        self.log.add(chunk.first_index, starts, chunk, rows, self.algorithm.round, self.algorithm.delta, False,
-                     counted)
-        self.algorithm.record(chunk, rows, ids[rows])
-        c.committed += len(rows)
-        if counted:
-            c.quiet += len(rows)
-            c.escaped_in_streak += int(np.count_nonzero(chunk.screening.escaped[rows]))
+        rows = np.arange(pos)
+        c.committed += pos
+        p.done = at + pos
+        self.log.add(chunk.first_index, starts, chunk, rows, rnd, delta, changed[:pos], counted[:pos])
+        algo.record(chunk, rows, ids[:pos], starts[:pos])
+        return ended
 
     def _maybe_record(self, chunk: Chunk, row: int, start: np.ndarray) -> None:
         """Keep the trajectory of a state-changing failure for the MCAP recording (the
@@ -237,7 +226,7 @@ class Campaign:
                     c.converged = True
                     c.done = True
                 else:
-                    self.algorithm.end_round()
+                    self.algorithm.end_round(self.executor)
                     c.quiet = 0
                     c.escaped_in_streak = 0
             else:

@@ -7,12 +7,14 @@ failure?). It is changed only through ``apply(change)``, so a *mirror* on a work
 applies the same changes in the same order answers every query exactly as the
 coordinator's copy does (queries are exact: see coordinator/spatial.py).
 
-Screening a run against coverage version v (``screen``) gives its *event*: FAIL (it
+Every change is numbered (``seq``): a mirror is in sync when it has applied the same
+numbered changes. Screening a run against the coverage at seq v (``screen``) gives its
+*event*: FAIL (it
 reached a failure facet), EXPLORE (a visited state is neither within delta of an alive
 centre nor of a failure: a new state) or QUIET; ESCAPED marks a quiet run that left the
 covering only near a failure. It also gives, per run, the *witnesses* (ids of the alive
 centres that covered its states) and its explore states. That lets the coordinator
-re-decide a run at a later version c without its trajectory (``Rescreen``):
+re-decide a run at a later seq c without its trajectory (``Rescreen``):
 
 - a failure is a failure;
 - a quiet run stays quiet as long as all its witnesses are alive (failures only grow,
@@ -27,7 +29,7 @@ in it, so a run is never re-decided at another delta.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -65,9 +67,9 @@ class Reset:
 
 @dataclass
 class Screening:
-    """Per-run screening of a chunk of k runs at coverage (``epoch``, ``version``)."""
+    """Per-run screening of a chunk of k runs at coverage (``epoch``, ``seq``)."""
 
-    version: int
+    seq: int
     epoch: int
     event: np.ndarray  # (k,) int8 QUIET / FAIL / EXPLORE
     escaped: np.ndarray  # (k,) bool
@@ -87,10 +89,12 @@ class Coverage:
         self.n = n
         self.delta = float(delta)
         self.vertices = PointIndex(n, 2 * delta, origin, bounds=bounds)
-        self.failures = PointIndex(n, 2 * delta, origin) if failures else None
+        # failures (start states) lie in Sigma too: the dense grid answers their queries
+        self.failures = PointIndex(n, 2 * delta, origin, bounds=bounds) if failures else None
+        self.seq = 0  # changes applied (a mirror applies the same ones, in order)
         self.version = 0  # the algorithm version of the last change applied
         self.epoch = 0  # bumped by Reset: vertex ids of older screenings mean nothing
-        self.kill_version = -1  # version of the last Kill (witness checks needed after it)
+        self.kill_seq = -1  # seq of the last Kill (witness checks needed after it)
         self._log: list[tuple[int, object]] | None = None
 
     # -- changes ---------------------------------------------------------------------------
@@ -100,7 +104,7 @@ class Coverage:
                 self.vertices.insert(change.points)
         elif isinstance(change, Kill):
             self.vertices.kill(change.ids)
-            self.kill_version = version
+            self.kill_seq = self.seq + 1
         elif isinstance(change, AddFailures):
             self.failures.insert(change.points)
         elif isinstance(change, Recell):
@@ -113,29 +117,28 @@ class Coverage:
             self.epoch += 1
         else:
             raise TypeError(f"not a coverage change: {change!r}")
+        self.seq += 1
         self.version = version
         if self._log is not None:
-            self._log.append((version, change))
+            self._log.append((self.seq, version, change))
 
     def start_log(self) -> None:
         """Keep the changes applied from now on (for mirrors on other processes)."""
         if self._log is None:
             self._log = []
 
-    def changes_since(self, version: int) -> list[tuple[int, object]]:
-        return [(v, c) for v, c in (self._log or []) if v > version]
+    def changes_since(self, seq: int) -> list[tuple[int, int, object]]:
+        return [entry for entry in (self._log or []) if entry[0] > seq]
 
-    def trim_log(self, version: int) -> None:
-        """Forget changes every mirror has applied (up to ``version``)."""
+    def trim_log(self, seq: int) -> None:
+        """Forget changes every mirror has applied (up to ``seq``)."""
         if self._log:
-            self._log = [(v, c) for v, c in self._log if v > version]
+            self._log = [entry for entry in self._log if entry[0] > seq]
 
     def sync(self, changes) -> None:
-        """Apply the changes of versions after this mirror's (a version may hold
-        several changes: a prune adds a failure and kills a tree)."""
-        base = self.version
-        for version, change in changes:
-            if version > base:
+        """Apply the logged changes this mirror has not applied yet, in order."""
+        for seq, version, change in changes:
+            if seq > self.seq:
                 self.apply(change, version)
 
     # -- snapshot -------------------------------------------------------------------------
@@ -143,7 +146,7 @@ class Coverage:
         out = {f"vertices.{k}": v for k, v in self.vertices.state().items()}
         if self.failures is not None:
             out.update({f"failures.{k}": v for k, v in self.failures.state().items()})
-        out["coverage"] = np.array([self.delta, self.version, self.epoch, self.kill_version], dtype=float)
+        out["coverage"] = np.array([self.delta, self.version, self.epoch, self.kill_seq, self.seq], dtype=float)
         return out
 
     def _load(self, state: dict) -> None:
@@ -152,8 +155,8 @@ class Coverage:
             self.failures = PointIndex.from_state({k[9:]: v for k, v in state.items() if k.startswith("failures.")})
         else:
             self.failures = None
-        delta, _, _, kill_version = state["coverage"]
-        self.delta, self.kill_version = float(delta), int(kill_version)
+        delta, _, _, kill_seq, _ = state["coverage"]
+        self.delta, self.kill_seq = float(delta), int(kill_seq)
 
     @classmethod
     def from_state(cls, state: dict) -> "Coverage":
@@ -161,8 +164,8 @@ class Coverage:
         cov.n = state["vertices.points"].shape[1]
         cov._log = None
         cov._load(state)
-        _, version, epoch, _ = state["coverage"]
-        cov.version, cov.epoch = int(version), int(epoch)
+        _, version, epoch, _, seq = state["coverage"]
+        cov.version, cov.epoch, cov.seq = int(version), int(epoch), int(seq)
         return cov
 
     # -- screening -------------------------------------------------------------------------
@@ -196,86 +199,77 @@ class Coverage:
         np.cumsum(np.bincount(run[w_keep], minlength=k), out=w_off[1:])
         e_off = np.zeros(k + 1, dtype=np.int64)
         np.cumsum(np.bincount(run[explore], minlength=k), out=e_off[1:])
-        return Screening(self.version, self.epoch, event, escaped, w_off, witness[w_keep], e_off, states[explore])
+        return Screening(self.seq, self.epoch, event, escaped, w_off, witness[w_keep], e_off, states[explore])
 
 
-@dataclass
 class Rescreen:
-    """Re-decides the runs of one screened chunk at the coverage's current version."""
+    """Re-decides the runs of one screened chunk at the coverage's current state,
+    lazily: only as far as the next run that changes the state (the runs after it are
+    decided again after that change anyway)."""
 
-    coverage: Coverage
-    screening: Screening
-    outcomes: np.ndarray
-    visited: object  # () -> (states, offsets): the chunk's visited states, fetched on demand
-    _full: dict = field(default_factory=dict)  # row -> visited states, for rows re-screened in full
-    _checked_kills: int = -2  # kill version up to which the witnesses were checked
+    def __init__(self, coverage: Coverage, screening: Screening, outcomes: np.ndarray, visited):
+        self.coverage, self.screening, self.outcomes = coverage, screening, outcomes
+        self.visited = visited  # () -> (states, offsets): the chunk's visited states, fetched on demand
+        self._full = np.zeros(len(screening), dtype=bool)  # rows to re-screen from all their states
+        self._checked_kills = -2  # kill seq up to which the witnesses were checked
 
-    def events(self, lo: int) -> np.ndarray:
-        """(k - lo,) bool: does run lo + i change the state at the current version?"""
+    def next_event(self, lo: int, allowed: np.ndarray | None = None) -> int:
+        """The first run at or after ``lo`` that changes the state now (the chunk's
+        length if none). ``allowed`` (k,) bool: runs that can change it at all."""
         cov, sc = self.coverage, self.screening
-        rows = np.arange(lo, len(sc))
-        if sc.epoch == cov.epoch and sc.version == cov.version:
-            return sc.event[lo:] != QUIET
+        k = len(sc)
+        if lo >= k:
+            return k
+        if sc.epoch == cov.epoch and sc.seq == cov.seq:
+            changes = sc.event[lo:] != QUIET
+            if allowed is not None:
+                changes &= allowed[lo:]
+            return lo + int(np.argmax(changes)) if changes.any() else k
         if sc.epoch != cov.epoch:
-            return self._full_events(rows)
-        event = sc.event[lo:].copy()
-        changes = event == FAIL
-        # witness check: only a Kill since the screening (or since the last check) can
-        # uncover a state
-        suspect = np.zeros(len(rows), dtype=bool)
-        if cov.kill_version > max(sc.version, self._checked_kills):
-            suspect = self._dead_witness(rows)
-        explore_rows = np.flatnonzero((event == EXPLORE) & ~suspect)
-        if len(explore_rows):
-            changes[explore_rows] = self._explore_still(rows[explore_rows])
-        # rows already re-screened in full: their states are at hand
-        full_rows = np.flatnonzero(suspect | np.isin(rows, list(self._full)))
-        full_rows = full_rows[event[full_rows] != FAIL]
-        if len(full_rows):
-            changes[full_rows] = self._full_events(rows[full_rows])
-        return changes
+            self._full[lo:] = True  # vertex ids of another covering: witnesses mean nothing
+        elif cov.kill_seq > max(sc.seq, self._checked_kills):
+            self._mark_dead_witnesses(lo)  # only a Kill can uncover a state
+        candidates = np.flatnonzero((sc.event[lo:] != QUIET) | self._full[lo:]) + lo
+        if allowed is not None:
+            candidates = candidates[allowed[candidates]]
+        at, block = 0, 1
+        while at < len(candidates):  # in growing blocks: the first candidate usually is one
+            rows = candidates[at : at + block]
+            changes = self._changes(rows)
+            if changes.any():
+                return int(rows[np.argmax(changes)])
+            at, block = at + block, min(4 * block, 256)
+        return k
 
     def candidates(self, row: int) -> np.ndarray:
         """The states of run ``row`` that can be new at the current version, in time
-        order: its explore states, or all its visited states once re-screened in full."""
-        if row in self._full or self.screening.epoch != self.coverage.epoch:
-            return self._states_of(row)
+        order: its explore states, or all its visited states if it is re-screened in full."""
+        if self._full[row] or self.screening.epoch != self.coverage.epoch:
+            states, offsets = self.visited()
+            return states[offsets[row] : offsets[row + 1]]
         sc = self.screening
         return sc.explore_states[sc.explore_offsets[row] : sc.explore_offsets[row + 1]]
 
-    def _dead_witness(self, rows: np.ndarray) -> np.ndarray:
+    def _mark_dead_witnesses(self, lo: int) -> None:
         sc = self.screening
-        offsets = sc.witness_offsets[rows[0] : rows[-1] + 2]
+        offsets = sc.witness_offsets[lo:]
         dead = ~self.coverage.vertices.alive[sc.witnesses[offsets[0] : offsets[-1]]]
         dead_before = np.zeros(len(dead) + 1, dtype=np.int64)
         np.cumsum(dead, out=dead_before[1:])
         rel = offsets - offsets[0]
-        suspect = dead_before[rel[1:]] > dead_before[rel[:-1]]
-        self._checked_kills = self.coverage.kill_version
-        for row in rows[suspect]:
-            self._full.setdefault(int(row), None)
-        return suspect
+        self._full[lo:] |= dead_before[rel[1:]] > dead_before[rel[:-1]]
+        self._checked_kills = self.coverage.kill_seq
 
-    def _explore_still(self, rows: np.ndarray) -> np.ndarray:
+    def _changes(self, rows: np.ndarray) -> np.ndarray:
+        """(len(rows),) bool: these runs change the state now (one classification)."""
         sc = self.screening
-        parts = [sc.explore_states[sc.explore_offsets[r] : sc.explore_offsets[r + 1]] for r in rows]
+        failed = self.outcomes[rows] == FAILURE
+        parts = [self.candidates(int(r)) if not f else np.empty((0, self.coverage.n))
+                 for r, f in zip(rows, failed)]
         states = np.concatenate(parts)
+        if len(states) == 0:
+            return failed
         witness, near = self.coverage.classify_states(states)
         new = (witness < 0) & ~near
         run = np.repeat(np.arange(len(rows)), [len(p) for p in parts])
-        return np.bincount(run[new], minlength=len(rows)) > 0
-
-    def _states_of(self, row: int) -> np.ndarray:
-        states, offsets = self.visited()
-        return states[offsets[row] : offsets[row + 1]]
-
-    def _full_events(self, rows: np.ndarray) -> np.ndarray:
-        for row in rows:
-            self._full.setdefault(int(row), None)
-        states, offsets = self.visited()
-        parts = [states[offsets[r] : offsets[r + 1]] for r in rows]
-        flat = np.concatenate(parts) if parts else np.empty((0, self.coverage.n))
-        witness, near = self.coverage.classify_states(flat)
-        new = (witness < 0) & ~near
-        run = np.repeat(np.arange(len(rows)), [len(p) for p in parts])
-        return (np.bincount(run[new], minlength=len(rows)) > 0) | (self.outcomes[rows] == FAILURE)
+        return failed | (np.bincount(run[new], minlength=len(rows)) > 0)

@@ -7,6 +7,9 @@
                                                      business: results never depend on it)
     result(handle) -> Chunk                          wait for one chunk
     cancel(handle)                                   drop a chunk (it is not committed)
+    screen_stored(pieces, coverage) -> [(states, run)]   experience replay: for each stored
+                                                     piece (coordinator/replay.py), its states
+                                                     that are new under ``coverage``
     close()
 
 ``screen`` is what the runs are screened against on the worker: a
@@ -36,6 +39,7 @@ class Chunk:
     last: np.ndarray  # (k, n) terminal states
     screening: Any  # what the screen returned for these runs (None: not screened)
     fetch_visited: Callable[[], tuple[np.ndarray, np.ndarray]] = field(repr=False)
+    keep: Callable = field(repr=False, default=None)  # (rows, takes) -> a handle for screen_stored
     _visited: tuple | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
@@ -50,6 +54,11 @@ class Chunk:
         if self._visited is None:
             self._visited = self.fetch_visited()
         return self._visited
+
+    def keep_visited(self, rows: np.ndarray, takes: np.ndarray):
+        """A handle on the first ``takes[i]`` visited states of runs ``rows`` that the
+        executor can screen later (``screen_stored``) without the coordinator holding them."""
+        return self.keep(rows, takes)
 
     def trajectory(self, row: int, start: np.ndarray) -> np.ndarray:
         """(length, n) every state of run ``row``: its start, its visited states and
@@ -70,6 +79,8 @@ class Executor(Protocol):
 
     def cancel(self, handle) -> None: ...
 
+    def screen_stored(self, pieces: list, screen) -> list[tuple[np.ndarray, np.ndarray]]: ...
+
     def close(self) -> None: ...
 
 
@@ -83,6 +94,24 @@ def summarize(batch: RunBatch, screen) -> tuple[dict, tuple[np.ndarray, np.ndarr
     return summary, (states, offsets)
 
 
-def chunk_of(summary: dict, fetch_visited: Callable) -> Chunk:
+def chunk_of(summary: dict, fetch_visited: Callable, keep: Callable) -> Chunk:
     return Chunk(summary["first_index"], summary["lengths"], summary["outcomes"], summary["last"],
-                 summary["screening"], fetch_visited)
+                 summary["screening"], fetch_visited, keep)
+
+
+def screen_piece(simulator, source, piece, coverage) -> tuple[np.ndarray, np.ndarray]:
+    """A stored piece's states that are new under ``coverage`` and their runs' positions,
+    from the chunk's visited states ``source`` = (states, offsets), or re-simulated from
+    the runs' keys when the source is gone."""
+    from coordinator.replay import new_states, select
+
+    if source is None:
+        batch = simulator.simulate(0, piece.starts, indices=piece.indices)
+        states, offsets = batch.visited()
+        rows = np.arange(len(piece.indices))
+    else:
+        states, offsets = source
+        rows = piece.rows
+    kept, run = select(states, offsets, rows, piece.takes)
+    new = new_states(coverage, kept)
+    return kept[new], run[new]

@@ -30,6 +30,7 @@ _P = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
                0x2545F4914F6CDD1D, 0x9FB21C651E98DF25], dtype=np.uint64)
 TOLERANCE = 1e-9  # closed boxes, decided as exact arithmetic would on grid boundaries
 DENSE_LIMIT = 1 << 25  # cells; 32 Mi int32 counters = 128 MiB at most
+SMALL_BATCH = 256  # queries answered by one pass over every cell their ball touches
 
 
 class PointIndex:
@@ -233,7 +234,12 @@ class PointIndex:
         rel *= 1.0 / self.cell
         home = np.floor(rel).astype(np.int64)
         todo = None
-        if self._dense is not None and radius >= self.cell / 2 - 1e-12:
+        half_cell = self._dense is not None and abs(radius - self.cell / 2) <= 1e-12
+        if half_cell and len(q) <= SMALL_BATCH:
+            todo = self._cover_small(q, rel, r, found)
+            if len(todo) == 0:
+                return found
+        elif self._dense is not None and radius >= self.cell / 2 - 1e-12:
             flat = self._flat(home)
             found = self._centre_point[flat]
             todo = np.flatnonzero(found < 0)
@@ -279,6 +285,35 @@ class PointIndex:
             if len(rows):
                 self._scan(q, home_t[rows] + off, todo[rows], r, found)
         return found
+
+    def _cover_small(self, q, rel, r, found) -> np.ndarray:
+        """A few queries, radius = cell/2: every query's ball touches at most two cells per
+        axis; check the centre point of each touched cell by its true distance and walk the
+        off-centre chains of those holding any. Fixed cost of ~20 array operations, where
+        the batch path spends ~100 on pattern loops. Cells beyond the grid are clipped into
+        its margin, whose chains hold every point beyond the bounds, so nothing is missed.
+        Returns the queries left for the hash chains: balls reaching over both neighbours
+        of an axis (a query within the tolerance of a cell centre)."""
+        k = len(q)
+        reach = r / self.cell
+        lo = np.floor(rel - reach).astype(np.int64)
+        hi = np.floor(rel + reach).astype(np.int64)
+        general = (hi - lo >= 2).any(axis=1)
+        flat = np.stack([self._axis_flat(lo[:, 0], 0), self._axis_flat(hi[:, 0], 0)], axis=1)
+        for axis in range(1, self.n):
+            pair = np.stack([self._axis_flat(lo[:, axis], axis), self._axis_flat(hi[:, axis], axis)], axis=1)
+            flat = (flat[:, :, None] + pair[:, None, :]).reshape(k, -1)
+        row = np.repeat(np.arange(k), flat.shape[1])
+        flat = flat.ravel()
+        centre = self._centre_point[flat]
+        named = np.flatnonzero(centre >= 0)
+        near = np.ones(len(named), dtype=bool)
+        for axis in range(self.n):
+            near &= np.abs(self.points[centre[named], axis] - q[row[named], axis]) <= r
+        found[row[named[near]]] = centre[named[near]]
+        chained = np.flatnonzero((self._others[flat] > 0) & (found[row] < 0))
+        self._walk(q, row[chained], self._off_head[flat[chained]], r, found, self._off_next)
+        return np.flatnonzero(general & (found < 0))
 
     def _settle_misses(self, q, rel, home, todo, r, found) -> np.ndarray:
         """Queries whose home cell has no alive centre point, radius = cell/2. The ball

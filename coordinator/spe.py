@@ -19,6 +19,7 @@ from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncove
 from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell
 from coordinator.covering import Lattice
 from coordinator.graph import ExplorationForest
+from coordinator.replay import ReplayBuffer
 from scenarios.base import FAILURE, Scenario
 from scenarios.streams import PURPOSE_START, RunStreams
 
@@ -45,7 +46,8 @@ class SPESettings:
 class SPE(Algorithm):
     name = "spe"
     decays = True
-    append_only = ("vertices.points", "failures.points", "graph.parent", "replay.states", "replay.parents")
+    append_only = ("vertices.points", "failures.points", "graph.parent", "replay.index", "replay.take",
+                   "replay.parent", "replay.start")
 
     def __init__(self, scenario: Scenario, settings: SPESettings, deterministic: bool = False):
         """``deterministic``: a run is a function of its start state (one adversarial
@@ -60,10 +62,7 @@ class SPE(Algorithm):
         self.version = 0
         self.round = 0
         self._add_roots(self.lattice.box_centres(self.delta))
-        self._replay_states: list[np.ndarray] = []
-        self._replay_parents: list[np.ndarray] = []
-        self._replay_size = 0  # states offered to the buffer, duplicates included (the capacity's unit)
-        self._replayed_vertices = np.zeros(0, dtype=bool)  # deterministic: vertices whose run is stored
+        self.replay = ReplayBuffer(settings.replay_capacity if settings.replay else 0, deterministic, scenario.n)
         self._dist: tuple[np.ndarray, int, int] | None = None  # (distances, vertices, failures) seen
         self._draw_cache: tuple | None = None
 
@@ -192,45 +191,14 @@ class SPE(Algorithm):
         self.graph.add_children(event.start_id, len(kept))
         return "explored"
 
-    def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray) -> None:
-        """Keep the states of committed, non-failing runs for experience replay, up to
-        ``replay_capacity`` states. Exact duplicates are not stored (replaying a state
-        twice adds nothing): a state repeating its predecessor (a standing vehicle), and,
-        for a deterministic system, the whole run of a vertex already stored."""
-        if not self.settings.replay or self._replay_size >= self.settings.replay_capacity:
-            return
-        ok = rows[chunk.outcomes[rows] != FAILURE]
-        if len(ok) == 0:
-            return
-        states, offsets = chunk.visited()
-        counts = offsets[ok + 1] - offsets[ok]
-        parents = start_ids[np.searchsorted(rows, ok)]
-        room = self.settings.replay_capacity - self._replay_size
-        take = np.minimum(counts, np.maximum(room - (np.cumsum(counts) - counts), 0))
-        self._replay_size += int(take.sum())
-        keep_run = take > 0
-        if self.deterministic:
-            seen = self._replayed_vertices
-            if len(seen) < self.vertices.count:
-                seen = self._replayed_vertices = np.concatenate([seen, np.zeros(self.vertices.count - len(seen), bool)])
-            first = np.zeros(len(ok), dtype=bool)
-            first[np.unique(parents, return_index=True)[1]] = True  # first run of each vertex here
-            keep_run &= first & ~seen[parents]
-            seen[parents[keep_run]] = True
-        if not keep_run.any():
-            return
-        run_start = offsets[ok][keep_run]
-        run_take = take[keep_run]
-        index = np.repeat(run_start - np.cumsum(run_take) + run_take, run_take) + np.arange(int(run_take.sum()))
-        kept_states = states[index]
-        kept_parents = np.repeat(parents[keep_run], run_take)
-        same = np.zeros(len(kept_states), dtype=bool)
-        same[1:] = (kept_states[1:] == kept_states[:-1]).all(axis=1) & (kept_parents[1:] == kept_parents[:-1])
-        self._replay_states.append(kept_states[~same])
-        self._replay_parents.append(kept_parents[~same])
+    def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray, starts: np.ndarray) -> None:
+        """Keep committed, non-failing runs for experience replay (coordinator/replay.py)."""
+        self.replay.add(chunk, rows, start_ids, starts, self.vertices.count)
 
     # -- round end ---------------------------------------------------------------------
-    def end_round(self) -> bool:
+    def end_round(self, executor=None) -> bool:
+        """Decay delta (lines 25-27), then experience replay with ``executor`` screening
+        the stored states where they are."""
         if self.final_round:
             return False
         new_delta = max(self.settings.gamma * self.delta, self.settings.delta_min)
@@ -242,19 +210,14 @@ class SPE(Algorithm):
             children = children[~self.failures.any_within(children, new_delta)]
         self._add_roots(children)
         self.round += 1
-        if self.settings.replay:
-            self._replay()
+        if self.settings.replay and executor is not None:
+            self._replay(executor)
         return True
 
-    def _replay(self) -> int:
-        """Experience replay: re-apply line 15 to every stored state at the new delta."""
-        if not self._replay_states:
-            return 0
-        states = np.concatenate(self._replay_states)
-        parents = np.concatenate(self._replay_parents)
-        new = ~self.vertices.any_within(states, self.delta)
-        new[new] = ~self.failures.any_within(states[new], self.delta)
-        states, parents = states[new], parents[new]
+    def _replay(self, executor) -> int:
+        """Experience replay: re-apply line 15 to every stored state at the new delta,
+        in the order stored (the stored states that are new now come from the executor)."""
+        states, parents = self.replay.replay_candidates(executor, self.coverage)
         added = 0
         for lo in range(0, len(states), REPLAY_CHUNK):
             part, part_parents = states[lo : lo + REPLAY_CHUNK], parents[lo : lo + REPLAY_CHUNK]
@@ -278,12 +241,7 @@ class SPE(Algorithm):
         out = self.coverage.state()
         out["graph.parent"] = self.graph.parent.copy()
         out["scalars"] = np.array([self.delta, self.round, self.version], dtype=float)
-        out["replay.size"] = np.array(self._replay_size)
-        out["replay.vertices"] = self._replayed_vertices.copy()
-        out["replay.states"] = (np.concatenate(self._replay_states) if self._replay_states
-                                else np.empty((0, self.scenario.n)))
-        out["replay.parents"] = (np.concatenate(self._replay_parents) if self._replay_parents
-                                 else np.empty(0, dtype=np.int64))
+        out.update(self.replay.state())
         return out
 
     def load_state(self, state: dict) -> None:
@@ -291,9 +249,6 @@ class SPE(Algorithm):
         self.graph = ExplorationForest.from_state({"parent": state["graph.parent"]})
         _, rnd, version = state["scalars"]
         self.round, self.version = int(rnd), int(version)
-        self._replay_states = [state["replay.states"]] if len(state["replay.states"]) else []
-        self._replay_parents = [state["replay.parents"]] if len(state["replay.parents"]) else []
-        self._replay_size = int(state["replay.size"])
-        self._replayed_vertices = state["replay.vertices"].astype(bool)
+        self.replay.load_state(state)
         self._dist = None
         self._draw_cache = None

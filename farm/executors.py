@@ -9,7 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from coordinator.executor import Chunk, chunk_of, summarize
+import dataclasses
+
+from coordinator.executor import Chunk, chunk_of, screen_piece, summarize
+from coordinator.replay import select
 from farm.memory import keep_freed_memory
 from scenarios.simulator import SimSpec, Simulator
 
@@ -41,10 +44,28 @@ class LocalExecutor:
         first_index, starts, screen = self._jobs.pop(handle)
         batch = self.simulator.simulate(first_index, starts)
         summary, visited = summarize(batch, screen)
-        return chunk_of(summary, lambda: visited)
+        return chunk_of(summary, lambda: visited, lambda rows, takes: _compact(visited, rows, takes))
+
+    def screen_stored(self, pieces, screen):
+        out = []
+        for piece in pieces:
+            if piece.source is None:
+                out.append(screen_piece(self.simulator, None, piece, screen))
+            else:  # compacted when stored: its rows are 0..r-1
+                rows = np.arange(len(piece.rows))
+                out.append(screen_piece(self.simulator, piece.source, dataclasses.replace(piece, rows=rows), screen))
+        return out
 
     def cancel(self, handle: int) -> None:
         self._jobs.pop(handle, None)
 
     def close(self) -> None:
         self._jobs.clear()
+
+
+def _compact(visited, rows, takes) -> tuple[np.ndarray, np.ndarray]:
+    """Only the kept states of the kept runs (in-process, the chunk's arrays go away)."""
+    states, _ = select(*visited, rows, takes)
+    offsets = np.zeros(len(rows) + 1, dtype=np.int64)
+    np.cumsum(takes, out=offsets[1:])
+    return states, offsets

@@ -26,11 +26,12 @@ import time
 import numpy as np
 
 from coordinator.coverage import Coverage
-from coordinator.executor import Chunk, chunk_of, summarize
+from coordinator.executor import Chunk, chunk_of, screen_piece, summarize
 from farm.executors import build_simulator
 from scenarios.simulator import SimSpec
 
 RESYNC = "resync"  # a worker's answer when its mirror cannot reach the chunk's version
+STORED_PART = 4096  # runs per replay task when a stored piece must be re-simulated
 
 
 class WorkerError(RuntimeError):
@@ -75,12 +76,27 @@ def _actor_class():
             if kind == "snapshot":  # a whole coverage, as plain arrays
                 self.mirror = Coverage.from_state(ray.get(payload))
                 return self.mirror
-            # "changes": refs of change blocks applying after version ``base``
-            if self.mirror is None or self.mirror.version < base:
+            # "changes": refs of change blocks holding every change after number ``base``
+            # (a mirror ahead of base skips what it has: the chunk that took it there may
+            # have been cancelled, or not)
+            if self.mirror is None or self.mirror.seq < base:
                 return RESYNC
             for block in ray.get(payload):
                 self.mirror.sync(block)
             return self.mirror
+
+        def replay_screen(self, piece, source_refs, message):
+            """Experience replay on a stored piece: its new states under the coverage."""
+            screen = self._screen(message)
+            if screen is RESYNC:
+                return RESYNC
+            source = None
+            if source_refs:
+                try:
+                    source = ray.get(source_refs[0])
+                except ray.exceptions.ObjectLostError:  # its worker died: re-simulate from the keys
+                    source = None
+            return screen_piece(self.simulator, source, piece, screen)
 
         def stats(self) -> dict:
             return {"busy_s": self.busy_s, "tasks": self.tasks, "pid": os.getpid()}
@@ -115,6 +131,7 @@ class _Part:
     first: int
     starts: np.ndarray
     screen: object
+    sent: tuple | None = None  # the coverage (id, epoch, seq) its message brings the actor to
     tries: int = 0
 
 
@@ -137,10 +154,11 @@ class RayExecutor:
         cls = _actor_class().options(num_cpus=per_actor, max_restarts=max_retries, max_task_retries=max_retries)
         self.actors = [cls.remote(dataclasses.asdict(spec), check_step_bound) for _ in range(workers)]
         self._queued = [0] * workers
-        self._synced: list[tuple[int, int, int] | None] = [None] * workers  # (coverage id, epoch, version) sent
-        self._blocks: dict[tuple, object] = {}  # (coverage id, from version, to version) -> ref
+        self._synced: list[tuple[int, int, int] | None] = [None] * workers  # (coverage id, epoch, seq) sent
+        self._confirmed: list[tuple[int, int, int] | None] = [None] * workers  # ... known applied
+        self._blocks: dict[tuple, object] = {}  # (coverage id, from seq, to seq) -> ref
         self._static: dict[int, object] = {}  # id(screen) -> ref of a fixed screen
-        self._snapshot: tuple = (None, None)  # (coverage id, epoch, version), ref of its state
+        self._snapshot: tuple = (None, None)  # (coverage id, epoch, seq), ref of its state
         self._jobs: dict[int, _Part] = {}
         self._next = 0
 
@@ -161,7 +179,7 @@ class RayExecutor:
                 self._static = {key: self.ray.put(screen)}
             return ("static", self._static[key], 0)
         screen.start_log()
-        now = (id(screen), screen.epoch, screen.version)
+        now = (id(screen), screen.epoch, screen.seq)
         sent = self._synced[actor]
         self._synced[actor] = now
         if fresh or sent is None or sent[:2] != now[:2]:
@@ -178,9 +196,9 @@ class RayExecutor:
         return ("changes", [self._blocks[key]], sent[2])
 
     def _trim(self, screen: Coverage) -> None:
-        synced = [s[2] for s in self._synced if s is not None and s[0] == id(screen)]
-        if len(synced) == self.workers:
-            screen.trim_log(min(synced))
+        confirmed = [s[2] for s in self._confirmed if s is not None and s[:2] == (id(screen), screen.epoch)]
+        if len(confirmed) == self.workers:
+            screen.trim_log(min(confirmed))
 
     # -- the contract -------------------------------------------------------------------
     def submit(self, first_index: int, starts: np.ndarray, screen=None) -> list[int]:
@@ -200,6 +218,7 @@ class RayExecutor:
     def _launch(self, part: _Part, fresh: bool = False) -> None:
         self._queued[part.actor] += 1
         message = self._message(part.actor, part.screen, fresh)
+        part.sent = self._synced[part.actor]
         part.ref, part.visited_ref = self.actors[part.actor].run.remote(part.first, part.starts, message)
 
     def result(self, handle: int) -> Chunk:
@@ -210,7 +229,51 @@ class RayExecutor:
                 break
             self._launch(part, fresh=True)  # the actor lost its mirror (restarted)
         visited_ref = part.visited_ref
-        return chunk_of(summary, lambda: self.ray.get(visited_ref))
+        return chunk_of(summary, lambda: self.ray.get(visited_ref), lambda rows, takes: visited_ref)
+
+    def screen_stored(self, pieces, screen):
+        """Each piece on the least-loaded actor; a piece whose states are gone (resume) is
+        re-simulated there in parts, so that every actor takes a share."""
+        from coordinator.replay import Stored
+
+        parts = []
+        for piece in pieces:
+            if piece.source is None and len(piece.indices) > STORED_PART:
+                for lo in range(0, len(piece.indices), STORED_PART):
+                    sl = slice(lo, lo + STORED_PART)
+                    parts.append(Stored(None, piece.indices[sl], piece.rows[sl], piece.takes[sl], piece.parents[sl],
+                                        piece.starts[sl]))
+            else:
+                parts.append(piece)
+        refs = []
+        for part in parts:
+            actor = int(np.argmin(self._queued))
+            self._queued[actor] += 1
+            stripped = Stored(None, part.indices, part.rows, part.takes, part.parents, part.starts)
+            refs.append((actor, self.actors[actor].replay_screen.remote(
+                stripped, [part.source] if part.source is not None else [], self._message(actor, screen))))
+        found = []
+        for (actor, ref), part in zip(refs, parts):
+            result = self.ray.get(ref)
+            while isinstance(result, str):  # the actor was restarted without its mirror
+                stripped = Stored(None, part.indices, part.rows, part.takes, part.parents, part.starts)
+                result = self.ray.get(self.actors[actor].replay_screen.remote(
+                    stripped, [part.source] if part.source is not None else [], self._message(actor, screen, True)))
+            self._queued[actor] -= 1
+            found.append(result)
+        # back to one result per piece (re-simulated pieces came in parts)
+        out, at = [], 0
+        for piece in pieces:
+            if piece.source is None and len(piece.indices) > STORED_PART:
+                k = -(-len(piece.indices) // STORED_PART)
+                states = np.concatenate([found[at + i][0] for i in range(k)])
+                run = np.concatenate([found[at + i][1] + i * STORED_PART for i in range(k)])
+                out.append((states, run))
+                at += k
+            else:
+                out.append(found[at])
+                at += 1
+        return out
 
     def _get(self, part: _Part):
         ray = self.ray
@@ -218,6 +281,10 @@ class RayExecutor:
             try:
                 summary = ray.get(part.ref)
                 self._queued[part.actor] -= 1
+                if part.sent is not None:  # the actor's mirror has reached what was sent
+                    known = self._confirmed[part.actor]
+                    if known is None or known[:2] != part.sent[:2] or known[2] < part.sent[2]:
+                        self._confirmed[part.actor] = part.sent
                 return summary
             except ray.exceptions.RayTaskError as exc:
                 self._queued[part.actor] -= 1
@@ -239,6 +306,8 @@ class RayExecutor:
         if part is None:
             return
         self._queued[part.actor] -= 1
+        # its changes may never reach the actor: the next message starts from what is known
+        self._synced[part.actor] = self._confirmed[part.actor]
         try:
             self.ray.cancel(part.ref)
         except Exception:  # noqa: BLE001 - an actor task already running just finishes

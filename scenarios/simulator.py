@@ -46,8 +46,12 @@ class Simulator:
         """A run is a function of its start state alone (one action, no disturbance)."""
         return self.policy.deterministic and self.scenario.disturbance == 0 and self.backend.deterministic
 
-    def simulate(self, first_index: int, starts: np.ndarray) -> RunBatch:
-        indices = np.arange(first_index, first_index + len(starts), dtype=np.uint64)
+    def simulate(self, first_index: int, starts: np.ndarray, indices: np.ndarray | None = None) -> RunBatch:
+        """Runs ``first_index, first_index + 1, ...`` (or the given sample ``indices``)
+        from ``starts``."""
+        if indices is None:
+            indices = np.arange(first_index, first_index + len(starts), dtype=np.uint64)
+        indices = np.asarray(indices, dtype=np.uint64)
         check = self.check_step_bound or not self._checked
         try:
             batch = run_scenario(self.backend, starts, self.spec.horizon, self.policy,

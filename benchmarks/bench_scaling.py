@@ -1,0 +1,90 @@
+"""Scaling of the farm: committed runs/s of a quantification campaign against the number
+of Ray workers, with a simulator of realistic speed (4 us per run-step, a sleep standing
+in for a remote core: benchmarks/slow_backend.py), on a local Ray.
+
+lead-follow idm, uniform Gamma, delta 2 -> 1, the default batch size and pipeline depth.
+Ray start-up and actor creation are left out (they are reported apart); the coordinator's
+CPU time per committed run is printed too.
+
+    python benchmarks/bench_scaling.py [--workers 1 2 4 8 16 32]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+
+import numpy as np  # noqa: E402
+
+
+def campaign_config(workers: int, **quantify):
+    from farm import config as config_mod
+
+    return config_mod.normalize({
+        "scenario": {"name": "lead-follow", "sv_policy": "idm", "backend": "slow_backend:SlowBackend"},
+        "actions": {"mode": "uniform"},
+        "quantify": {"delta0": 2.0, "delta_min": 1.0, "epsilon": 0.001, "beta": 0.1, "horizon": 50, **quantify},
+        "farm": {"executor": "ray", "workers": workers, "seed": 0}})
+
+
+def run_campaign(cfg) -> dict:
+    from coordinator.baselines import make_algorithm
+    from coordinator.campaign import Campaign
+    from coordinator.covering import n_eps
+    from farm.executors import build_simulator
+    from farm.quantification import spec_of
+    from farm.ray_executor import RayExecutor
+
+    spec = spec_of(cfg)
+    sim = build_simulator(spec)
+    q, farm = cfg.quantify, cfg.farm
+    algo = make_algorithm("spe", sim.scenario, q.settings(), farm.seed, sim.deterministic)
+    t0 = time.perf_counter()
+    ex = RayExecutor(spec, farm.workers, "local")
+    ex.pids()  # the actors are up
+    startup = time.perf_counter() - t0
+    campaign = Campaign(algo, ex, n_eps=n_eps(q.epsilon, q.beta), budget=q.budget, batch_size=farm.batch_size,
+                        pipeline_depth=farm.pipeline_depth, seed=farm.seed)
+    cpu0, t0 = time.process_time(), time.perf_counter()
+    c = campaign.run()
+    wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
+    busy = np.array([s["busy_s"] for s in ex.worker_stats()])
+    ex.close()
+    from coordinator.results import result_hash
+
+    return {"workers": farm.workers, "committed": c.committed, "wall_s": wall, "cpu_s": cpu, "startup_s": startup,
+            "rate": c.committed / wall, "idle": 1 - busy.mean() / wall, "hash": result_hash(*algo.result())}
+
+
+def main() -> None:
+    import ray
+
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--workers", type=int, nargs="+", default=[1, 2, 4, 8, 16, 32])
+    args = ap.parse_args()
+    ray.init(num_cpus=os.cpu_count(), include_dashboard=False, log_to_driver=False, configure_logging=False,
+             runtime_env={"env_vars": {"PYTHONPATH": HERE}})
+    cfg0 = campaign_config(1)
+    print(f"machine: {os.cpu_count()} cores; Ray {ray.__version__}, local; simulator 4 us per run-step (sleep); "
+          f"batch_size {cfg0.farm.batch_size}, pipeline_depth {cfg0.farm.pipeline_depth}")
+    base = None
+    hashes = set()
+    for w in args.workers:
+        r = run_campaign(campaign_config(w))
+        base = base or r["rate"]
+        hashes.add(r["hash"])
+        print(f"{w:3d} workers: {r['rate']:9,.0f} committed runs/s  speed-up {r['rate'] / base:5.2f}x  "
+              f"({r['committed']} runs in {r['wall_s']:.1f} s; worker idle {r['idle']:.2f}; coordinator "
+              f"{r['committed'] / max(r['cpu_s'], 1e-9):,.0f} runs per CPU-s; actors up in {r['startup_s']:.1f} s)",
+              flush=True)
+    print(f"same result for every worker count: {len(hashes) == 1}")
+    ray.shutdown()
+
+
+if __name__ == "__main__":
+    main()
