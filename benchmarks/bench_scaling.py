@@ -22,14 +22,16 @@ sys.path.insert(0, HERE)
 import numpy as np  # noqa: E402
 
 
-def campaign_config(workers: int, **quantify):
+def campaign_config(workers: int, batch: int | None = None, depth: int | None = None, **quantify):
     from farm import config as config_mod
 
+    farm = {"executor": "ray", "workers": workers, "seed": 0}
+    farm.update({k: v for k, v in (("batch_size", batch), ("pipeline_depth", depth)) if v})
     return config_mod.normalize({
         "scenario": {"name": "lead-follow", "sv_policy": "idm", "backend": "slow_backend:SlowBackend"},
         "actions": {"mode": "uniform"},
         "quantify": {"delta0": 2.0, "delta_min": 1.0, "epsilon": 0.001, "beta": 0.1, "horizon": 50, **quantify},
-        "farm": {"executor": "ray", "workers": workers, "seed": 0}})
+        "farm": farm})
 
 
 def run_campaign(cfg) -> dict:
@@ -66,16 +68,18 @@ def main() -> None:
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2, 4, 8, 16, 32])
+    ap.add_argument("--batch", type=int, help="farm.batch_size (default: the config default)")
+    ap.add_argument("--depth", type=int, help="farm.pipeline_depth (default: the config default)")
     args = ap.parse_args()
     ray.init(num_cpus=os.cpu_count(), include_dashboard=False, log_to_driver=False, configure_logging=False,
              runtime_env={"env_vars": {"PYTHONPATH": HERE}})
-    cfg0 = campaign_config(1)
+    cfg0 = campaign_config(1, args.batch, args.depth)
     print(f"machine: {os.cpu_count()} cores; Ray {ray.__version__}, local; simulator 4 us per run-step (sleep); "
           f"batch_size {cfg0.farm.batch_size}, pipeline_depth {cfg0.farm.pipeline_depth}")
     base = None
     hashes = set()
     for w in args.workers:
-        r = run_campaign(campaign_config(w))
+        r = run_campaign(campaign_config(w, args.batch, args.depth))
         base = base or r["rate"]
         hashes.add(r["hash"])
         print(f"{w:3d} workers: {r['rate']:9,.0f} committed runs/s  speed-up {r['rate'] / base:5.2f}x  "

@@ -92,7 +92,7 @@ class PointIndex:
     def _axis_flat(self, cells: np.ndarray, axis: int) -> np.ndarray:
         """One axis's part of the flat dense index (the cell clipped into the margin)."""
         part = cells + 1
-        np.clip(part, 0, self._shape[axis] - 1, out=part)
+        np.minimum(np.maximum(part, 0, out=part), self._shape[axis] - 1, out=part)
         part *= self._strides[axis]
         return part
 

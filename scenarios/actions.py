@@ -33,7 +33,7 @@ class UniformActions(ActionPolicy):
 
     def __call__(self, scenario, states, t, streams):
         u = streams.uniform(t, PURPOSE_ACTION, scenario.m)
-        u *= scenario.action_upper - scenario.action_lower  # in place: runs every step
+        u *= scenario.action_span  # in place: runs every step
         u += scenario.action_lower
         return u
 

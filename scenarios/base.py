@@ -137,6 +137,7 @@ class Scenario(ABC):
         self.upper = np.asarray(self.upper, dtype=float)
         self.action_lower = np.asarray(self.action_lower, dtype=float)
         self.action_upper = np.asarray(self.action_upper, dtype=float)
+        self.action_span = self.action_upper - self.action_lower
         self.adversarial_actions = np.atleast_2d(np.asarray(self.adversarial_actions, dtype=float))
         self._below = (self.lower - FACET_TOLERANCE).tolist()  # crossing thresholds
         self._above = (self.upper + FACET_TOLERANCE).tolist()

@@ -21,7 +21,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-_G = np.uint64(0x9E3779B97F4A7C15)  # golden-ratio increment of SplitMix64
+_G_INT = 0x9E3779B97F4A7C15  # golden-ratio increment of SplitMix64
+_G = np.uint64(_G_INT)
 _G2 = np.uint64(0xD1B54A32D192ED03)
 _G3 = np.uint64(0xAEF17502108EF2D9)
 _C1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -105,11 +106,12 @@ class RunStreams:
         base = self._base(purpose)
         out = np.empty((len(base), width))
         z, scratch = np.empty_like(base), np.empty_like(base)
-        with np.errstate(over="ignore"):
-            for lane in range(width):
-                step = np.uint64((counter * LANES + lane + 1) % 2**64) * _G
-                np.add(base, step, out=z)
-                _mix64_inplace(z, scratch)
-                z >>= _S11
-                np.multiply(z, _UNIT, out=out[:, lane])  # uint64 -> double: exact below 2**53
+        for lane in range(width):
+            # the increment in Python integers (array uint64 arithmetic wraps silently; a
+            # numpy scalar product would warn on overflow)
+            step = np.uint64((counter * LANES + lane + 1) * _G_INT % 2**64)
+            np.add(base, step, out=z)
+            _mix64_inplace(z, scratch)
+            z >>= _S11
+            np.multiply(z, _UNIT, out=out[:, lane])  # uint64 -> double: exact below 2**53
         return out
