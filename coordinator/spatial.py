@@ -10,13 +10,13 @@ Everything is vectorized over query batches; insertion is vectorized over point 
 removal is a flag (chains are rebuilt when the table grows or the cell size changes).
 
 Fast path: when the index is given ``bounds`` and the cells over them number at most
-``DENSE_LIMIT``, a dense array counts the alive points sitting exactly at each cell's
-centre. Such a point covers its whole cell, so a query in that cell is answered by one
-array lookup. A query whose home cell has no such point can only be covered by an
-off-centre point (unless it sits on a cell face next to an alive centre): those are
-chained per dense cell too, so it walks at most the 2^n cells its ball touches,
-off-centre points only. The rest (faces next to an alive centre, balls reaching over
-both neighbours of an axis or past the grid's margin) walk the hash chains.
+``DENSE_LIMIT``, a dense array names one alive point sitting exactly at each cell's
+centre (and counts them). Such a point covers its whole cell, so a query in that cell
+is answered by one array lookup, which also names the witness. A query whose home cell
+has none checks the 2^n cells its ball touches: their centre points by true distance,
+and their off-centre points, which are chained per dense cell. Only balls reaching over
+both neighbours of an axis (a query within the tolerance of a cell centre) walk the hash
+chains.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ _P = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
                0x2545F4914F6CDD1D, 0x9FB21C651E98DF25], dtype=np.uint64)
 TOLERANCE = 1e-9  # closed boxes, decided as exact arithmetic would on grid boundaries
 DENSE_LIMIT = 1 << 25  # cells; 32 Mi int32 counters = 128 MiB at most
-SMALL_BATCH = 256  # queries answered by one pass over every cell their ball touches
+MISS_BLOCK = 1 << 15  # queries whose touched cells are enumerated at once (2^n cells each)
 
 
 class PointIndex:
@@ -234,21 +234,26 @@ class PointIndex:
         rel *= 1.0 / self.cell
         home = np.floor(rel).astype(np.int64)
         todo = None
-        half_cell = self._dense is not None and abs(radius - self.cell / 2) <= 1e-12
-        if half_cell and len(q) <= SMALL_BATCH:
-            todo = self._cover_small(q, rel, r, found)
+        if self._dense is not None and abs(radius - self.cell / 2) <= 1e-12:
+            # a centre point covers its whole cell; a miss checks every cell its ball
+            # touches (in blocks: 2^n cells per query)
+            found = self._centre_point[self._flat(home)]
+            misses = np.flatnonzero(found < 0)
+            left = []
+            for at in range(0, len(misses), MISS_BLOCK):
+                rows = misses[at : at + MISS_BLOCK]
+                sub = np.full(len(rows), -1, dtype=np.int64)
+                general = self._cover_small(q[rows], rel[rows], r, sub)
+                found[rows] = sub
+                left.append(rows[general])
+            todo = np.concatenate(left) if left else misses
             if len(todo) == 0:
                 return found
-        elif self._dense is not None and radius >= self.cell / 2 - 1e-12:
-            flat = self._flat(home)
-            found = self._centre_point[flat]
+        elif self._dense is not None and radius > self.cell / 2:
+            found = self._centre_point[self._flat(home)]
             todo = np.flatnonzero(found < 0)
             if len(todo) == 0:
                 return found
-            if radius <= self.cell / 2 + 1e-12:
-                todo = self._settle_misses(q, rel, home, todo, r, found)
-                if len(todo) == 0:
-                    return found
         if todo is None:
             todo = np.arange(len(q))
         self._scan(q, home[todo], todo, r, found)
@@ -287,13 +292,13 @@ class PointIndex:
         return found
 
     def _cover_small(self, q, rel, r, found) -> np.ndarray:
-        """A few queries, radius = cell/2: every query's ball touches at most two cells per
-        axis; check the centre point of each touched cell by its true distance and walk the
-        off-centre chains of those holding any. Fixed cost of ~20 array operations, where
-        the batch path spends ~100 on pattern loops. Cells beyond the grid are clipped into
-        its margin, whose chains hold every point beyond the bounds, so nothing is missed.
-        Returns the queries left for the hash chains: balls reaching over both neighbours
-        of an axis (a query within the tolerance of a cell centre)."""
+        """Queries at radius = cell/2 whose home cell has no centre point: every query's
+        ball touches at most two cells per axis; check the centre point of each touched
+        cell by its true distance and walk the off-centre chains of those holding any (a
+        fixed ~20 array operations). Cells beyond the grid are clipped into its margin,
+        whose chains hold every point beyond the bounds, so nothing is missed. Returns
+        the queries left for the hash chains: balls reaching over both neighbours of an
+        axis (a query within the tolerance of a cell centre)."""
         k = len(q)
         reach = r / self.cell
         lo = np.floor(rel - reach).astype(np.int64)
@@ -314,61 +319,6 @@ class PointIndex:
         chained = np.flatnonzero((self._others[flat] > 0) & (found[row] < 0))
         self._walk(q, row[chained], self._off_head[flat[chained]], r, found, self._off_next)
         return np.flatnonzero(general & (found < 0))
-
-    def _settle_misses(self, q, rel, home, todo, r, found) -> np.ndarray:
-        """Queries whose home cell has no alive centre point, radius = cell/2. The ball
-        touches 2 cells per axis; a centre point of another cell can reach the query
-        only across a face the query lies on. Where no such cell holds a centre point,
-        only off-centre points can cover the query: walk their per-cell chains in the
-        touched cells (none where those cells hold none). Sets ``found``; returns the
-        queries left for the hash chains: on a face next to an alive centre, reaching
-        over both neighbours of an axis, or past the grid's margin."""
-        rel_t = rel[todo]
-        home_t = home[todo]
-        near = 1e-9 + TOLERANCE / self.cell
-        reach = r / self.cell
-        general = np.zeros(len(todo), dtype=bool)
-        on_face = np.zeros(len(todo), dtype=bool)
-        flat_parts = []  # per axis: flat-index parts of the lower and the upper cell
-        sides = []  # per axis: for the lower and the upper cell, (is home, across a face the query is on)
-        for axis in range(self.n):  # 1-D per axis: reducing (k, n) masks over n is slow
-            x = rel_t[:, axis]
-            h = home_t[:, axis]
-            frac = x - h  # position inside the home cell, in [0, 1)
-            lo = np.floor(x - reach).astype(np.int64)
-            hi = np.floor(x + reach).astype(np.int64)
-            general |= hi - lo >= 2  # reaches both neighbours
-            # past the margin: the margin cells hold the counts of every point beyond the
-            # bounds (clipped there), so only a ball reaching further needs the chains
-            general |= (lo < -1) | (hi > self._shape[axis] - 2)
-            on_lo, on_hi = frac < near, frac > 1 - near
-            on_face |= on_lo | on_hi
-            sides.append(((lo == h, on_lo), (hi == h, on_hi)))
-            flat_parts.append((self._axis_flat(lo, axis), self._axis_flat(hi, axis)))
-        patterns = list(itertools.product((0, 1), repeat=self.n))
-        flats = []
-        for pattern in patterns:
-            flat = flat_parts[0][pattern[0]].copy()
-            for axis in range(1, self.n):
-                flat += flat_parts[axis][pattern[axis]]
-            flats.append(flat)
-        face_rows = np.flatnonzero(on_face & ~general)  # rare: queries on a face
-        for pattern, flat in zip(patterns, flats) if len(face_rows) else ():
-            reached = np.ones(len(face_rows), dtype=bool)  # every move crosses a face it is on
-            moved = np.zeros(len(face_rows), dtype=bool)
-            for axis, side in enumerate(pattern):
-                is_home, across = sides[axis][side]
-                reached &= is_home[face_rows] | across[face_rows]
-                moved |= ~is_home[face_rows]
-            general[face_rows] |= reached & moved & (self._dense[flat[face_rows]] > 0)
-        simple = np.flatnonzero(~general)
-        sel_parts, cur_parts = [], []
-        for flat in flats:
-            rows = simple[self._others[flat[simple]] > 0]
-            sel_parts.append(rows)
-            cur_parts.append(self._off_head[flat[rows]])
-        self._walk(q, todo[np.concatenate(sel_parts)], np.concatenate(cur_parts), r, found, self._off_next)
-        return todo[general]
 
     def _scan(self, q, cells, sel, r, found) -> None:
         """Walk the hash chains of ``cells`` (row i: the cell for query ``sel[i]``), setting ``found``."""

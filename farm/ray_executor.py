@@ -104,6 +104,9 @@ def _actor_class():
         def pid(self) -> int:
             return os.getpid()
 
+        def node(self) -> str:
+            return ray.get_runtime_context().get_node_id()
+
     return SimWorker
 
 
@@ -151,7 +154,9 @@ class RayExecutor:
         # instead of waiting forever for a free one.
         cpus = float(ray.cluster_resources().get("CPU", workers))
         per_actor = min(1.0, cpus / workers)
-        cls = _actor_class().options(num_cpus=per_actor, max_restarts=max_retries, max_task_retries=max_retries)
+        # spread over the cluster's nodes: simulators are what the farm scales
+        cls = _actor_class().options(num_cpus=per_actor, max_restarts=max_retries, max_task_retries=max_retries,
+                                     scheduling_strategy="SPREAD")
         self.actors = [cls.remote(dataclasses.asdict(spec), check_step_bound) for _ in range(workers)]
         self._queued = [0] * workers
         self._synced: list[tuple[int, int, int] | None] = [None] * workers  # (coverage id, epoch, seq) sent
@@ -164,6 +169,10 @@ class RayExecutor:
 
     def pids(self) -> list[int]:
         return self.ray.get([a.pid.remote() for a in self.actors])
+
+    def nodes(self) -> list[str]:
+        """The Ray node of each actor."""
+        return self.ray.get([a.node.remote() for a in self.actors])
 
     def worker_stats(self) -> list[dict]:
         """Busy seconds and tasks per actor (for idle-fraction measurements)."""
