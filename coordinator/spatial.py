@@ -13,10 +13,9 @@ Fast path: when the index is given ``bounds`` and the cells over them number at 
 ``DENSE_LIMIT``, a dense array names one alive point sitting exactly at each cell's
 centre (and counts them). Such a point covers its whole cell, so a query in that cell
 is answered by one array lookup, which also names the witness. A query whose home cell
-has none checks the 2^n cells its ball touches: their centre points by true distance,
-and their off-centre points, which are chained per dense cell. Only balls reaching over
-both neighbours of an axis (a query within the tolerance of a cell centre) walk the hash
-chains.
+has none checks the 2^n cells its ball touches (3^n for a query within the tolerance of
+a cell centre): their centre points by true distance, and their off-centre points, which
+are chained per dense cell. The hash chains serve indices without a dense grid.
 """
 
 from __future__ import annotations
@@ -239,16 +238,12 @@ class PointIndex:
             # touches (in blocks: 2^n cells per query)
             found = self._centre_point[self._flat(home)]
             misses = np.flatnonzero(found < 0)
-            left = []
             for at in range(0, len(misses), MISS_BLOCK):
                 rows = misses[at : at + MISS_BLOCK]
                 sub = np.full(len(rows), -1, dtype=np.int64)
-                general = self._cover_small(q[rows], rel[rows], r, sub)
+                self._cover_cells(q[rows], rel[rows], r, sub)
                 found[rows] = sub
-                left.append(rows[general])
-            todo = np.concatenate(left) if left else misses
-            if len(todo) == 0:
-                return found
+            return found
         elif self._dense is not None and radius > self.cell / 2:
             found = self._centre_point[self._flat(home)]
             todo = np.flatnonzero(found < 0)
@@ -291,25 +286,34 @@ class PointIndex:
                 self._scan(q, home_t[rows] + off, todo[rows], r, found)
         return found
 
-    def _cover_small(self, q, rel, r, found) -> np.ndarray:
-        """Queries at radius = cell/2 whose home cell has no centre point: every query's
-        ball touches at most two cells per axis; check the centre point of each touched
-        cell by its true distance and walk the off-centre chains of those holding any (a
-        fixed ~20 array operations). Cells beyond the grid are clipped into its margin,
-        whose chains hold every point beyond the bounds, so nothing is missed. Returns
-        the queries left for the hash chains: balls reaching over both neighbours of an
-        axis (a query within the tolerance of a cell centre)."""
-        k = len(q)
+    def _cover_cells(self, q, rel, r, found) -> None:
+        """Queries at radius = cell/2 whose home cell has no centre point: check the centre
+        point of every cell each ball touches by its true distance, and walk the
+        off-centre chains of those holding any (~20 array operations). A ball touches at
+        most two cells per axis, three for a query within the tolerance of a cell centre
+        (those are enumerated apart: 3^n cells). Cells beyond the grid are clipped into
+        its margin, whose chains hold every point beyond the bounds, so nothing is missed."""
         reach = r / self.cell
         lo = np.floor(rel - reach).astype(np.int64)
         hi = np.floor(rel + reach).astype(np.int64)
-        general = (hi - lo >= 2).any(axis=1)
-        flat = np.stack([self._axis_flat(lo[:, 0], 0), self._axis_flat(hi[:, 0], 0)], axis=1)
-        for axis in range(1, self.n):
-            pair = np.stack([self._axis_flat(lo[:, axis], axis), self._axis_flat(hi[:, axis], axis)], axis=1)
-            flat = (flat[:, :, None] + pair[:, None, :]).reshape(k, -1)
-        row = np.repeat(np.arange(k), flat.shape[1])
-        flat = flat.ravel()
+        centred = (hi - lo >= 2).any(axis=1)
+        for rows, span in ((np.flatnonzero(~centred), 2), (np.flatnonzero(centred), 3)):
+            if len(rows):
+                self._check_cells(q, lo[rows], hi[rows], rows, span, r, found)
+
+    def _check_cells(self, q, lo, hi, rows, span, r, found) -> None:
+        """Cells lo + o (o < span, lo + o <= hi per axis) of queries ``rows``."""
+        k = len(rows)
+        flat = np.zeros((k, 1), dtype=np.int64)
+        valid = np.ones((k, 1), dtype=bool)
+        for axis in range(self.n):
+            cells = lo[:, axis, None] + np.arange(span)  # (k, span)
+            ok = cells <= hi[:, axis, None]
+            parts = self._axis_flat(cells.ravel(), axis).reshape(k, span)
+            flat = (flat[:, :, None] + parts[:, None, :]).reshape(k, -1)
+            valid = (valid[:, :, None] & ok[:, None, :]).reshape(k, -1)
+        row = np.repeat(rows, flat.shape[1])[valid.ravel()]
+        flat = flat.ravel()[valid.ravel()]
         centre = self._centre_point[flat]
         named = np.flatnonzero(centre >= 0)
         near = np.ones(len(named), dtype=bool)
@@ -318,7 +322,6 @@ class PointIndex:
         found[row[named[near]]] = centre[named[near]]
         chained = np.flatnonzero((self._others[flat] > 0) & (found[row] < 0))
         self._walk(q, row[chained], self._off_head[flat[chained]], r, found, self._off_next)
-        return np.flatnonzero(general & (found < 0))
 
     def _scan(self, q, cells, sel, r, found) -> None:
         """Walk the hash chains of ``cells`` (row i: the cell for query ``sel[i]``), setting ``found``."""
