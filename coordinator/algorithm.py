@@ -79,6 +79,21 @@ class Algorithm(ABC):
     def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray, starts: np.ndarray) -> None:
         """The committed runs of a chunk (e.g. for experience replay)."""
 
+    def required_quiet(self, n_eps: int) -> int:
+        """Runs in a row that must change nothing to end the current round."""
+        return n_eps
+
+    # Certification round (SPE): after the last round, check the final set the way
+    # validate checks a set; algorithms without it leave the campaign done.
+    certifying: bool = False
+    enumerates: bool = False  # certification runs every centre once (deterministic systems)
+
+    def begin_certification(self) -> None:
+        raise NotImplementedError
+
+    def certify_runs(self, chunk, rows: np.ndarray, start_ids: np.ndarray, trusted: np.ndarray) -> int:
+        raise NotImplementedError
+
     @abstractmethod
     def end_round(self, executor=None) -> bool:
         """Decay delta (the round ended by the N_eps rule); False after the last round."""

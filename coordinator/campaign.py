@@ -16,6 +16,9 @@
   version). A run drawn before the last change still has its evidence used, but does not
   count. At a round end, runs after the N_eps-th, and all chunks in flight, are dropped
   and their indices re-used: the committed sequence depends only on the config and seed.
+- With ``certify``, the last round is followed by a certification round (SPE: the final
+  set checked as validate checks it; its count is N_eps, or every final centre once for
+  a deterministic system). A change there re-opens the set and restarts the count.
 """
 
 from __future__ import annotations
@@ -108,7 +111,7 @@ class Campaign:
 
     def __init__(self, algorithm: Algorithm, executor, *, n_eps: int, budget: int, batch_size: int,
                  pipeline_depth: int, seed: int, on_batch: Callable[["Campaign"], None] | None = None,
-                 record_limit: int = 0):
+                 record_limit: int = 0, certify: bool = False):
         self.algorithm = algorithm
         self.executor = executor
         self.n_eps = n_eps
@@ -122,6 +125,7 @@ class Campaign:
         self.pending: deque[Pending] = deque()
         self.final_distribution = ""
         self.record_limit = record_limit
+        self.certify = certify
         self.recordings: list[dict] = []  # runs to record, since the last flush
         self._stop = False
 
@@ -161,12 +165,25 @@ class Campaign:
         pos, ended = 0, False
         while pos < k:
             offset = algo.next_event(rescreen, pos, ids) - pos
-            if p.version == algo.version:  # drawn from the state as it is now: counts
-                if c.quiet + offset >= self.n_eps:
-                    offset, ended = self.n_eps - c.quiet, True
+            if algo.enumerates:  # every centre once: any quiet run whose witnesses hold counts
+                quiet = np.arange(pos, pos + offset)
+                trusted = rescreen.trusted(quiet)
+                done = algo.certify_runs(chunk, quiet, ids[quiet], trusted)
+                if done >= 0:
+                    offset, ended = done - pos + 1, True
+                counted[pos : pos + offset] = trusted[:offset]
+            elif p.version == algo.version:  # drawn from the state as it is now: counts
+                need = algo.required_quiet(self.n_eps)
+                if c.quiet + offset >= need:
+                    offset, ended = need - c.quiet, True
                 counted[pos : pos + offset] = True
                 c.quiet += offset
                 c.escaped_in_streak += int(np.count_nonzero(chunk.screening.escaped[pos : pos + offset]))
+            if self.certify and algo.final_round and not algo.certifying and algo.deterministic:
+                # a deterministic run that stayed in the set certifies its centre ahead of
+                # the certification round, for as long as its witnesses live
+                quiet = np.arange(pos, pos + offset)
+                algo.certify_runs(chunk, quiet, ids[quiet], rescreen.trusted(quiet) & ~chunk.screening.escaped[quiet])
             pos += offset
             if ended or pos == k:
                 break
@@ -221,7 +238,11 @@ class Campaign:
                 self._drop_in_flight()
                 c.round_ends.append(c.committed)
                 c.rounds_completed += 1
-                if self.algorithm.final_round:
+                if self.algorithm.final_round and self.certify and not self.algorithm.certifying:
+                    self.algorithm.begin_certification()
+                    c.quiet = 0
+                    c.escaped_in_streak = 0
+                elif self.algorithm.final_round:
                     self.final_distribution = self.algorithm.sampling_description()
                     c.converged = True
                     c.done = True

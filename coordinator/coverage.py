@@ -25,6 +25,9 @@ re-decide a run at a later seq c without its trajectory (``Rescreen``):
 
 delta is fixed within a round and every run drawn in a round is committed or dropped
 in it, so a run is never re-decided at another delta.
+
+In *strict* mode (a certification round: the set must hold its runs as validate will
+check it) a state near a failure is no excuse: every uncovered state is an event.
 """
 
 from __future__ import annotations
@@ -58,6 +61,11 @@ class AddFailures:
 @dataclass(frozen=True)
 class Recell:
     delta: float  # a new round: new half-width, cells of 2 * delta
+
+
+@dataclass(frozen=True)
+class Strict:
+    on: bool  # every uncovered state is an event (certification)
 
 
 @dataclass(frozen=True)
@@ -95,6 +103,7 @@ class Coverage:
         self.version = 0  # the algorithm version of the last change applied
         self.epoch = 0  # bumped by Reset: vertex ids of older screenings mean nothing
         self.kill_seq = -1  # seq of the last Kill (witness checks needed after it)
+        self.strict = False  # certification: near a failure does not excuse leaving the covering
         self._log: list[tuple[int, object]] | None = None
 
     # -- changes ---------------------------------------------------------------------------
@@ -112,6 +121,8 @@ class Coverage:
             self.vertices.recell(2 * change.delta)
             if self.failures is not None:
                 self.failures.recell(2 * change.delta)
+        elif isinstance(change, Strict):
+            self.strict = change.on
         elif isinstance(change, Reset):
             self._load(change.state)
             self.epoch += 1
@@ -146,7 +157,8 @@ class Coverage:
         out = {f"vertices.{k}": v for k, v in self.vertices.state().items()}
         if self.failures is not None:
             out.update({f"failures.{k}": v for k, v in self.failures.state().items()})
-        out["coverage"] = np.array([self.delta, self.version, self.epoch, self.kill_seq, self.seq], dtype=float)
+        out["coverage"] = np.array([self.delta, self.version, self.epoch, self.kill_seq, self.seq, self.strict],
+                                   dtype=float)
         return out
 
     def _load(self, state: dict) -> None:
@@ -155,8 +167,8 @@ class Coverage:
             self.failures = PointIndex.from_state({k[9:]: v for k, v in state.items() if k.startswith("failures.")})
         else:
             self.failures = None
-        delta, _, _, kill_seq, _ = state["coverage"]
-        self.delta, self.kill_seq = float(delta), int(kill_seq)
+        delta, _, _, kill_seq, _, strict = state["coverage"]
+        self.delta, self.kill_seq, self.strict = float(delta), int(kill_seq), bool(strict)
 
     @classmethod
     def from_state(cls, state: dict) -> "Coverage":
@@ -164,17 +176,17 @@ class Coverage:
         cov.n = state["vertices.points"].shape[1]
         cov._log = None
         cov._load(state)
-        _, version, epoch, _, seq = state["coverage"]
+        _, version, epoch, _, seq, _ = state["coverage"]
         cov.version, cov.epoch, cov.seq = int(version), int(epoch), int(seq)
         return cov
 
     # -- screening -------------------------------------------------------------------------
     def classify_states(self, states: np.ndarray):
         """(S, n) -> witness ids (S,) (-1: not covered) and near (S,) bool (uncovered
-        and within delta of a failure)."""
+        and within delta of a failure; never in strict mode)."""
         witness = self.vertices.cover(states, self.delta)
         near = np.zeros(len(states), dtype=bool)
-        if self.failures is not None and self.failures.count:
+        if self.failures is not None and self.failures.count and not self.strict:
             uncovered = np.flatnonzero(witness < 0)
             near[uncovered] = self.failures.any_within(states[uncovered], self.delta)
         return witness, near
@@ -240,6 +252,11 @@ class Rescreen:
                 return int(rows[np.argmax(changes)])
             at, block = at + block, min(4 * block, 256)
         return k
+
+    def trusted(self, rows: np.ndarray) -> np.ndarray:
+        """(len(rows),) bool: the screening's witnesses of these runs are current (they
+        were not re-screened in full)."""
+        return ~self._full[rows] & (self.screening.epoch == self.coverage.epoch)
 
     def candidates(self, row: int) -> np.ndarray:
         """The states of run ``row`` that can be new at the current version, in time

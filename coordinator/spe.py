@@ -6,6 +6,17 @@ coordinator/algorithm.py).
 A run *changes the state* when it fails (line 9: prune reachable(sigma), add sigma to
 PhiBar) or visits a state sigma' with d(sigma', Phi_delta) > delta and d(sigma', PhiBar)
 > delta (line 15, checked on sigma' as shared/spec/algorithms.md decides).
+
+Certification (after the last round, ``begin_certification``): the final set is checked
+the way ``validate`` checks a set: a run must neither fail nor leave Phi_delta, near a
+known failure or not. A deterministic system runs every final centre once (VAL^delta);
+otherwise start states are drawn uniformly over the final centres (VAL^eps-delta) until
+N_eps runs in a row pass. A run that fails or leaves the set re-opens SPE: a failure
+prunes as usual, a new state is explored as usual, and a run that leaves only toward a
+known failure prunes its start's tree as a failure would (measured: removing the start
+alone, with or without adding it to PhiBar, makes certification peel or churn for many
+more runs), without adding it to PhiBar: it did not fail.
+Certification then starts again, so the set exported is the one the last one passed.
 """
 
 from __future__ import annotations
@@ -15,8 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered
-from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell
+from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered, uniform_pick
+from coordinator.certificates import Certificates
+from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell, Strict
 from coordinator.covering import Lattice
 from coordinator.graph import ExplorationForest
 from coordinator.replay import ReplayBuffer
@@ -65,6 +77,9 @@ class SPE(Algorithm):
         self.replay = ReplayBuffer(settings.replay_capacity if settings.replay else 0, deterministic, scenario.n)
         self._dist: tuple[np.ndarray, int, int] | None = None  # (distances, vertices, failures) seen
         self._draw_cache: tuple | None = None
+        self.certifying = False
+        self._cursor = -1  # deterministic certification: the last centre drawn (they are drawn in id order)
+        self.certificates = Certificates()  # deterministic certification: centres checked
 
     @property
     def failures(self):
@@ -137,6 +152,9 @@ class SPE(Algorithm):
         return ids[near] if near.any() else ids
 
     def sampling_description(self) -> str:
+        if self.certifying:
+            return ("every final box centre once (VAL^delta)" if self.deterministic
+                    else "start states uniform over the final box centres (VAL^eps-delta)")
         where = (f"the alive centres within sigma-bar + delta = {self.scenario.step_bound() + self.delta:g} of the "
                  f"set's boundary (PhiBar and failure facets, Theorem 3)" if self.settings.boundary
                  else "the alive centres")
@@ -163,6 +181,8 @@ class SPE(Algorithm):
         return ids, cdf
 
     def draw(self, streams: RunStreams) -> tuple[np.ndarray, np.ndarray]:
+        if self.certifying:
+            return self._draw_certification(streams)
         ids, cdf = self._distribution()
         u = streams.uniform(0, PURPOSE_START, 1)[:, 0]
         if cdf is None:
@@ -172,24 +192,84 @@ class SPE(Algorithm):
         chosen = ids[pick]
         return self.vertices.points[chosen].copy(), chosen
 
+    def _draw_certification(self, streams: RunStreams) -> tuple[np.ndarray, np.ndarray]:
+        ids = self.vertices.alive_ids()
+        if len(ids) == 0:
+            raise EmptySetError("the safe set is empty: every centre was pruned")
+        if not self.deterministic:
+            chosen = uniform_pick(ids, streams)
+        else:  # the centres not certified yet, in id order, on from the last one drawn
+            pending = ids[~self.certificates.certified(self.vertices.count)[ids]]
+            ids = pending if len(pending) else ids
+            start = int(np.searchsorted(ids, self._cursor, side="right"))
+            chosen = ids[(start + np.arange(len(streams))) % len(ids)]
+            self._cursor = int(chosen[-1])
+        return self.vertices.points[chosen].copy(), chosen
+
+    @property
+    def enumerates(self) -> bool:
+        """Certification checks every centre once (a deterministic system, VAL^delta)."""
+        return self.certifying and self.deterministic
+
+    def certify_runs(self, chunk, rows: np.ndarray, start_ids: np.ndarray, trusted: np.ndarray) -> int:
+        """Deterministic certification: quiet runs ``rows`` of ``chunk`` (``trusted``: their
+        screening's witnesses are current) certify their start centres. Returns the row
+        after which every alive centre is certified, or -1."""
+        sc = chunk.screening
+        keep = trusted & self.vertices.alive[start_ids]
+        if keep.any():
+            sel = rows[keep]
+            counts = sc.witness_offsets[sel + 1] - sc.witness_offsets[sel]
+            run = np.repeat(np.arange(len(sel)), counts)
+            within = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+            witnesses = sc.witnesses[sc.witness_offsets[sel][run] + within]
+            offsets = np.zeros(len(sel) + 1, dtype=np.int64)
+            np.cumsum(counts, out=offsets[1:])
+            before = self.certificates.certified(self.vertices.count)
+            self.certificates.add(start_ids[keep], offsets, witnesses)
+            # the row at which the last uncertified centre got its certificate
+            missing = int((self.vertices.alive[: self.vertices.count] & ~before).sum())
+            fresh = np.zeros(len(sel), dtype=bool)
+            vertices = start_ids[keep]
+            first = np.unique(vertices, return_index=True)[1]
+            fresh[first] = ~before[vertices[first]]
+            reached = np.flatnonzero(np.cumsum(fresh) >= missing) if missing else np.array([0])
+            if len(reached):
+                return int(sel[reached[0]])
+        return -1
+
+    def begin_certification(self) -> None:
+        """Check the final set the way validate will (see the module docstring)."""
+        self.version += 1
+        self.certifying = True
+        self.coverage.apply(Strict(True), self.version)
+
     # -- tell ---------------------------------------------------------------------------
     def apply(self, event: Event) -> str:
-        """Apply the change of one run; returns "pruned" or "explored"."""
+        """Apply the change of one run; returns "pruned", "explored" or "escaped"."""
         self.version += 1
         if event.failed:
             # A failing run's explored states would be pruned with sigma at once (they are
             # in reachable(sigma)), so only sigma enters PhiBar and its tree is pruned.
             self.coverage.apply(AddFailures(event.start[None, :]), self.version)
-            self.coverage.apply(Kill(self.graph.reachable(event.start_id, self.settings.reachable)), self.version)
+            self._prune(self.graph.reachable(event.start_id, self.settings.reachable))
             return "pruned"
         states = event.states
         new = ~self.vertices.any_within(states, self.delta)
         new[new] = ~self.failures.any_within(states[new], self.delta)
         candidates = states[new]
+        if self.certifying and len(candidates) == 0:
+            # it left the set only toward known failures: its start's box is not invariant
+            self._prune(self.graph.reachable(event.start_id, self.settings.reachable))
+            return "escaped"
         kept = candidates[greedy_uncovered(candidates, self.delta)]
         self.coverage.apply(Insert(kept), self.version)
         self.graph.add_children(event.start_id, len(kept))
         return "explored"
+
+    def _prune(self, ids: np.ndarray) -> None:
+        self.coverage.apply(Kill(ids), self.version)
+        self.certificates.invalidate(self.vertices.alive)
 
     def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray, starts: np.ndarray) -> None:
         """Keep committed, non-failing runs for experience replay (coordinator/replay.py)."""
@@ -241,6 +321,8 @@ class SPE(Algorithm):
         out = self.coverage.state()
         out["graph.parent"] = self.graph.parent.copy()
         out["scalars"] = np.array([self.delta, self.round, self.version], dtype=float)
+        out["certification"] = np.array([self.certifying, self._cursor], dtype=np.int64)
+        out.update(self.certificates.state())
         out.update(self.replay.state())
         return out
 
@@ -249,6 +331,9 @@ class SPE(Algorithm):
         self.graph = ExplorationForest.from_state({"parent": state["graph.parent"]})
         _, rnd, version = state["scalars"]
         self.round, self.version = int(rnd), int(version)
+        certifying, cursor = state["certification"]
+        self.certifying, self._cursor = bool(certifying), int(cursor)
+        self.certificates = Certificates.from_state(state)
         self.replay.load_state(state)
         self._dist = None
         self._draw_cache = None

@@ -120,6 +120,8 @@ class QuantifyConfig(Section):
     boundary: bool = _SPE.boundary
     reachable: Literal["undirected", "ancestors"] = _SPE.reachable
     sides: bool | None = None
+    certify: Annotated[bool, Field(description="end with a certification round (spe): the exported set "
+                                               "passes validate")] = True
 
     @model_validator(mode="after")
     def _delta_order(self):

@@ -153,7 +153,8 @@ class Part:
 
         self.campaign = Campaign(self.algorithm, None, n_eps=self.n_eps, budget=cfg.quantify.budget,
                                  batch_size=farm.batch_size, pipeline_depth=farm.pipeline_depth, seed=farm.seed,
-                                 on_batch=on_chunk, record_limit=cfg.record.quantify_runs)
+                                 on_batch=on_chunk, record_limit=cfg.record.quantify_runs,
+                                 certify=cfg.quantify.certify and cfg.quantify.algorithm == "spe")
         if resume and self.journal.exists():
             self.restore()
         elif resume and any((self.directory / "ledger").glob("segment-*.parquet")):
