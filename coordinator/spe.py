@@ -24,13 +24,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered, uniform_pick
 from coordinator.certificates import Certificates
 from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell, Strict
 from coordinator.covering import Lattice
 from coordinator.graph import ExplorationForest
+from coordinator.priorities import FailureDistances
 from coordinator.replay import ReplayBuffer
 from scenarios.base import FAILURE, Scenario
 from scenarios.streams import PURPOSE_START, RunStreams
@@ -75,7 +75,7 @@ class SPE(Algorithm):
         self.round = 0
         self._add_roots(self.lattice.box_centres(self.delta))
         self.replay = ReplayBuffer(settings.replay_capacity if settings.replay else 0, deterministic, scenario.n)
-        self._dist: tuple[np.ndarray, int, int] | None = None  # (distances, vertices, failures) seen
+        self._dist = FailureDistances(scenario.lower, scenario.upper)
         self._draw_cache: tuple | None = None
         self.certifying = False
         self._cursor = -1  # deterministic certification: the last centre drawn (they are drawn in id order)
@@ -106,35 +106,10 @@ class SPE(Algorithm):
         return weights if weights.sum() > 0 else None  # all equidistant: rho is uniform
 
     def _failure_distances(self) -> np.ndarray:
-        """d(sigma_i, PhiBar) for every vertex id, kept up to date incrementally: a new
-        failure lowers every distance in one vectorized pass (failures are few), a new
-        vertex asks a KD-tree of the failures (vertices come in bulk)."""
-        nv, nf = self.vertices.count, self.failures.count
-        pts, fails = self.vertices.points, self.failures.points
-        dist, seen_v, seen_f = self._dist if self._dist is not None else (np.empty(0), 0, 0)
-        if seen_f == 0:
-            seen_v = 0  # nothing known yet: every vertex is new
-        if nf > seen_f and seen_v:
-            new_f = fails[seen_f:nf]
-            if len(new_f) > 32:
-                d_new, _ = cKDTree(new_f).query(pts[:seen_v], p=np.inf)
-                np.minimum(dist[:seen_v], d_new, out=dist[:seen_v])
-            else:
-                columns = [np.ascontiguousarray(pts[:seen_v, axis]) for axis in range(pts.shape[1])]
-                gap, axis_gap = np.empty(seen_v), np.empty(seen_v)
-                for f in new_f:  # l-inf distance per axis: a (V, n) max over n is ~5x slower
-                    np.subtract(columns[0], f[0], out=gap)
-                    np.abs(gap, out=gap)
-                    for axis in range(1, len(columns)):
-                        np.subtract(columns[axis], f[axis], out=axis_gap)
-                        np.abs(axis_gap, out=axis_gap)
-                        np.maximum(gap, axis_gap, out=gap)
-                    np.minimum(dist[:seen_v], gap, out=dist[:seen_v])
-        if nv > seen_v:
-            d_new, _ = cKDTree(fails[:nf]).query(pts[seen_v:nv], p=np.inf)
-            dist = np.concatenate([dist[:seen_v], d_new])
-        self._dist = (dist, nv, nf)
-        return dist
+        """d(sigma_i, PhiBar) for every vertex id, kept up to date incrementally
+        (coordinator/priorities.py)."""
+        return self._dist.update(self.vertices.points, self.vertices.count, self.failures.points,
+                                 self.failures.count)
 
     def _band(self, ids: np.ndarray) -> np.ndarray:
         """Theorem 3 for the quantified set: the alive centres whose boxes come within
@@ -335,5 +310,5 @@ class SPE(Algorithm):
         self.certifying, self._cursor = bool(certifying), int(cursor)
         self.certificates = Certificates.from_state(state)
         self.replay.load_state(state)
-        self._dist = None
+        self._dist = FailureDistances(self.scenario.lower, self.scenario.upper)
         self._draw_cache = None

@@ -1,0 +1,95 @@
+"""d(sigma_i, PhiBar) for every vertex, exact, kept up to date as vertices and failures
+are appended (prioritized sampling, paper Sec. 4.4).
+
+A new failure f can lower a vertex's distance only where |v - f| < d(v). Vertices are
+grouped into coarse buckets (sorted by bucket, with the box each bucket's vertices span
+and the largest distance among them): a bucket whose box lies at least that far from f
+is skipped whole. Vertices added since the last sort are checked directly. New vertices
+get their distance from a KD-tree of the failures. Every distance is the same float64
+max over axes of |v - f| whichever way it is reached, so the values do not depend on
+the bookkeeping.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+BUCKETS_PER_AXIS = {1: 4096, 2: 64, 3: 16, 4: 8, 5: 6}
+RESORT_SHARE = 0.1  # re-sort when the unsorted tail exceeds this share of the vertices
+
+
+class FailureDistances:
+    def __init__(self, lower: np.ndarray, upper: np.ndarray):
+        self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
+        n = len(self.lower)
+        self.per_axis = BUCKETS_PER_AXIS.get(n, 4)
+        self.dist = np.empty(0)
+        self.seen_vertices = 0
+        self.seen_failures = 0
+        self._sorted = 0  # vertices [0, _sorted) are in the bucket structure
+        self._order = np.empty(0, dtype=np.int64)
+        self._starts = np.zeros(1, dtype=np.int64)
+        self._box_lo = self._box_hi = np.empty((0, n))
+        self._bucket_max = np.empty(0)
+
+    def update(self, points: np.ndarray, vertex_count: int, failures: np.ndarray, failure_count: int) -> np.ndarray:
+        """The distances of vertices [0, vertex_count) to failures [0, failure_count)."""
+        if failure_count == 0:
+            return np.full(vertex_count, np.inf)
+        if self.seen_failures == 0:  # nothing known yet: every vertex is new
+            self.seen_vertices = self._sorted = 0
+            self.dist = np.empty(0)
+        if failure_count > self.seen_failures and self.seen_vertices:
+            for f in failures[self.seen_failures : failure_count]:
+                self._lower_by(points, f)
+        if vertex_count > self.seen_vertices:
+            d_new, _ = cKDTree(failures[:failure_count]).query(points[self.seen_vertices : vertex_count], p=np.inf)
+            self.dist = np.concatenate([self.dist[: self.seen_vertices], d_new])
+        self.seen_vertices, self.seen_failures = vertex_count, failure_count
+        if vertex_count - self._sorted > max(RESORT_SHARE * vertex_count, 4096):
+            self._sort(points)
+        return self.dist
+
+    def _lower_by(self, points: np.ndarray, f: np.ndarray) -> None:
+        """Lower the known distances by failure ``f``, skipping buckets it cannot reach."""
+        if self._sorted:
+            gap = np.maximum(np.maximum(self._box_lo - f, f - self._box_hi), 0.0).max(axis=1)
+            reach = np.flatnonzero(gap < self._bucket_max)
+            if len(reach):
+                lo, hi = self._starts[reach], self._starts[reach + 1]
+                counts = hi - lo
+                pos = np.repeat(lo - np.cumsum(counts) + counts, counts) + np.arange(int(counts.sum()))
+                ids = self._order[pos]
+                self._lower(points, ids, f)
+                new_max = np.maximum.reduceat(self.dist[ids], np.cumsum(counts) - counts)
+                self._bucket_max[reach] = new_max
+        if self.seen_vertices > self._sorted:
+            self._lower(points, np.arange(self._sorted, self.seen_vertices), f)
+
+    def _lower(self, points, ids, f) -> None:
+        # l-inf distance axis by axis: a (k, n) max over n is several times slower
+        gap = np.abs(points[ids, 0] - f[0])
+        for axis in range(1, points.shape[1]):
+            np.maximum(gap, np.abs(points[ids, axis] - f[axis]), out=gap)
+        self.dist[ids] = np.minimum(self.dist[ids], gap)
+
+    def _sort(self, points: np.ndarray) -> None:
+        count = self.seen_vertices
+        pts = points[:count]
+        side = (self.upper - self.lower) / self.per_axis
+        cells = np.clip(np.floor((pts - self.lower) / side).astype(np.int64), 0, self.per_axis - 1)
+        bucket = np.ravel_multi_index(tuple(cells.T), (self.per_axis,) * len(side))
+        self._order = np.argsort(bucket, kind="stable")
+        buckets = self.per_axis ** len(side)
+        self._starts = np.zeros(buckets + 1, dtype=np.int64)
+        np.cumsum(np.bincount(bucket, minlength=buckets), out=self._starts[1:])
+        used = np.flatnonzero(np.diff(self._starts) > 0)
+        # keep only the buckets that hold vertices: the boxes they actually span
+        sorted_pts = pts[self._order]
+        at = self._starts[used]
+        self._box_lo = np.minimum.reduceat(sorted_pts, at, axis=0)
+        self._box_hi = np.maximum.reduceat(sorted_pts, at, axis=0)
+        self._bucket_max = np.maximum.reduceat(self.dist[self._order], at)
+        self._starts = np.concatenate([at, [count]])
+        self._sorted = count

@@ -1,0 +1,34 @@
+"""Failure distances for prioritized sampling: incremental and bucketed, yet the very
+values of the brute-force minimum (they feed a hashed result)."""
+
+import numpy as np
+import pytest
+
+from coordinator.priorities import FailureDistances
+
+
+def brute(points, failures):
+    return np.abs(points[:, None, :] - failures[None, :, :]).max(axis=2).min(axis=1)
+
+
+@pytest.mark.parametrize("n", [2, 3, 5])
+def test_distances_equal_the_brute_force_minimum_bit_for_bit_through_interleaved_appends(n):
+    rng = np.random.default_rng(n)
+    lower, upper = np.zeros(n), np.full(n, 10.0)
+    points = np.empty((0, n))
+    failures = np.empty((0, n))
+    fd = FailureDistances(lower, upper)
+    for step in range(60):
+        if rng.random() < 0.6:  # vertices come in bulk, some on a lattice, some repeated
+            new = rng.uniform(-1, 11, (int(rng.integers(1, 400)), n))
+            if step % 5 == 0:
+                new = np.round(new * 2) / 2
+            points = np.concatenate([points, new, points[: int(rng.integers(0, 5))]])
+        if rng.random() < 0.5:  # failures one by one or a few at once
+            new = rng.uniform(0, 10, (int(rng.integers(1, 40)) if step % 7 == 0 else 1, n))
+            failures = np.concatenate([failures, new])
+        got = fd.update(points, len(points), failures, len(failures))
+        if len(failures) == 0:
+            assert np.isinf(got).all()
+            continue
+        assert np.array_equal(got[: len(points)], brute(points, failures))
