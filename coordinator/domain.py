@@ -90,8 +90,7 @@ class Domain:
             dom.predicate = load_callable(section["domain_predicate"], "validate.domain_predicate",
                                           "states (B, n) -> (B,) bool")
             dom.predicate_name = section["domain_predicate"]
-        probe = dom.lattice(min(hi - lo) / 20)
-        if len(probe) == 0:
+        if not dom.contains(dom.midpoints(20)).any():
             raise DomainError("validate.constraints: the constraints leave an (almost) empty domain")
         return dom
 
@@ -149,9 +148,20 @@ class Domain:
         box = float(np.prod(self.hi - self.lo))
         if not len(self.cuts_b) and self.predicate is None:
             return box
-        probe = self.lattice(min(self.hi - self.lo) / 40)  # midpoint rule over the box
-        full = Lattice.tiling(self.lo, self.hi, min(self.hi - self.lo) / 40).box_centres(min(self.hi - self.lo) / 40)
-        return box * len(probe) / len(full)
+        return box * float(np.mean(self.contains(self.midpoints(40))))
+
+    def midpoints(self, per_short_side: int, max_points: int = 2**20) -> np.ndarray:
+        """Cell midpoints of a grid over the bounding box: ``per_short_side`` cells along
+        its shortest side, cubic cells, coarser when that would exceed ``max_points`` (a
+        domain 1e-7 thin on one axis must not ask for 1e9 cells on the others)."""
+        extent = self.hi - self.lo
+        step = min(extent) / per_short_side
+        counts = np.maximum(1, np.ceil(extent / step - 1e-9))
+        while np.prod(counts) > max_points:
+            step *= 2
+            counts = np.maximum(1, np.ceil(extent / step - 1e-9))
+        axes = [lo + (np.arange(k) + 0.5) * (e / k) for lo, e, k in zip(self.lo, extent, counts.astype(int))]
+        return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(axes))
 
     def lattice(self, delta: float, band: float | None = None) -> np.ndarray:
         """delta-covering centres of Phi (Definition 1). A set domain's own box centres

@@ -177,6 +177,7 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
     from coordinator.validation import plan, validate as run_validation, verdict_sentence
     from farm.executors import build_simulator
     from farm.ray_executor import make_executor
+    from farm.resources import check_validate
     from scenarios.simulator import SimSpec
     from scenarios.version import __version__
 
@@ -187,10 +188,16 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
     scenario, policy = simulator.scenario, simulator.policy
     set_boxes = read_safe_set(v.domain_set, scenario.state_names) if v.domain_set else None
     domain = Domain.from_config(scenario, v.model_dump(), set_boxes)
+    check_validate(cfg, domain.lo, domain.hi, domain.is_set)
     p = plan(domain, v.algorithm, v.epsilon, v.beta, v.delta, v.boundary, simulator.deterministic)
     directory = CampaignDir(out) if out is not None else None
     if directory is not None:  # before the runs: a bad --out must not cost a validation
         directory.check_writable()
+        marker = directory.marker()
+        if marker is None and directory.path.is_dir() and any(directory.path.iterdir()):
+            raise CampaignError(f"{out}: not empty and not a directory this tool wrote; choose another --out")
+        if marker is not None and marker.get("kind") != "validate":
+            raise CampaignError(f"{out}: a {marker.get('kind')} directory; choose another --out")
         if (Path(out) / "certificate.json").exists() and not force:
             raise CampaignError(f"{out}/certificate.json exists; pass --force to replace it")
     executor = make_executor(farm.executor, spec, farm.workers, farm.address, farm.max_retries,

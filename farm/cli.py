@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import signal
 import sys
 import tempfile
 import traceback
@@ -187,6 +188,9 @@ def main(argv=None) -> int:
     if os.getcwd() not in sys.path:
         sys.path.insert(0, os.getcwd())
     keep_freed_memory()  # the coordinator's batch queries allocate like a simulator's steps
+    # SIGTERM outside a campaign's own handler (start-up, finishing) ends like Ctrl-C: the
+    # files stay as the last checkpoint left them, and the exit says "stopped"
+    signal.signal(signal.SIGTERM, _terminate)
     try:
         return args.func(args)
     except Exception as exc:  # noqa: BLE001 - the one place where errors become exit codes
@@ -194,6 +198,10 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("scenario-farm: interrupted", file=sys.stderr)
         return EXIT_STOPPED
+
+
+def _terminate(signum, frame):
+    raise KeyboardInterrupt
 
 
 def report_error(exc: BaseException) -> int:

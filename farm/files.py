@@ -86,9 +86,18 @@ def read_safe_set(path, state_names) -> tuple[np.ndarray, float]:
     missing = [c for c in (*state_names, "half_width") if c not in table.column_names]
     if missing:
         raise ValueError(f"{path}: safe set lacks column(s) {', '.join(missing)} for this scenario")
-    centres = np.stack([table.column(c).to_numpy() for c in state_names], axis=1) if table.num_rows else \
-        np.empty((0, len(state_names)))
-    widths = table.column("half_width").to_numpy()
+    extra = [c for c in table.column_names if c not in (*state_names, "half_width")]
+    if extra:  # e.g. a fleet3 set handed to lead-follow: its v0, v1, p10 mean other things
+        raise ValueError(f"{path}: safe set has column(s) {', '.join(extra)} that are not state variables of "
+                         f"this scenario ({', '.join(state_names)}); it was written for another scenario")
+    try:
+        centres = np.stack([table.column(c).to_numpy().astype(float) for c in state_names], axis=1) \
+            if table.num_rows else np.empty((0, len(state_names)))
+        widths = table.column("half_width").to_numpy().astype(float)
+    except (TypeError, ValueError, pa.ArrowException) as exc:
+        raise ValueError(f"{path}: safe-set columns must be numbers ({exc})") from None
+    if not (np.isfinite(centres).all() and np.isfinite(widths).all() and (widths > 0).all()):
+        raise ValueError(f"{path}: safe set holds a non-finite centre or a half_width <= 0; allowed half_width > 0")
     if len(widths) and not np.all(widths == widths[0]):
         raise ValueError(f"{path}: boxes of different half-widths are not supported")
     return centres.astype(float), float(widths[0]) if len(widths) else 0.0

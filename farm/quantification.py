@@ -30,6 +30,7 @@ from farm.journal import Journal
 from farm.progress import Progress
 from farm.ray_executor import make_executor
 from farm.status import StatusWriter
+from farm.resources import check_quantify
 from farm.storage import CampaignDir, CampaignError, Ledger
 from scenarios.simulator import SimSpec
 from scenarios.version import __version__
@@ -166,16 +167,18 @@ class Part:
             return self.campaign
         farm = self.cfg.farm
         self.directory.mkdir(parents=True, exist_ok=True)
-        t0 = time.monotonic()
-        executor = make_executor(farm.executor, self.spec, farm.workers, farm.address, farm.max_retries,
-                                 check_step_bound=self.cfg.quantify.boundary)
-        self.startup_s = time.monotonic() - t0
-        self.campaign.executor = executor
-        try:
-            with stop_on_signals(self.campaign):
+        # the handlers cover start-up too: a signal while Ray starts (seconds) is taken
+        # once it has started, not in the middle of ray.init (which can crash on it)
+        with stop_on_signals(self.campaign):
+            t0 = time.monotonic()
+            executor = make_executor(farm.executor, self.spec, farm.workers, farm.address, farm.max_retries,
+                                     check_step_bound=self.cfg.quantify.boundary)
+            self.startup_s = time.monotonic() - t0
+            self.campaign.executor = executor
+            try:
                 self.campaign.run()
-        finally:
-            executor.close()
+            finally:
+                executor.close()
         self.checkpoint()
         if not self.campaign.counters.done:
             status.update(self.label, self.algorithm, self.campaign, self.n_eps, state="stopped", force=True)
@@ -300,6 +303,10 @@ def run(cfg: Config, out: Path, *, resume: bool = False, force: bool = False, pr
     progress = progress or Progress(enabled=False)
     directory = CampaignDir(out)
     directory.check_writable()
+    if resume and _nothing_started(out):
+        # killed before its first file: "continue" means start (a plain `resume DIR` has no
+        # config to start from and still says "not a campaign directory")
+        resume, force = False, True
     if resume:
         directory.open("quantify")
         changed = config_mod.changed_fields(load_frozen_config(out), cfg)
@@ -311,6 +318,7 @@ def run(cfg: Config, out: Path, *, resume: bool = False, force: bool = False, pr
         if finished is not None:
             return finished
     scenario = build_simulator(spec_of(cfg)).scenario
+    check_quantify(cfg, scenario.lower, scenario.upper)
     parts = {label: Part(cfg, out if label == "total" else out / "sides" / label, facets, label)
              for label, facets in part_facets(cfg, scenario).items()}  # builds (checks) every part first
     status = StatusWriter(out)
@@ -338,6 +346,17 @@ def run(cfg: Config, out: Path, *, resume: bool = False, force: bool = False, pr
         return summary
     finally:
         directory.unlock()
+
+
+def _nothing_started(out: Path) -> bool:
+    """No directory, an empty one, or one of ours killed before its config was frozen."""
+    if not out.exists():
+        return True
+    if not out.is_dir():
+        return False
+    names = {p.name for p in out.iterdir()} - {".lock"}
+    return not names or (CampaignDir(out).marker() is not None and "config.json" not in names
+                         and "checkpoint.npz" not in names and "ledger" not in names)
 
 
 def _finished_summary(out: Path) -> dict | None:

@@ -20,7 +20,10 @@ asks for a snapshot.
 from __future__ import annotations
 
 import dataclasses
+import logging
 import os
+import signal
+import threading
 import time
 
 import numpy as np
@@ -118,12 +121,54 @@ def connect(address: str, workers: int) -> None:
 
     if ray.is_initialized():
         return
+    with _keep_sigterm_handler():
+        _init(ray, address, workers)
+
+
+def _init(ray, address: str, workers: int) -> None:
     if address == "local":
+        # the banner says token auth is on by default; it stays on, the line goes
+        logging.getLogger("ray._private.authentication").setLevel(logging.ERROR)
         path = os.pathsep.join(p for p in (os.getcwd(), os.environ.get("PYTHONPATH")) if p)
-        ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, configure_logging=False,
-                 runtime_env={"env_vars": {"PYTHONPATH": path}})
+        with _loopback_only():
+            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, configure_logging=False,
+                     _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1",
+                     runtime_env={"env_vars": {"PYTHONPATH": path}})
     else:
         ray.init(address=address, log_to_driver=False, configure_logging=False)
+
+
+class _keep_sigterm_handler:
+    """``ray.init`` makes SIGTERM exit the driver at once (``sys.exit``); a campaign's
+    handler stops at a chunk boundary with a checkpoint instead, so it is put back."""
+
+    def __enter__(self):
+        main = threading.current_thread() is threading.main_thread()
+        self.previous = signal.getsignal(signal.SIGTERM) if main else None
+
+    def __exit__(self, *exc):
+        if self.previous is not None:
+            signal.signal(signal.SIGTERM, self.previous)
+        return False
+
+
+class _loopback_only:
+    """A private local Ray listens on the loopback interface only.
+
+    ``ray.init(_node_ip_address="127.0.0.1")`` alone is not enough: Ray 2.60 maps a
+    loopback node address back to the machine's routable one, unless it thinks clusters
+    are off (its Windows/macOS default), and then every server binds 127.0.0.1. That
+    switch is read when the node starts, so it is set for ``ray.init`` only."""
+
+    def __enter__(self):
+        from ray._private import ray_constants
+
+        self.constants, self.before = ray_constants, ray_constants.ENABLE_RAY_CLUSTER
+        ray_constants.ENABLE_RAY_CLUSTER = False
+
+    def __exit__(self, *exc):
+        self.constants.ENABLE_RAY_CLUSTER = self.before
+        return False
 
 
 @dataclasses.dataclass

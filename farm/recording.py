@@ -100,8 +100,3 @@ def read_recording(path) -> dict:
         runs[index] = {"trajectory": np.array([s[1] for s in steps]), "outcome": outcomes.get(index),
                        "metadata": meta.get(f"run/{index}", {})}
     return {"metadata": meta["scenario-farm"], "runs": runs, "schema": schema, "topic": topic}
-
-
-def runs_from_batch(batch, rows, outcome_names) -> list[dict]:
-    return [{"sample_index": int(batch.indices[r]), "trajectory": batch.trajectories[: batch.lengths[r], r],
-             "outcome": outcome_names[int(batch.outcomes[r])]} for r in rows]

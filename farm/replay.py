@@ -8,6 +8,7 @@ in a validation directory, the counterexample of certificate.json.
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -36,10 +37,16 @@ def record_counterexample(path: Path, scenario, cert: dict) -> None:
 
 
 def _recorded(directory: Path, index: int):
+    """The recording holding run ``index`` (path, run) or (None, None). A damaged file is
+    skipped with a warning: it must not hide the runs recorded in the others."""
     from farm.recording import read_recording
 
     for path in sorted((directory / "recordings").glob("*.mcap")) + sorted(directory.glob("*.mcap")):
-        rec = read_recording(path)
+        try:
+            rec = read_recording(path)
+        except ValueError as exc:
+            print(f"scenario-farm: warning: skipped {exc}", file=sys.stderr)
+            continue
         if index in rec["runs"]:
             return path, rec["runs"][index]
     return None, None

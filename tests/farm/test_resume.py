@@ -1,8 +1,6 @@
 """Checkpoint and resume with real processes, real SIGKILLs and real files."""
 
 import json
-import os
-import random
 import signal
 import subprocess
 import sys
@@ -46,34 +44,6 @@ def uninterrupted(tmp_path_factory):
     r = cli("quantify", str(d / "c.toml"), "--out", str(d / "out"))
     assert r.returncode == 0, r.stderr
     return json.loads((d / "out" / "summary.json").read_text()), ledger_indices(d / "out")
-
-
-@pytest.mark.slow
-def test_sigkill_at_random_moments_then_resume_reaches_the_same_result(tmp_path, uninterrupted):
-    summary, indices = uninterrupted
-    (tmp_path / "c.toml").write_text(CONFIG)
-    out = tmp_path / "out"
-    rng = random.Random(1)
-    args = ["quantify", str(tmp_path / "c.toml"), "--out", str(out), "--checkpoint-every", "0"]
-    kills = 0
-    for _ in range(8):
-        proc = subprocess.Popen([sys.executable, "-m", "farm", *args], stdout=subprocess.DEVNULL,
-                                stderr=subprocess.PIPE, text=True)
-        time.sleep(rng.uniform(1.5, 4.0))
-        if proc.poll() is not None:
-            assert proc.returncode == 0, proc.stderr.read()
-            break
-        os.kill(proc.pid, signal.SIGKILL)
-        proc.wait()
-        kills += 1
-        args = ["resume", str(out), "--checkpoint-every", "0"]
-    else:
-        r = cli(*args)
-        assert r.returncode == 0, r.stderr
-    assert kills >= 2
-    resumed = json.loads((out / "summary.json").read_text())
-    assert resumed["result_hash"] == summary["result_hash"]
-    np.testing.assert_array_equal(ledger_indices(out), indices)  # none missing, none twice
 
 
 def test_refuses_non_empty_directory_and_changed_config(tmp_path, uninterrupted):

@@ -1,0 +1,85 @@
+"""What a campaign will need, estimated before it starts and refused past a limit.
+
+Accepted values can still ask for the impossible: ``delta_min = 1e-300`` means more boxes
+than atoms, a validation domain 1e-7 wide at ``delta = 1e-9`` a lattice of 10^18 centres.
+Both used to run until the machine gave out. The estimates here are worst cases (every
+cell of the finest covering alive), so a refusal is never wrong about what was asked;
+the limit is ``farm.max_memory_gb`` (default: three quarters of this machine's memory).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+from farm.config import Config, ConfigError
+
+# Measured: lead-follow idm under Gamma* at delta_min 0.125 peaked at 1.66 GB with 1.83 M
+# boxes alive (centres, graph, spatial index, failure distances, replay keys).
+BYTES_PER_BOX = 1024
+# A validation lattice holds centres, their index and per-centre verdicts.
+BYTES_PER_CENTRE = 256
+
+
+def memory_limit_bytes(cfg: Config) -> float:
+    if cfg.farm.max_memory_gb is not None:
+        return cfg.farm.max_memory_gb * 1e9
+    try:
+        return 0.75 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # not a POSIX sysconf: a laptop's worth
+        return 8e9
+
+
+def cells(lo, hi, delta: float) -> float:
+    """Boxes of half-width ``delta`` tiling [lo, hi] (a float: it may exceed int64)."""
+    extent = np.asarray(hi, dtype=float) - np.asarray(lo, dtype=float)
+    with np.errstate(over="ignore"):  # inf boxes is a fine answer: it is refused
+        return float(np.prod(np.maximum(1.0, np.ceil(extent / (2 * delta) - 1e-9))))
+
+
+def _finest_allowed(lo, hi, max_cells: float) -> float:
+    """About the smallest delta whose tiling has at most ``max_cells`` boxes."""
+    extent = np.asarray(hi, dtype=float) - np.asarray(lo, dtype=float)
+    return 0.5 * math.exp((np.log(extent).sum() - math.log(max(max_cells, 1.0))) / len(extent))
+
+
+def _gb(b: float) -> str:
+    return f"{b / 1e9:.3g} GB"
+
+
+def check_quantify(cfg: Config, lower, upper) -> None:
+    """Refuse, with the field named, a quantification that cannot fit (ConfigError)."""
+    q = cfg.quantify
+    half = float(np.max(np.asarray(upper) - np.asarray(lower))) / 2
+    if q.delta0 > half * (1 + 1e-12):
+        raise ConfigError(f"quantify.delta0: {q.delta0:g} is larger than Sigma (one box of half-width {half:g} "
+                          f"covers it; every larger delta0 only adds rounds); allowed (0, {half:g}]")
+    limit = memory_limit_bytes(cfg)
+    boxes = cells(lower, upper, q.delta_min)
+    if boxes * BYTES_PER_BOX > limit:
+        finest = _finest_allowed(lower, upper, limit / BYTES_PER_BOX)
+        raise ConfigError(f"quantify.delta_min: {q.delta_min:g} may need {boxes:.3g} boxes (about "
+                          f"{_gb(boxes * BYTES_PER_BOX)}, over the limit farm.max_memory_gb = {_gb(limit)}); "
+                          f"allowed delta_min >= about {finest:.3g}, or raise farm.max_memory_gb")
+
+
+def check_validate(cfg: Config, lo, hi, is_set: bool) -> None:
+    """Refuse a validation whose delta-lattice cannot fit, or whose delta exceeds the
+    domain (one box would cover it: a single start would 'certify' the whole domain)."""
+    v = cfg.validate
+    if v.algorithm == "eps" or is_set:  # eps samples Phi itself; a set brings its own centres
+        return
+    half = float(np.max(np.asarray(hi) - np.asarray(lo))) / 2
+    if v.delta > half * (1 + 1e-12):
+        raise ConfigError(f"validate.delta: {v.delta:g} is larger than the domain (half its widest side is "
+                          f"{half:g}: one box would cover it, so a single start would stand for all of Phi); "
+                          f"allowed (0, {half:g}]")
+    limit = memory_limit_bytes(cfg)
+    centres = cells(lo, hi, v.delta)
+    if centres * BYTES_PER_CENTRE > limit:
+        finest = _finest_allowed(lo, hi, limit / BYTES_PER_CENTRE)
+        raise ConfigError(f"validate.delta: {v.delta:g} gives a lattice of {centres:.3g} centres (about "
+                          f"{_gb(centres * BYTES_PER_CENTRE)}, over the limit farm.max_memory_gb = {_gb(limit)}); "
+                          f"allowed delta >= about {finest:.3g}, or raise farm.max_memory_gb")

@@ -1,0 +1,36 @@
+"""Every budget from 1 up: a campaign stopped by its budget committed exactly that many
+runs, and they are the first rows of the unlimited campaign's ledger (the committed
+sequence does not depend on where the budget cuts it), on both executors."""
+
+import pyarrow.parquet as pq
+import pytest
+
+from farm.api import quantify
+
+
+def config(executor, budget):
+    return {"scenario": {"name": "lead-follow", "sv_policy": "idm"}, "actions": {"mode": "uniform"},
+            "quantify": {"delta0": 4.0, "delta_min": 2.0, "epsilon": 0.005, "horizon": 40, "budget": budget},
+            "farm": {"executor": executor, "workers": 2, "batch_size": 256, "pipeline_depth": 2, "seed": 5}}
+
+
+@pytest.fixture(scope="module")
+def unlimited(tmp_path_factory):
+    out = tmp_path_factory.mktemp("unlimited") / "out"
+    result = quantify(config("local", 10**7), out=out)
+    assert result.summary["converged"]
+    return pq.read_table(out / "ledger").sort_by("sample_index")
+
+
+@pytest.mark.parametrize("executor, budgets", [
+    ("local", [1, 2, 3, 100, 255, 256, 257, 511, 512, 513, 1000, 1024, 1025]),
+    ("ray", [1, 256, 257, 1000]),
+])
+def test_every_budget_commits_exactly_the_first_runs(tmp_path, unlimited, executor, budgets):
+    budgets.append(unlimited.num_rows - 1)  # stops one run before the N_eps rule would
+    for budget in budgets:
+        out = tmp_path / f"b{budget}"
+        summary = quantify(config(executor, budget), out=out).summary
+        assert summary["runs_committed"] == budget and not summary["converged"], budget
+        rows = pq.read_table(out / "ledger").sort_by("sample_index")
+        assert rows.equals(unlimited.slice(0, budget)), budget
