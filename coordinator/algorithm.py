@@ -65,7 +65,9 @@ class Algorithm(ABC):
 
     @abstractmethod
     def draw(self, streams: RunStreams) -> tuple[np.ndarray, np.ndarray]:
-        """(B, n) start states and (B,) vertex ids, one per stream, from the current state."""
+        """(B', n) start states and (B',) vertex ids for the first B' <= B streams, from
+        the current state. B' < B ends the batch early (e.g. a certification with fewer
+        centres left to run than the batch has runs); its indices go to the next batch."""
 
     def next_event(self, rescreen: Rescreen, lo: int, start_ids: np.ndarray) -> int:
         """The first run at or after ``lo`` of a screened chunk that changes the state

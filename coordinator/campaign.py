@@ -145,7 +145,7 @@ class Campaign:
                 break
             streams = RunStreams.of(self.seed, np.arange(first, first + size, dtype=np.uint64))
             starts, ids = self.algorithm.draw(streams)
-            self.pending.append(Pending(first, starts, ids, self.algorithm.version))
+            self.pending.append(Pending(first, starts, ids, self.algorithm.version))  # len(starts) may be < size
         for p in self.pending:
             if not p.handles:
                 first = p.first_index + p.done
@@ -221,6 +221,8 @@ class Campaign:
     def run(self) -> Counters:
         c = self.counters
         started = time.monotonic() - c.elapsed_s
+        if c.committed == 0 and not self.pending:
+            self._certify_at_once()  # delta0 = delta_min: the first round is the last
         while not c.done and not self._stop:
             self._fill()
             if not self.pending:
@@ -250,6 +252,7 @@ class Campaign:
                     self.algorithm.end_round(self.executor)
                     c.quiet = 0
                     c.escaped_in_streak = 0
+                    self._certify_at_once()
             else:
                 if p.done == len(p):
                     self.pending.popleft()
@@ -260,6 +263,14 @@ class Campaign:
                 self.on_batch(self)
         c.elapsed_s = time.monotonic() - started
         return c
+
+    def _certify_at_once(self) -> None:
+        """A deterministic system's last round is its certification: every final centre
+        run once (VAL^delta) is exact, so the N_eps rule's epsilon-almost statement, and
+        the runs spent on it, would add nothing."""
+        algo = self.algorithm
+        if self.certify and getattr(algo, "deterministic", False) and algo.final_round and not algo.certifying:
+            algo.begin_certification()
 
     def _drop_in_flight(self) -> None:
         for q in self.pending:

@@ -254,9 +254,11 @@ class Rescreen:
         return k
 
     def trusted(self, rows: np.ndarray) -> np.ndarray:
-        """(len(rows),) bool: the screening's witnesses of these runs are current (they
-        were not re-screened in full)."""
-        return ~self._full[rows] & (self.screening.epoch == self.coverage.epoch)
+        """(len(rows),) bool: the screening's witnesses of these runs are current and
+        complete: not re-screened in full, and quiet when screened (a run whose explore
+        states were covered by later inserts is quiet now, but has no witness for them)."""
+        sc = self.screening
+        return ~self._full[rows] & (sc.event[rows] == QUIET) & ~sc.escaped[rows] & (sc.epoch == self.coverage.epoch)
 
     def candidates(self, row: int) -> np.ndarray:
         """The states of run ``row`` that can be new at the current version, in time

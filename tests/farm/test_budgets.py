@@ -26,7 +26,9 @@ def unlimited(tmp_path_factory):
     ("local", [1, 2, 3, 100, 255, 256, 257, 511, 512, 513, 1000, 1024, 1025]),
     ("ray", [1, 256, 257, 1000]),
 ])
-def test_every_budget_commits_exactly_the_first_runs(tmp_path, unlimited, executor, budgets):
+def test_every_budget_commits_exactly_the_first_runs(tmp_path, unlimited, executor, budgets, request):
+    if executor == "ray":
+        request.getfixturevalue("ray_local")  # the session's Ray, not one of this test's own
     budgets.append(unlimited.num_rows - 1)  # stops one run before the N_eps rule would
     for budget in budgets:
         out = tmp_path / f"b{budget}"
