@@ -164,20 +164,3 @@ def counterexample(domain: Domain, chunk, row: int, start: np.ndarray, step: int
         "trajectory": traj.tolist(),
         "truncated": bool(chunk.outcomes[row] == TRUNCATED),
     }
-
-
-def verdict_sentence(result: dict, p: ValidationPlan, *, epsilon: float, beta: float, delta: float, seed: int,
-                     action_description: str, adversarial: bool) -> str:
-    gamma = "Gamma* (the adversarial set, Definition 7)" if adversarial else "Gamma"
-    if result["verdict"] == "counterexample":
-        ce = result["counterexample"]
-        return (f"Phi is NOT forward invariant: sample {ce['sample_index']} (stream key seed={seed}, "
-                f"index={ce['sample_index']}) from {ce['start_state']} {ce['reason']}.")
-    n = result["n_run"]
-    conf = 1 - beta
-    if p.algorithm == "delta":
-        return (f"Phi is {delta:g}-almost forward invariant (resolution complete, Lemma 1) for {action_description} "
-                f"with probability one (N = {n} runs, {p.description}, seed {seed}).")
-    kind = f"{epsilon:g}-almost" if p.algorithm == "eps" else f"({epsilon:g}, {delta:g})-almost"
-    return (f"Phi is {kind} robustly controlled forward invariant w.r.t. {gamma} with confidence {conf:g} "
-            f"(N = {n} runs, {p.description}, actions {action_description}, seed {seed}).")

@@ -7,7 +7,7 @@
     result.contains([[10.0, 10.0, 40.0]])           # is this state in the safe set?
     cert = validate({"scenario": {"name": "lead-follow", "sv_policy": "brake"},
                      "validate": {"domain_set": "runs/lf-idm/safe_set.parquet"}})
-    cert.certified, cert.statement
+    cert.certified, cert.guarantee, cert.statement  # plain words, the paper's terms
 
 A config is a path to a TOML file, a TOML string, a dict or a ``farm.config.Config``.
 What these functions write is a normal campaign directory: every CLI command accepts it.
@@ -70,7 +70,13 @@ class QuantifyResult:
 
     @property
     def guarantee(self) -> str:
+        """The guarantee in plain words (summary.json ``guarantee``)."""
         return self.summary["guarantee"]
+
+    @property
+    def guarantee_formal(self) -> str:
+        """The same in the paper's terms (summary.json ``guarantee_formal``)."""
+        return self.summary.get("guarantee_formal", "")
 
     @property
     def volume_union(self) -> float:
@@ -159,7 +165,13 @@ class Certificate:
         return self.data["verdict"] == "certified"
 
     @property
+    def guarantee(self) -> str:
+        """The verdict in plain words (certificate.json ``guarantee``)."""
+        return self.data["guarantee"]
+
+    @property
     def statement(self) -> str:
+        """The verdict in the paper's terms (``guarantee_formal``)."""
         return self.data["statement"]
 
     @property
@@ -174,7 +186,8 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
     """Certify the domain of ``config``'s [validate] section or find the first
     counterexample; with ``out``, write certificate.json (and counterexample.mcap)."""
     from coordinator.domain import Domain
-    from coordinator.validation import plan, validate as run_validation, verdict_sentence
+    from coordinator.guarantee import validated
+    from coordinator.validation import plan, validate as run_validation
     from farm.executors import build_simulator
     from farm.ray_executor import make_executor
     from farm.resources import check_validate
@@ -207,10 +220,14 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
                                 pipeline_depth=farm.pipeline_depth, progress=progress)
     finally:
         executor.close()
-    sentence = verdict_sentence(result, p, epsilon=v.epsilon, beta=v.beta, delta=v.delta, seed=farm.seed,
-                                action_description=policy.description, adversarial=cfg.actions.mode == "adversarial")
-    cert = {"verdict": result["verdict"], "statement": sentence, "algorithm": p.algorithm,
-            "epsilon": v.epsilon, "beta": v.beta, "delta": v.delta, "n_required": p.n_required,
+    g = validated(scenario, policy, result, algorithm=p.algorithm, plan_description=p.description,
+                  epsilon=v.epsilon, beta=v.beta, delta=v.delta, horizon=v.horizon, seed=farm.seed,
+                  adversarial=cfg.actions.mode == "adversarial")
+    # only the parameters the algorithm used: VAL^eps has no delta, VAL^delta no epsilon/beta
+    used = {"delta": ("delta",), "eps": ("epsilon", "beta"), "eps-delta": ("epsilon", "beta", "delta")}[p.algorithm]
+    cert = {"verdict": result["verdict"], "guarantee": g.plain, "guarantee_formal": g.formal,
+            "statement": g.formal, "algorithm": p.algorithm,
+            **{name: getattr(v, name) for name in used}, "horizon": v.horizon, "n_required": p.n_required,
             "n_run": result["n_run"], "runs_simulated": result["runs_simulated"],
             "steps_simulated": result["steps_simulated"], "seed": farm.seed,
             "config_hash": config_mod.config_hash(cfg), "scenario": cfg.scenario.name,

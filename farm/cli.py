@@ -38,8 +38,11 @@ def _add_farm_flags(p, seed=True):
 def cmd_validate(args) -> int:
     from farm import api
 
-    cert = api.validate(args.config, out=args.out, force=args.force, **_farm_kwargs(args))
-    print(json.dumps(cert.data, indent=2) if args.json else cert.statement)
+    overrides = _farm_kwargs(args)
+    if args.algorithm:
+        overrides["validate__algorithm"] = args.algorithm
+    cert = api.validate(args.config, out=args.out, force=args.force, **overrides)
+    print(json.dumps(cert.data, indent=2) if args.json else f"{cert.guarantee}\nFormally: {cert.statement}")
     return EXIT_OK if cert.certified else EXIT_COUNTEREXAMPLE
 
 
@@ -83,6 +86,8 @@ def _print_summary(summary: dict, out: Path) -> None:
             v = summary[k]
             print(f"{k:>18}: {v:.6g}" if isinstance(v, float) else f"{k:>18}: {v}")
     print(f"{'guarantee':>18}: {summary['guarantee']}")
+    if summary.get("guarantee_formal"):
+        print(f"{'formally':>18}: {summary['guarantee_formal']}")
     print(f"{'results':>18}: {out}/summary.json, {out}/safe_set.parquet, {out}/plots/")
 
 
@@ -137,6 +142,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the certificate as JSON")
     p.add_argument("--out", help="directory for certificate.json (and counterexample.mcap)")
     p.add_argument("--force", action="store_true", help="replace an existing certificate.json")
+    p.add_argument("--algorithm", choices=["delta", "eps", "eps-delta"], help="overrides validate.algorithm")
     _add_farm_flags(p)
     p.set_defaults(func=cmd_validate)
 

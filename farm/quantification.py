@@ -208,24 +208,17 @@ class stop_on_signals:
         return False
 
 
-def guarantee_sentence(cfg: Config, campaign: Campaign, n_eps_value: int, policy_description: str,
-                       delta: float) -> str:
-    q, c = cfg.quantify, campaign.counters
-    if not c.converged:
-        return (f"No guarantee: the budget of {q.budget} runs was used up before a round at delta = "
-                f"{q.delta_min:g} saw N_eps = {n_eps_value} consecutive runs that changed nothing.")
-    gamma = "Gamma*" if cfg.actions.mode == "adversarial" else "Gamma"
-    escaped = c.escaped_in_streak
-    core = (f"The last {n_eps_value} committed runs (N_eps = ceil(ln {q.beta:g} / ln(1 - {q.epsilon:g}))), "
-            f"drawn i.i.d. from the final set ({campaign.final_distribution}; actions {policy_description}), "
-            f"neither failed nor found a new state")
-    if escaped == 0:
-        return (core + f", and none left Phi_delta: the set is ({q.epsilon:g}, {delta:g})-almost robustly "
-                f"controlled forward invariant w.r.t. {gamma} with confidence {1 - q.beta:g} for that "
-                f"sampling distribution.")
-    return (core + f"; {escaped} of them left Phi_delta only within delta of a known failure, so the "
-            f"{q.epsilon:g}-almost statement holds for 'no failure and no new state' with confidence "
-            f"{1 - q.beta:g}, not for staying in Phi_delta.")
+def guarantee_of(cfg: Config, part: "Part", delta: float):
+    """The plain and formal guarantee of a finished campaign part (coordinator/guarantee.py)."""
+    from coordinator.guarantee import quantified
+
+    q, campaign, algo = cfg.quantify, part.campaign, part.algorithm
+    certified = campaign.certify and getattr(algo, "certifying", False)
+    return quantified(part.scenario, part.policy, epsilon=q.epsilon, beta=q.beta, delta=delta, horizon=q.horizon,
+                      n_eps=part.n_eps, converged=campaign.counters.converged, budget=q.budget,
+                      enumerated=certified and algo.enumerates, boxes=algo.vertices.alive_count if hasattr(
+                          algo, "vertices") else 0, uniform=certified, distribution=campaign.final_distribution,
+                      escaped=campaign.counters.escaped_in_streak, adversarial=cfg.actions.mode == "adversarial")
 
 
 def finish(cfg: Config, out: Path, parts: dict[str, Part]) -> dict:
@@ -262,7 +255,8 @@ def finish(cfg: Config, out: Path, parts: dict[str, Part]) -> dict:
         "result_hash": rhash,
         "elapsed_s": round(sum(k.elapsed_s for k in counters), 3),
         "startup_s": round(sum(getattr(p, "startup_s", 0.0) for p in parts.values()), 3),
-        "guarantee": guarantee_sentence(cfg, campaign, part.n_eps, part.policy.description, h),
+        "guarantee": (g := guarantee_of(cfg, part, h)).plain,
+        "guarantee_formal": g.formal,
         "actions": part.policy.description,
         "failure_facets": list(scenario.failure_facets),
         "round_ends": list(c.round_ends),
@@ -275,8 +269,8 @@ def finish(cfg: Config, out: Path, parts: dict[str, Part]) -> dict:
         summary[f"volume_{label}_side"] = union_volume(sc, sh, bounds=bounds)
         summary[f"volume_hull_{label}_side"] = hull_volume(sc, sh, bounds=bounds)
         summary[f"result_hash_{label}_side"] = result_hash(sc, sh)
-        summary[f"guarantee_{label}_side"] = guarantee_sentence(cfg, side.campaign, side.n_eps,
-                                                                side.policy.description, sh)
+        gs = guarantee_of(cfg, side, sh)
+        summary[f"guarantee_{label}_side"], summary[f"guarantee_formal_{label}_side"] = gs.plain, gs.formal
         write_safe_set(out / f"safe_set_{label}_side.parquet", sc, sh, side.scenario.state_names,
                        {"config_hash": chash, "side": label})
     write_safe_set(out / "safe_set.parquet", centres, h, scenario.state_names,

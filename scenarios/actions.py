@@ -21,6 +21,19 @@ class ActionPolicy:
     deterministic: bool = False
     description: str = ""
 
+    def words(self, scenario: Scenario) -> str:
+        """The actions in plain words, for the guarantee: 'with ... ' completes it."""
+        return f"with actions {self.description}"
+
+
+def _named(scenario: Scenario, values) -> str:
+    """'the lead vehicle's acceleration at -5 m/s^2 and ...' for one action vector."""
+    parts = []
+    for name, value in zip(scenario.action_names, np.asarray(values, dtype=float).ravel()):
+        unit = scenario.action_units.get(name, "")
+        parts.append(f"{scenario.action_words.get(name, name)} at {value:g}{' ' + unit if unit else ''}")
+    return " and ".join(parts)
+
     def __call__(self, scenario: Scenario, states: np.ndarray, t: int, streams: RunStreams) -> np.ndarray:
         raise NotImplementedError
 
@@ -30,6 +43,14 @@ class UniformActions(ActionPolicy):
     """u ~ U(Gamma), i.i.d. over steps and runs."""
 
     description: str = "u ~ U(Gamma)"
+
+    def words(self, scenario):
+        ranges = []
+        for i, name in enumerate(scenario.action_names):
+            unit = scenario.action_units.get(name, "")
+            ranges.append(f"{scenario.action_words.get(name, name)} drawn uniformly from "
+                          f"[{scenario.action_lower[i]:g}, {scenario.action_upper[i]:g}]{' ' + unit if unit else ''}")
+        return "with " + " and ".join(ranges) + " at every step"
 
     def __call__(self, scenario, states, t, streams):
         u = streams.uniform(t, PURPOSE_ACTION, scenario.m)
@@ -44,6 +65,13 @@ class AdversarialActions(ActionPolicy):
 
     description: str = "u ~ U(Gamma*)"
     deterministic: bool = False  # True when Gamma* is a single action
+
+    def words(self, scenario):
+        options = scenario.adversarial_actions
+        if len(options) == 1:
+            return f"with {_named(scenario, options[0])} throughout (the worst case, Gamma*)"
+        return ("with, at every step, one of " + "; ".join(_named(scenario, o) for o in options)
+                + " drawn at random (the worst cases, Gamma*)")
 
     def __call__(self, scenario, states, t, streams):
         options = scenario.adversarial_actions
@@ -61,6 +89,9 @@ class ConstantActions(ActionPolicy):
     @property
     def description(self) -> str:  # type: ignore[override]
         return f"u = {list(self.value)} (constant)"
+
+    def words(self, scenario):
+        return f"with {_named(scenario, self.value)} throughout"
 
     def __call__(self, scenario, states, t, streams):
         return np.broadcast_to(np.asarray(self.value, dtype=float), (len(states), scenario.m))
@@ -80,6 +111,9 @@ class FeedbackActions(ActionPolicy):
     @property
     def description(self) -> str:  # type: ignore[override]
         return f"u = pi(sigma), pi = {self.target}"
+
+    def words(self, scenario):
+        return f"with the actions chosen by the feedback policy {self.target}"
 
     def __call__(self, scenario, states, t, streams):
         u = np.asarray(self._fn(states), dtype=float)

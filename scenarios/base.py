@@ -81,6 +81,10 @@ class Scenario(ABC):
                       empty for a scenario without an SV (or whose SV is the back end's)
       noise_width     U[0,1) draws per step for the disturbance (0: none supported)
       units           state name -> unit, for labels (e.g. {"v0": "m/s"})
+      action_words    action name -> what it is, in words (e.g. {"u1": "the lead
+                      vehicle's acceleration"}) and ``action_units``: for the plain
+                      guarantee ("with the lead vehicle's acceleration held at -5 m/s^2")
+      failure_words   what a failure is, as a verb (e.g. "collide")
       sides           named sub-studies: side name -> the failure facets that count
                       (e.g. fleet3's {"lead": ("p10",), "rear": ("p20",)}); quantified
                       alongside the total and reported as volume_<side>_side
@@ -100,6 +104,9 @@ class Scenario(ABC):
     noise_width: int = 0  # how many U[0,1) draws per step the disturbance needs
     adversary_settle_steps: int | None = None  # see reference_safe
     units: dict[str, str] = {}
+    action_words: dict[str, str] = {}
+    action_units: dict[str, str] = {}
+    failure_words: str = "fail"
     sides: dict[str, tuple[str, ...]] = {}
 
     def __init__(self, sv_policy: str | None = None, failure_facets: tuple[str, ...] | None = None,

@@ -26,6 +26,9 @@ class Fleet3(Scenario):
     adversarial_actions = np.array([[-5.0, -3.0]])  # lead brakes hardest, follower least
     noise_width = 3
     units = {"v0": "m/s", "v1": "m/s", "v2": "m/s", "p10": "m", "p20": "m"}
+    action_words = {"u1": "the lead vehicle's acceleration", "u2": "the following vehicle's acceleration"}
+    action_units = {"u1": "m/s^2", "u2": "m/s^2"}
+    failure_words = "collide"
     sides = {"lead": ("p10",), "rear": ("p20",)}  # the paper's Fig. 4 / Table 2 measures
     sv_policies = SV_POLICIES
     adversary_settle_steps = 400

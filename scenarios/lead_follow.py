@@ -25,6 +25,9 @@ class LeadFollow(Scenario):
     noise_width = 2
     sv_policies = SV_POLICIES
     units = {"v0": "m/s", "v1": "m/s", "p10": "m"}
+    action_words = {"u1": "the lead vehicle's acceleration"}
+    action_units = {"u1": "m/s^2"}
+    failure_words = "collide"
     adversary_settle_steps = 400  # the lead stops within 4 s, any sane SV within 40 s
     # As vehicles on one lane (for simulator back ends): the SV, then one commanded
     # vehicle per action column; 5 m cars, positions are front bumpers.

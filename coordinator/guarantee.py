@@ -1,0 +1,115 @@
+"""The guarantee in two forms: a plain sentence a safety case can quote, built from the
+config's own values and units, and the formal statement in the paper's terms.
+
+Plain: "With 90% confidence, at most 0.1% of scenarios started at a box centre of this
+set (drawn uniformly), with the lead vehicle's acceleration held at -5 m/s^2, collide or
+leave the set within 5 s." Formal: "Phi is (0.001, 1)-almost robustly controlled forward
+invariant w.r.t. Gamma* with confidence 0.9 (...)".
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Guarantee:
+    plain: str
+    formal: str
+
+
+def _percent(x: float) -> str:
+    return f"{100 * x:.4g}%"
+
+
+def _horizon_s(scenario, horizon: int) -> str:
+    return f"{horizon * scenario.dt:g} s"
+
+
+def _conditions(scenario, policy) -> str:
+    words = policy.words(scenario)
+    w = getattr(scenario, "disturbance", 0.0)
+    if w:
+        words += f", under a random disturbance of up to {w:g} m/s^2"
+    return words
+
+
+def _leave(delta: float) -> str:
+    return f"leave it (by more than its resolution delta = {delta:g})"
+
+
+# -- quantification -------------------------------------------------------------------------
+def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, horizon: int, n_eps: int,
+               converged: bool, budget: int, enumerated: bool, boxes: int, uniform: bool, distribution: str,
+               escaped: int, adversarial: bool) -> Guarantee:
+    """The guarantee of a quantified set. ``enumerated``: a deterministic system's final
+    centres were each run once (VAL^delta); ``uniform``: the last N_eps runs were drawn
+    uniformly over the final centres (a certification round); ``escaped``: counted runs
+    that left Phi_delta toward a known failure (possible only without certification)."""
+    cond, fail, t = _conditions(scenario, policy), scenario.failure_words, _horizon_s(scenario, horizon)
+    gamma = "Gamma*" if adversarial else "Gamma"
+    if not converged:
+        text = (f"No guarantee: the budget of {budget} runs was used up before the last round (delta = "
+                f"{delta:g}) saw N_eps = {n_eps} runs in a row that changed nothing.")
+        return Guarantee(text, text)
+    if enumerated:
+        plain = (f"Every scenario started at one of the {boxes} box centres of this set, {cond}, stays in the set "
+                 f"(to within its resolution delta = {delta:g}) and does not {fail} for {t}: each centre was "
+                 f"simulated (the system is deterministic).")
+        formal = (f"Phi is {delta:g}-almost robustly controlled forward invariant w.r.t. {gamma} on its "
+                  f"{delta:g}-covering (VAL^delta, Lemma 1): the run from each of the {boxes} centres stays in "
+                  f"Phi_delta without failure for K = {horizon} steps ({policy.description}).")
+        return Guarantee(plain, formal)
+    where = ("started at a box centre of this set (drawn uniformly)" if uniform
+             else f"started in this set as the last round drew them ({distribution})")
+    confidence = _percent(1 - beta)
+    nn = f"N_eps = ceil(ln {beta:g} / ln(1 - {epsilon:g})) = {n_eps}"
+    if escaped == 0:
+        plain = (f"With {confidence} confidence, at most {_percent(epsilon)} of scenarios {where}, {cond}, {fail} or "
+                 f"{_leave(delta)} within {t}.")
+        formal = (f"Phi is ({epsilon:g}, {delta:g})-almost robustly controlled forward invariant w.r.t. {gamma} "
+                  f"with confidence {1 - beta:g} ({nn} runs in a row drawn i.i.d. from {distribution}, actions "
+                  f"{policy.description}, neither failed nor left Phi_delta).")
+        return Guarantee(plain, formal)
+    plain = (f"With {confidence} confidence, at most {_percent(epsilon)} of scenarios {where}, {cond}, {fail} or "
+             f"reach a state never seen before within {t}; {escaped} of the last {n_eps} runs did leave the set "
+             f"toward a known failure, so this does not say the set holds its scenarios (turn on "
+             f"quantify.certify for that).")
+    formal = (f"No failure and no new state (not invariance: {escaped} of the runs left Phi_delta within delta "
+              f"of PhiBar) with probability >= 1 - {epsilon:g} and confidence {1 - beta:g} ({nn} runs in a row "
+              f"drawn i.i.d. from {distribution}, actions {policy.description}).")
+    return Guarantee(plain, formal)
+
+
+# -- validation -----------------------------------------------------------------------------
+def validated(scenario, policy, result: dict, *, algorithm: str, plan_description: str, epsilon: float,
+              beta: float, delta: float, horizon: int, seed: int, adversarial: bool) -> Guarantee:
+    """The verdict of a validation in both forms."""
+    cond, fail, t = _conditions(scenario, policy), scenario.failure_words, _horizon_s(scenario, horizon)
+    gamma = "Gamma* (the adversarial set, Definition 7)" if adversarial else "Gamma"
+    n = result["n_run"]
+    if result["verdict"] == "counterexample":
+        ce = result["counterexample"]
+        what = (f"did {fail}" if ce["outcome"] == "failure" else "left the domain")
+        at = ce["violating_step"] * scenario.dt
+        plain = (f"Not certified: the scenario started at {ce['start_state']}, {cond}, {what} after {at:g} s "
+                 f"(sample {ce['sample_index']}; `scenario-farm replay` re-runs it).")
+        formal = (f"Phi is NOT forward invariant: sample {ce['sample_index']} (stream key seed={seed}, "
+                  f"index={ce['sample_index']}) from {ce['start_state']} {ce['reason']}.")
+        return Guarantee(plain, formal)
+    if algorithm == "delta":
+        plain = (f"Every scenario started at one of the {n} centres covering this domain (spacing 2 x delta = "
+                 f"{2 * delta:g}), {cond}, stays within delta of the domain and does not {fail} for {t}.")
+        formal = (f"Phi is {delta:g}-almost forward invariant (resolution complete, Lemma 1) for "
+                  f"{policy.description} with probability one (N = {n} runs, {plan_description}, seed {seed}).")
+        return Guarantee(plain, formal)
+    if algorithm == "eps":
+        where, kind, leave = "started in this domain (uniformly)", f"{epsilon:g}-almost", "leave it"
+    else:
+        where = f"started at this domain's {delta:g}-covering centres (uniformly)"
+        kind, leave = f"({epsilon:g}, {delta:g})-almost", f"leave it by more than delta = {delta:g}"
+    plain = (f"With {_percent(1 - beta)} confidence, at most {_percent(epsilon)} of scenarios {where}, {cond}, "
+             f"{fail} or {leave} within {t}.")
+    formal = (f"Phi is {kind} robustly controlled forward invariant w.r.t. {gamma} with confidence {1 - beta:g} "
+              f"(N = {n} runs, {plan_description}, actions {policy.description}, seed {seed}).")
+    return Guarantee(plain, formal)

@@ -1,0 +1,151 @@
+"""Does the exported set of a stochastic campaign keep its guarantee? (issue: certified output)
+
+Lead-follow idm, uniform Gamma (a stochastic system: the certification round draws N_eps
+runs uniformly over the final centres). For each quantification seed:
+  - the exported set's true violation rate p: the share of runs, started at a centre drawn
+    uniformly and with uniform actions, that fail or leave Phi_delta, measured on an
+    independent Monte Carlo sample (its own seed, ``--mc`` runs);
+  - whether a fresh ``validate`` (eps-delta, its own seed) certifies the set.
+The guarantee says P(p > eps) <= beta over campaigns. A fresh validation certifies with
+probability (1 - p)^N (N its own run count), which can be small even when p <= eps.
+
+    python experiments/certified_sets.py --seeds 20 --mc 100000   # writes docs/certified_sets.json
+    python experiments/certified_sets.py --render                 # its table into docs/guarantee.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import beta as beta_dist
+
+from coordinator.spatial import PointIndex
+from farm import api
+from scenarios.base import FAILURE
+from scenarios.simulator import SimSpec, Simulator
+from scenarios.streams import PURPOSE_START, RunStreams
+
+ROOT = Path(__file__).resolve().parents[1]
+JSON = ROOT / "docs" / "certified_sets.json"
+DOC = ROOT / "docs" / "guarantee.md"
+SCENARIO = {"name": "lead-follow", "sv_policy": "idm"}
+ACTIONS = {"mode": "uniform"}
+QUANTIFY = {"delta0": 2.0, "delta_min": 1.0, "epsilon": 0.001, "beta": 0.1, "horizon": 50}
+VALIDATE = {"algorithm": "eps-delta", "epsilon": 0.001, "beta": 0.1, "horizon": 50}
+MC_SEED = 10**9  # apart from every campaign and validation seed
+
+
+def violation_rate(centres: np.ndarray, h: float, runs: int, batch: int = 20_000) -> tuple[int, int]:
+    """Violations (failure or a state farther than h from every centre) among ``runs``
+    runs from centres drawn uniformly: the event certification and validate test."""
+    sim = Simulator(SimSpec(SCENARIO, ACTIONS, QUANTIFY["horizon"], MC_SEED))
+    index = PointIndex(centres.shape[1], 2 * h, centres.min(axis=0) - h)
+    index.insert(centres)
+    bad = 0
+    for first in range(0, runs, batch):
+        idx = np.arange(first, min(first + batch, runs), dtype=np.uint64)
+        u = RunStreams.of(MC_SEED, idx).uniform(0, PURPOSE_START, 1)[:, 0]
+        starts = centres[np.minimum((u * len(centres)).astype(np.int64), len(centres) - 1)]
+        b = sim.simulate(0, starts, indices=idx)
+        states, offsets = b.visited()
+        out = ~index.any_within(states, h)
+        run = np.repeat(np.arange(len(idx)), np.diff(offsets))
+        left = np.bincount(run[out], minlength=len(idx)) > 0
+        bad += int(np.count_nonzero(left | (b.outcomes == FAILURE)))
+    return bad, runs
+
+
+def one_seed(seed: int, mc: int, workdir: Path) -> dict:
+    t = time.time()
+    result = api.quantify({"scenario": SCENARIO, "actions": ACTIONS, "quantify": QUANTIFY,
+                           "farm": {"executor": "local", "seed": seed}}, out=workdir / f"s{seed}")
+    bad, n = violation_rate(result.centres, result.half_width, mc)
+    cert = api.validate({"scenario": SCENARIO, "actions": ACTIONS,
+                         "validate": {**VALIDATE, "delta": result.half_width,
+                                      "domain_set": str(workdir / f"s{seed}" / "safe_set.parquet")},
+                         "farm": {"executor": "local", "seed": 10_000 + seed}})
+    row = {"seed": seed, "boxes": result.summary["boxes"], "runs": result.summary["runs_committed"],
+           "violations": bad, "mc_runs": n, "p": bad / n, "validate_certified": cert.certified,
+           "validate_runs": cert["n_run"], "seconds": round(time.time() - t, 1)}
+    print(json.dumps(row), flush=True)
+    return row
+
+
+def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
+    a = (1 - level) / 2
+    lo = 0.0 if k == 0 else float(beta_dist.ppf(a, k, n - k + 1))
+    hi = 1.0 if k == n else float(beta_dist.ppf(1 - a, k + 1, n - k))
+    return lo, hi
+
+
+def experiment(seeds: int, mc: int) -> dict:
+    with tempfile.TemporaryDirectory() as d:
+        rows = [one_seed(s, mc, Path(d)) for s in range(seeds)]
+    eps, beta = QUANTIFY["epsilon"], QUANTIFY["beta"]
+    above = sum(r["p"] > eps for r in rows)
+    n_val = int(np.ceil(np.log(VALIDATE["beta"]) / np.log(1 - VALIDATE["epsilon"])))
+    return {"scenario": SCENARIO, "actions": ACTIONS, "quantify": QUANTIFY, "validate": VALIDATE,
+            "mc_runs": mc, "rows": rows, "above_eps": above, "share_above_eps": above / len(rows),
+            "share_above_eps_ci95": clopper_pearson(above, len(rows)),
+            "validate_certified": sum(r["validate_certified"] for r in rows),
+            "validate_predicted": float(np.mean([(1 - r["p"]) ** n_val for r in rows])),
+            "validate_n": n_val, "epsilon": eps, "beta": beta, "date": time.strftime("%Y-%m-%d")}
+
+
+def render(data: dict) -> str:
+    eps, beta = data["epsilon"], data["beta"]
+    lo, hi = data["share_above_eps_ci95"]
+    n = len(data["rows"])
+    lines = [
+        "<!-- certified-sets:begin (generated by experiments/certified_sets.py --render) -->",
+        f"`python experiments/certified_sets.py --seeds {n} --mc {data['mc_runs']}` ({data['date']}): lead-follow "
+        f"idm, uniform Gamma, delta {data['quantify']['delta0']:g} -> {data['quantify']['delta_min']:g}, eps = {eps:g}, "
+        f"beta = {beta:g}, certification on (N_eps = {int(np.ceil(np.log(beta) / np.log(1 - eps)))} runs uniform "
+        f"over the final centres). p is the exported set's true violation rate (a run from a uniformly drawn "
+        f"centre fails or leaves Phi_delta), measured on {data['mc_runs']:,} independent runs per set.",
+        "",
+        "| seed | boxes | campaign runs | violations / MC runs | p | p > eps | fresh validate |",
+        "| ---: | ---: | ---: | ---: | ---: | :---: | :---: |",
+    ]
+    for r in data["rows"]:
+        lines.append(f"| {r['seed']} | {r['boxes']:,} | {r['runs']:,} | {r['violations']} / {r['mc_runs']:,} | "
+                     f"{r['p']:.5f} | {'yes' if r['p'] > eps else 'no'} | "
+                     f"{'certified' if r['validate_certified'] else 'counterexample'} |")
+    lines += [
+        "",
+        f"Sets whose true violation rate exceeds eps: {data['above_eps']} of {n} "
+        f"({data['share_above_eps']:.2f}; 95% Clopper-Pearson interval [{lo:.3f}, {hi:.3f}]); the guarantee "
+        f"allows a share of beta = {beta:g}.",
+        f"A fresh `validate` (eps-delta, eps = {data['validate']['epsilon']:g}, beta = {data['validate']['beta']:g}, "
+        f"N = {data['validate_n']} runs, its own seed) certified {data['validate_certified']} of {n} sets; "
+        f"(1 - p)^N predicts {data['validate_predicted'] * n:.1f} of {n}.",
+        "<!-- certified-sets:end -->",
+    ]
+    return "\n".join(lines)
+
+
+def write_doc(data: dict) -> None:
+    text = DOC.read_text()
+    begin, end = "<!-- certified-sets:begin", "<!-- certified-sets:end -->"
+    block = render(data)
+    if begin in text:
+        text = text[: text.index(begin)] + block + text[text.index(end) + len(end):]
+    else:
+        text = text.rstrip() + "\n\n## The exported set of a stochastic campaign\n\n" + block + "\n"
+    DOC.write_text(text)
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seeds", type=int, default=20)
+    ap.add_argument("--mc", type=int, default=100_000)
+    ap.add_argument("--render", action="store_true", help="only rewrite docs/guarantee.md from the JSON")
+    args = ap.parse_args()
+    if not args.render:
+        JSON.write_text(json.dumps(experiment(args.seeds, args.mc), indent=2) + "\n")
+    write_doc(json.loads(JSON.read_text()))

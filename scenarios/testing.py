@@ -1,0 +1,124 @@
+"""The conformance suite every scenario and back end must pass (like Optuna's shared
+sampler tests): plain functions that raise ``AssertionError`` naming what broke.
+
+    from scenarios.testing import check_backend
+    check_backend(make_backend({"name": "my-scenario"}))     # in a test of your own
+
+What the farm relies on, and what each check tests:
+- ``check_declarations``: Sigma, Gamma, Gamma* and the facets are consistent arrays.
+- ``check_key_only``: a run depends on its key (seed, sample index) and start alone, not
+  on which other runs share its batch or where it sits in it: parallel workers split
+  batches as they like, and results must not move.
+- ``check_finite``: runs from all over Sigma under uniform actions stay finite.
+- ``check_step_bound``: ``step_bound()`` (sigma-bar, Assumption 1) bounds every observed
+  step; the boundary-band options rely on it. The rollout core refuses a violated bound
+  with an error naming the scenario.
+- ``check_outcomes``: a failed run ends beyond a failure facet, a truncated one beyond
+  a truncating facet, and the rest run the full horizon inside Sigma.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from scenarios.actions import UniformActions
+from scenarios.base import FAILURE, TRUNCATED
+from scenarios.rollout import run_scenario
+from scenarios.streams import RunStreams
+
+HORIZON = 30
+
+
+def _starts(scenario, count: int, seed: int = 7) -> np.ndarray:
+    rng = np.random.default_rng(seed)  # test data only; runs draw from their keyed streams
+    return rng.uniform(scenario.lower, scenario.upper, (count, scenario.n))
+
+
+def _run(backend, starts, indices, seed=3, horizon=HORIZON, check_step_bound=False):
+    streams = RunStreams.of(seed, np.asarray(indices, dtype=np.uint64))
+    return run_scenario(backend, starts, horizon, UniformActions(), streams, check_step_bound=check_step_bound)
+
+
+def check_declarations(scenario) -> None:
+    n, m = scenario.n, scenario.m
+    name = scenario.name or type(scenario).__name__
+    assert len(scenario.state_names) == n == len(scenario.lower) == len(scenario.upper), f"{name}: n mismatch"
+    assert np.all(np.asarray(scenario.lower) < np.asarray(scenario.upper)), f"{name}: Sigma must have lower < upper"
+    assert len(scenario.action_lower) == m == len(scenario.action_upper), f"{name}: m mismatch"
+    assert np.all(scenario.action_lower <= scenario.action_upper), f"{name}: Gamma must have lower <= upper"
+    adv = np.asarray(scenario.adversarial_actions, dtype=float)
+    assert adv.ndim == 2 and adv.shape[1] == m and len(adv) >= 1, f"{name}: Gamma* must be (k, m), k >= 1"
+    assert np.all((adv >= scenario.action_lower) & (adv <= scenario.action_upper)), f"{name}: Gamma* must lie in Gamma"
+    assert set(scenario.failure_sides) <= set(scenario.state_names), f"{name}: failure facets must be state names"
+    assert set(scenario.units) <= set(scenario.state_names), f"{name}: units name unknown states"
+    assert scenario.step_bound() > 0, f"{name}: step_bound() must be positive"
+
+
+def check_key_only(backend, runs: int = 64) -> None:
+    """The same keys and starts give the same runs, alone, reversed or among others."""
+    sc = backend.scenario
+    starts = _starts(sc, runs)
+    keys = np.arange(100, 100 + runs)
+    a = _run(backend, starts, keys)
+    rev = slice(None, None, -1)
+    b = _run(backend, starts[rev], keys[rev])
+    others = _starts(sc, runs, seed=11)
+    c = _run(backend, np.concatenate([others, starts]), np.concatenate([keys + 10_000, keys]))
+    for r in range(runs):
+        ta = a.trajectory(r)
+        for tb, label in ((b.trajectory(runs - 1 - r), "reversed"), (c.trajectory(runs + r), "among other runs")):
+            assert ta.shape == tb.shape and np.array_equal(ta, tb), (
+                f"{sc.name}: sample index {keys[r]} ran differently {label} in its batch: a run must depend on "
+                f"its key and start alone")
+
+
+def check_finite(backend, runs: int = 512) -> None:
+    sc = backend.scenario
+    batch = _run(backend, _starts(sc, runs), np.arange(runs))
+    for r in range(runs):
+        assert np.isfinite(batch.trajectory(r)).all(), f"{sc.name}: sample index {r} produced a non-finite state"
+
+
+def check_step_bound(backend, runs: int = 512) -> float:
+    """Returns the largest observed step (l-inf) for the report."""
+    sc = backend.scenario
+    batch = _run(backend, _starts(sc, runs), np.arange(runs), check_step_bound=True)
+    largest = 0.0
+    for r in range(runs):
+        t = batch.trajectory(r)
+        inside = t[: len(t) - (batch.outcomes[r] in (FAILURE, TRUNCATED))]  # the last state may be past a facet
+        if len(inside) > 1:
+            largest = max(largest, float(np.abs(np.diff(inside, axis=0)).max()))
+    assert largest <= sc.step_bound(), f"{sc.name}: observed step {largest:g} > step_bound() {sc.step_bound():g}"
+    return largest
+
+
+def check_outcomes(backend, runs: int = 512) -> None:
+    sc = backend.scenario
+    batch = _run(backend, _starts(sc, runs), np.arange(runs))
+    fail_facets = [f for f, failure in sc.facets() if failure]
+    lo, hi = np.asarray(sc.lower), np.asarray(sc.upper)
+    for r in range(runs):
+        t = batch.trajectory(r)
+        last = t[-1]
+        beyond = [(last[f.axis] > f.bound) if f.upper else (last[f.axis] < f.bound) for f in fail_facets]
+        if batch.outcomes[r] == FAILURE:
+            assert any(beyond), f"{sc.name}: sample index {r} 'failed' inside every failure facet: {last.tolist()}"
+        elif batch.outcomes[r] == TRUNCATED:
+            assert np.any((last < lo) | (last > hi)), f"{sc.name}: sample index {r} 'truncated' inside Sigma"
+        else:
+            assert len(t) == HORIZON, f"{sc.name}: sample index {r} ended early ({len(t)} states) without a reason"
+
+
+def check_backend(backend) -> None:
+    """Every check, for a back end (a bare Scenario runs on its numpy dynamics)."""
+    from scenarios.backend import NumpyBackend
+    from scenarios.base import Scenario
+
+    if isinstance(backend, Scenario):
+        backend = NumpyBackend(backend)
+    check_declarations(backend.scenario)
+    check_key_only(backend)
+    check_finite(backend)
+    check_step_bound(backend)
+    check_outcomes(backend)

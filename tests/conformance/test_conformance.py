@@ -1,0 +1,74 @@
+"""The shared conformance suite (scenarios/testing.py) on every scenario and back end we
+ship, the custom-scenario guide's example included, and the SUMO back end."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from scenarios import testing
+from scenarios.base import ScenarioError
+from scenarios.registry import make_backend
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "custom"
+
+BACKENDS = {
+    "lead-follow/brake": {"name": "lead-follow", "sv_policy": "brake"},
+    "lead-follow/idm+disturbance": {"name": "lead-follow", "sv_policy": "idm", "disturbance": 0.3},
+    "fleet3/idm": {"name": "fleet3", "sv_policy": "idm"},
+    "toy": {"name": "toy"},
+    "guide:approach": {"name": "approach:Approach"},
+    "sumo:lead-follow": {"name": "lead-follow", "backend": "sumo", "sv_policy": "sumo"},
+}
+
+
+@pytest.fixture(params=list(BACKENDS))
+def backend(request, monkeypatch):
+    monkeypatch.syspath_prepend(str(EXAMPLES))  # as the CLI does with the working directory
+    sys.modules.pop("approach", None)
+    return make_backend(dict(BACKENDS[request.param]))
+
+
+def test_declarations(backend):
+    testing.check_declarations(backend.scenario)
+
+
+def test_a_run_depends_on_its_key_and_start_alone(backend):
+    testing.check_key_only(backend)
+
+
+def test_runs_stay_finite(backend):
+    testing.check_finite(backend)
+
+
+def test_step_bound_bounds_every_observed_step(backend):
+    largest = testing.check_step_bound(backend)
+    assert largest > 0  # the check saw motion, not a frozen simulator
+
+
+def test_outcomes_match_where_runs_end(backend):
+    testing.check_outcomes(backend)
+
+
+def test_a_wrong_step_bound_is_an_error_naming_the_scenario(monkeypatch):
+    monkeypatch.syspath_prepend(str(EXAMPLES))
+    backend = make_backend({"name": "approach:Approach"})
+    monkeypatch.setattr(type(backend.scenario), "step_bound", lambda self: 0.01)
+    with pytest.raises(ScenarioError, match=r"scenario 'approach': step_bound\(\) = 0.01 but sample index"):
+        testing.check_step_bound(backend)
+
+
+def test_the_suite_catches_a_scenario_whose_runs_see_their_batch():
+    """The suite is not vacuous: a step that mixes rows of the batch is refused."""
+    from scenarios.lead_follow import LeadFollow
+
+    class Leaky(LeadFollow):
+        name = "leaky"
+
+        def step_into(self, states, actions, noise, out):
+            super().step_into(states, actions, noise, out)
+            out[0] += 1e-6 * float(np.mean(states[:, 0]))  # depends on the other runs
+
+    with pytest.raises(AssertionError, match="leaky: sample index .* ran differently"):
+        testing.check_key_only(make_backend({"name": "lead-follow"}).__class__(Leaky(sv_policy="idm")))
