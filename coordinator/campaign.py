@@ -68,6 +68,7 @@ class Counters:
     round_ends: list = field(default_factory=list)  # committed count at each round end
     elapsed_s: float = 0.0
     recorded: int = 0  # runs handed to the recorder so far
+    attempts: int = 0  # certification attempts (a change during certification starts the next)
 
 
 @dataclass
@@ -111,7 +112,8 @@ class Campaign:
 
     def __init__(self, algorithm: Algorithm, executor, *, n_eps: int, budget: int, batch_size: int,
                  pipeline_depth: int, seed: int, on_batch: Callable[["Campaign"], None] | None = None,
-                 record_limit: int = 0, certify: bool = False):
+                 record_limit: int = 0, certify: bool = False,
+                 certify_quiet: Callable[[int], int] | None = None):
         self.algorithm = algorithm
         self.executor = executor
         self.n_eps = n_eps
@@ -126,6 +128,9 @@ class Campaign:
         self.final_distribution = ""
         self.record_limit = record_limit
         self.certify = certify
+        # the quiet runs attempt i of a sampled certification needs (default: n_eps); the
+        # driver splits beta over the attempts so that the set finally exported keeps it
+        self.certify_quiet = certify_quiet
         self.recordings: list[dict] = []  # runs to record, since the last flush
         self._stop = False
 
@@ -173,7 +178,7 @@ class Campaign:
                     offset, ended = done - pos + 1, True
                 counted[pos : pos + offset] = trusted[:offset]
             elif p.version == algo.version:  # drawn from the state as it is now: counts
-                need = algo.required_quiet(self.n_eps)
+                need = self.quiet_needed()
                 if c.quiet + offset >= need:
                     offset, ended = need - c.quiet, True
                 counted[pos : pos + offset] = True
@@ -192,6 +197,8 @@ class Campaign:
             algo.apply(event)
             self._maybe_record(chunk, pos, starts[pos])
             changed[pos] = True
+            if algo.certifying:
+                c.attempts += 1
             c.quiet = 0
             c.escaped_in_streak = 0
             c.changes += 1
@@ -242,6 +249,7 @@ class Campaign:
                 c.rounds_completed += 1
                 if self.algorithm.final_round and self.certify and not self.algorithm.certifying:
                     self.algorithm.begin_certification()
+                    c.attempts = 1
                     c.quiet = 0
                     c.escaped_in_streak = 0
                 elif self.algorithm.final_round:
@@ -264,6 +272,12 @@ class Campaign:
         c.elapsed_s = time.monotonic() - started
         return c
 
+    def quiet_needed(self) -> int:
+        """Runs in a row that must change nothing to end the current round."""
+        if self.algorithm.certifying and self.certify_quiet is not None:
+            return self.certify_quiet(max(self.counters.attempts, 1))
+        return self.algorithm.required_quiet(self.n_eps)
+
     def _certify_at_once(self) -> None:
         """A deterministic system's last round is its certification: every final centre
         run once (VAL^delta) is exact, so the N_eps rule's epsilon-almost statement, and
@@ -271,6 +285,7 @@ class Campaign:
         algo = self.algorithm
         if self.certify and getattr(algo, "deterministic", False) and algo.final_round and not algo.certifying:
             algo.begin_certification()
+            self.counters.attempts = 1
 
     def _drop_in_flight(self) -> None:
         for q in self.pending:

@@ -64,10 +64,6 @@ class ExplorationForest:
         r = int(self.root[vertex])
         return np.asarray(self._members.get(r, [r]), dtype=np.int64)
 
-    def edges(self) -> np.ndarray:
-        child = np.nonzero(self.parent >= 0)[0]
-        return np.stack([self.parent[child], child], axis=1)
-
     def state(self) -> dict:
         return {"parent": self.parent.copy()}
 

@@ -40,12 +40,14 @@ def _leave(delta: float) -> str:
 
 # -- quantification -------------------------------------------------------------------------
 def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, horizon: int, n_eps: int,
-               converged: bool, budget: int, enumerated: bool, boxes: int, uniform: bool, distribution: str,
+               attempts: int, n_final: int, converged: bool, budget: int, enumerated: bool, boxes: int, uniform: bool, distribution: str,
                escaped: int, adversarial: bool) -> Guarantee:
     """The guarantee of a quantified set. ``enumerated``: a deterministic system's final
     centres were each run once (VAL^delta); ``uniform``: the last N_eps runs were drawn
     uniformly over the final centres (a certification round); ``escaped``: counted runs
-    that left Phi_delta toward a known failure (possible only without certification)."""
+    that left Phi_delta toward a known failure (possible only without certification);
+    ``attempts``/``n_final``: the sampled certification's attempt count and the runs the
+    last attempt needed (beta split over attempts, coordinator.covering.n_eps_attempt)."""
     cond, fail, t = _conditions(scenario, policy), scenario.failure_words, _horizon_s(scenario, horizon)
     gamma = "Gamma*" if adversarial else "Gamma"
     if not converged:
@@ -63,12 +65,15 @@ def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, h
     where = ("started at a box centre of this set (drawn uniformly)" if uniform
              else f"started in this set as the last round drew them ({distribution})")
     confidence = _percent(1 - beta)
-    nn = f"N_eps = ceil(ln {beta:g} / ln(1 - {epsilon:g})) = {n_eps}"
+    nn = f"N_eps = ceil(ln {beta:g} / ln(1 - {epsilon:g})) = {n_eps} runs"
+    if uniform and attempts:
+        nn = (f"N = {n_final} runs, the need of certification attempt i = {attempts} with beta_i = 6 beta / "
+              f"(pi^2 i^2), so that the exported set keeps confidence {1 - beta:g} over all attempts,")
     if escaped == 0:
         plain = (f"With {confidence} confidence, at most {_percent(epsilon)} of scenarios {where}, {cond}, {fail} or "
                  f"{_leave(delta)} within {t}.")
         formal = (f"Phi is ({epsilon:g}, {delta:g})-almost robustly controlled forward invariant w.r.t. {gamma} "
-                  f"with confidence {1 - beta:g} ({nn} runs in a row drawn i.i.d. from {distribution}, actions "
+                  f"with confidence {1 - beta:g} ({nn} in a row drawn i.i.d. from {distribution}, actions "
                   f"{policy.description}, neither failed nor left Phi_delta).")
         return Guarantee(plain, formal)
     plain = (f"With {confidence} confidence, at most {_percent(epsilon)} of scenarios {where}, {cond}, {fail} or "
@@ -76,7 +81,7 @@ def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, h
              f"toward a known failure, so this does not say the set holds its scenarios (turn on "
              f"quantify.certify for that).")
     formal = (f"No failure and no new state (not invariance: {escaped} of the runs left Phi_delta within delta "
-              f"of PhiBar) with probability >= 1 - {epsilon:g} and confidence {1 - beta:g} ({nn} runs in a row "
+              f"of PhiBar) with probability >= 1 - {epsilon:g} and confidence {1 - beta:g} ({nn} in a row "
               f"drawn i.i.d. from {distribution}, actions {policy.description}).")
     return Guarantee(plain, formal)
 

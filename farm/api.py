@@ -112,6 +112,30 @@ class QuantifyResult:
 
         return pq.read_table(self.directory / "safe_set.parquet")
 
+    def export_graph(self, path=None) -> Path:
+        """The SPE exploration graph as GraphML (networkx): one node per vertex ever
+        created, with its state, ``alive`` and ``root`` attributes; an edge from each run's
+        start vertex to the states it discovered. Default: DIR/exploration_graph.graphml."""
+        import networkx as nx
+
+        from farm.journal import Journal
+
+        state, _ = Journal(self.directory).load()
+        if "algo.graph.parent" not in state:
+            raise CampaignError(f"{self.directory}: algorithm {self.summary.get('algorithm')!r} keeps no "
+                                f"exploration graph (only spe does)")
+        parent = state["algo.graph.parent"]
+        points, alive = state["algo.vertices.points"], state["algo.vertices.alive"].astype(bool)
+        graph = nx.DiGraph(scenario=self.summary.get("scenario", ""), delta=float(self.half_width))
+        for v in range(len(parent)):
+            graph.add_node(int(v), alive=bool(alive[v]),
+                           **{name: float(points[v, i]) for i, name in enumerate(self.state_names)})
+        child = np.flatnonzero(parent >= 0)
+        graph.add_edges_from(zip(parent[child].tolist(), child.tolist()))
+        path = Path(path) if path is not None else self.directory / "exploration_graph.graphml"
+        nx.write_graphml(graph, path)
+        return path
+
     def plot(self, out_dir=None) -> list[Path]:
         """Redraw the figures (into DIR/plots by default); -> the files written."""
         from farm.plots import draw

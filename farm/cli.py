@@ -98,6 +98,8 @@ def cmd_report(args) -> int:
     paths = result.plot()
     _print_summary(result.summary, Path(args.dir))
     print(f"{'plots':>18}: {', '.join(str(p) for p in paths)}")
+    if args.graph:
+        print(f"{'graph':>18}: {result.export_graph()}")
     return EXIT_OK
 
 
@@ -164,6 +166,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("report", help="redraw the plots and print the summary of a campaign")
     p.add_argument("dir")
+    p.add_argument("--graph", action="store_true",
+                   help="also write the exploration graph as GraphML (DIR/exploration_graph.graphml)")
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("status", help="report a running or stopped campaign from its files")

@@ -285,8 +285,9 @@ def _field_name(loc) -> str:
     return ".".join(parts)
 
 
-def _constraints(loc) -> dict:
-    model: type[BaseModel] = Config
+def _field_info(loc):
+    """The pydantic FieldInfo an error location points to (None past a nested model)."""
+    model: type[BaseModel] | None = Config
     info = None
     for item in loc:
         if not isinstance(item, str) or model is None or item not in model.model_fields:
@@ -294,6 +295,11 @@ def _constraints(loc) -> dict:
         info = model.model_fields[item]
         annotation = info.annotation
         model = annotation if isinstance(annotation, type) and issubclass(annotation, BaseModel) else None
+    return info
+
+
+def _constraints(loc) -> dict:
+    info = _field_info(loc)
     out = {}
     for meta in getattr(info, "metadata", []) if info is not None else []:
         for key in ("gt", "ge", "lt", "le"):
@@ -344,12 +350,5 @@ def _one_line(exc: ValidationError, raw: dict, flags: dict) -> str:
 
 
 def _annotation(loc):
-    model: type[BaseModel] = Config
-    info = None
-    for item in loc:
-        if not isinstance(item, str) or model is None or item not in model.model_fields:
-            break
-        info = model.model_fields[item]
-        model = info.annotation if isinstance(info.annotation, type) and issubclass(info.annotation, BaseModel) \
-            else None
+    info = _field_info(loc)
     return info.annotation if info is not None else None

@@ -13,13 +13,14 @@ import json
 import signal
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
 from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign, Counters
-from coordinator.covering import n_eps
+from coordinator.covering import n_eps, n_eps_attempt
 from coordinator.results import result_hash
 from coordinator.volume import hull_volume, union_volume
 from farm import config as config_mod
@@ -155,7 +156,8 @@ class Part:
         self.campaign = Campaign(self.algorithm, None, n_eps=self.n_eps, budget=cfg.quantify.budget,
                                  batch_size=farm.batch_size, pipeline_depth=farm.pipeline_depth, seed=farm.seed,
                                  on_batch=on_chunk, record_limit=cfg.record.quantify_runs,
-                                 certify=cfg.quantify.certify and cfg.quantify.algorithm == "spe")
+                                 certify=cfg.quantify.certify and cfg.quantify.algorithm == "spe",
+                                 certify_quiet=partial(n_eps_attempt, cfg.quantify.epsilon, cfg.quantify.beta))
         if resume and self.journal.exists():
             self.restore()
         elif resume and any((self.directory / "ledger").glob("segment-*.parquet")):
@@ -215,7 +217,9 @@ def guarantee_of(cfg: Config, part: "Part", delta: float):
     q, campaign, algo = cfg.quantify, part.campaign, part.algorithm
     certified = campaign.certify and getattr(algo, "certifying", False)
     return quantified(part.scenario, part.policy, epsilon=q.epsilon, beta=q.beta, delta=delta, horizon=q.horizon,
-                      n_eps=part.n_eps, converged=campaign.counters.converged, budget=q.budget,
+                      n_eps=part.n_eps, attempts=campaign.counters.attempts if certified else 0,
+                      n_final=campaign.quiet_needed() if certified else part.n_eps,
+                      converged=campaign.counters.converged, budget=q.budget,
                       enumerated=certified and algo.enumerates, boxes=algo.vertices.alive_count if hasattr(
                           algo, "vertices") else 0, uniform=certified, distribution=campaign.final_distribution,
                       escaped=campaign.counters.escaped_in_streak, adversarial=cfg.actions.mode == "adversarial")

@@ -49,6 +49,17 @@ def _gb(b: float) -> str:
     return f"{b / 1e9:.3g} GB"
 
 
+def _fits(cfg: Config, field: str, delta: float, lo, hi, per_cell: int, what: str) -> None:
+    """Refuse a ``delta`` whose worst-case tiling of [lo, hi] would not fit the limit."""
+    limit = memory_limit_bytes(cfg)
+    count = cells(lo, hi, delta)
+    if count * per_cell > limit:
+        finest = _finest_allowed(lo, hi, limit / per_cell)
+        raise ConfigError(f"{field}: {delta:g} {what.format(count)} (about {_gb(count * per_cell)}, over the limit "
+                          f"farm.max_memory_gb = {_gb(limit)}); allowed {field.split('.')[1]} >= about "
+                          f"{finest:.3g}, or raise farm.max_memory_gb")
+
+
 def check_quantify(cfg: Config, lower, upper) -> None:
     """Refuse, with the field named, a quantification that cannot fit (ConfigError)."""
     q = cfg.quantify
@@ -56,13 +67,7 @@ def check_quantify(cfg: Config, lower, upper) -> None:
     if q.delta0 > half * (1 + 1e-12):
         raise ConfigError(f"quantify.delta0: {q.delta0:g} is larger than Sigma (one box of half-width {half:g} "
                           f"covers it; every larger delta0 only adds rounds); allowed (0, {half:g}]")
-    limit = memory_limit_bytes(cfg)
-    boxes = cells(lower, upper, q.delta_min)
-    if boxes * BYTES_PER_BOX > limit:
-        finest = _finest_allowed(lower, upper, limit / BYTES_PER_BOX)
-        raise ConfigError(f"quantify.delta_min: {q.delta_min:g} may need {boxes:.3g} boxes (about "
-                          f"{_gb(boxes * BYTES_PER_BOX)}, over the limit farm.max_memory_gb = {_gb(limit)}); "
-                          f"allowed delta_min >= about {finest:.3g}, or raise farm.max_memory_gb")
+    _fits(cfg, "quantify.delta_min", q.delta_min, lower, upper, BYTES_PER_BOX, "may need {:.3g} boxes")
 
 
 def check_validate(cfg: Config, lo, hi, is_set: bool) -> None:
@@ -76,10 +81,4 @@ def check_validate(cfg: Config, lo, hi, is_set: bool) -> None:
         raise ConfigError(f"validate.delta: {v.delta:g} is larger than the domain (half its widest side is "
                           f"{half:g}: one box would cover it, so a single start would stand for all of Phi); "
                           f"allowed (0, {half:g}]")
-    limit = memory_limit_bytes(cfg)
-    centres = cells(lo, hi, v.delta)
-    if centres * BYTES_PER_CENTRE > limit:
-        finest = _finest_allowed(lo, hi, limit / BYTES_PER_CENTRE)
-        raise ConfigError(f"validate.delta: {v.delta:g} gives a lattice of {centres:.3g} centres (about "
-                          f"{_gb(centres * BYTES_PER_CENTRE)}, over the limit farm.max_memory_gb = {_gb(limit)}); "
-                          f"allowed delta >= about {finest:.3g}, or raise farm.max_memory_gb")
+    _fits(cfg, "validate.delta", v.delta, lo, hi, BYTES_PER_CENTRE, "gives a lattice of {:.3g} centres")

@@ -234,6 +234,12 @@ class Scenario(ABC):
             raise ScenarioError(f"scenario {self.name!r} step returned shape {nxt.shape}, expected {states.shape}")
         out[...] = nxt.T
 
+    def _require_sv_policy(self) -> None:
+        """A functional step needs the SV's policy; a simulator back end brings its own."""
+        if self._policy is None:
+            raise ScenarioError(f"scenario {self.name!r}: the SV is simulated by the back end; a functional step "
+                                f"needs an SV policy ({', '.join(self.sv_policies)})")
+
     def _step_via_into(self, states, actions, noise) -> np.ndarray:
         out = np.empty((self.n, len(states)))
         self.step_into(states, actions, noise, out)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from scenarios.base import Scenario, ScenarioError
+from scenarios.base import Scenario
 from scenarios.kinematics import advance, disturb
 from scenarios.policies import BRAKE_ACCEL, SV_POLICIES
 from scenarios.reference import safe_until_standstill
@@ -48,9 +48,7 @@ class LeadFollow(Scenario):
         return self._step_via_into(states, actions, noise)
 
     def step_into(self, states, actions, noise, out):
-        if self._policy is None:
-            raise ScenarioError(f"scenario {self.name!r}: the SV is simulated by the back end; a functional step "
-                                f"needs an SV policy ({', '.join(self.sv_policies)})")
+        self._require_sv_policy()
         v0, v1, p10 = states[:, 0], states[:, 1], states[:, 2]
         a0 = self._policy(v0, v1, p10)
         a1 = actions[:, 0]
