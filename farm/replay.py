@@ -53,7 +53,10 @@ def _recorded(directory: Path, index: int):
 
 
 def replay(directory: Path, index: int) -> tuple[bool, str]:
+    from farm.storage import CampaignDir
+
     directory = Path(directory)
+    CampaignDir(directory).open()  # a one-line error for a file or a directory not ours
     if (directory / "certificate.json").exists():
         return _replay_counterexample(directory, index)
     from farm.quantification import load_frozen_config

@@ -122,7 +122,7 @@ class CampaignDir:
                 raise
             holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "?"
             os.close(fd)
-            raise CampaignError(f"{self.path}: in use by process {holder} (a campaign runs there); wait for it "
+            raise CampaignError(f"{self.path}: in use by pid {holder} (a campaign runs there); wait for it "
                                 f"to finish or stop it first") from None
         self._lock_fd = fd
         if announce:

@@ -1,0 +1,239 @@
+"""Hostile inputs: every case is a real CLI process on real files, and must end with one
+line `scenario-farm: error: ...` and exit 2 (never a traceback), and touch nothing that
+is not ours. The module grows with every bug found."""
+
+import json
+import os
+import resource
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+GOOD = """
+[scenario]
+name = "lead-follow"
+sv_policy = "idm"
+[actions]
+mode = "uniform"
+[quantify]
+delta0 = 4.0
+delta_min = 2.0
+epsilon = 0.01
+horizon = 30
+[farm]
+executor = "local"
+batch_size = 256
+"""
+
+
+def cli(*args, cwd=None, preexec_fn=None, timeout=120):
+    return subprocess.run([sys.executable, "-m", "farm", *map(str, args)], capture_output=True, text=True,
+                          cwd=cwd, preexec_fn=preexec_fn, timeout=timeout)
+
+
+def one_line_error(r, *words):
+    assert r.returncode == 2, (r.returncode, r.stdout, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("scenario-farm: error: ") and "Traceback" not in r.stderr, \
+        r.stderr
+    for w in words:
+        assert w in r.stderr, r.stderr
+
+
+def snapshot(d):
+    return {p: p.read_bytes() for p in sorted(d.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture
+def config(tmp_path):
+    (tmp_path / "c.toml").write_text(GOOD)
+    return tmp_path / "c.toml"
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    """A finished small campaign to damage (copied per test)."""
+    d = tmp_path_factory.mktemp("campaign")
+    (d / "c.toml").write_text(GOOD + "checkpoint_every = 0.0\n")
+    r = cli("quantify", d / "c.toml", "--out", d / "out")
+    assert r.returncode == 0, r.stderr
+    return d / "out"
+
+
+def copy_of(campaign, tmp_path, unfinished=True):
+    import shutil
+
+    out = tmp_path / "copy"
+    shutil.copytree(campaign, out)
+    if unfinished:
+        (out / "summary.json").unlink()  # resume then reads everything again
+    return out
+
+
+# -- 1. data loss: --force and --out only ever touch directories this tool wrote ------------
+def test_force_refuses_a_user_directory_with_a_config_json(config, tmp_path):
+    user = tmp_path / "project"
+    (user / "src").mkdir(parents=True)
+    for name, text in (("config.json", "{}"), ("main.py", "print(1)"), ("src/a.py", "x = 1")):
+        (user / name).write_text(text)
+    before = snapshot(user)
+    one_line_error(cli("quantify", config, "--out", user, "--force"), "not a directory this tool wrote")
+    assert snapshot(user) == before
+
+
+def test_validate_out_into_a_campaign_directory_is_refused(config, campaign, tmp_path):
+    out = copy_of(campaign, tmp_path, unfinished=False)
+    before = snapshot(out)
+    (tmp_path / "v.toml").write_text(GOOD.replace("[quantify]", "[validate]\nalgorithm = \"eps\"\n[quantify]"))
+    one_line_error(cli("validate", tmp_path / "v.toml", "--out", out, "--force"), "quantify directory")
+    assert snapshot(out) == before
+
+
+# -- 2. two writers ----------------------------------------------------------------------------
+def test_a_second_writer_is_refused_naming_the_holder(tmp_path):
+    (tmp_path / "c.toml").write_text(GOOD.replace("delta_min = 2.0", "delta_min = 0.25"))
+    out = tmp_path / "out"
+    first = subprocess.Popen([sys.executable, "-m", "farm", "quantify", str(tmp_path / "c.toml"), "--out", str(out)],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.time() + 60
+        while not (out / "ledger").is_dir() and time.time() < deadline:
+            time.sleep(0.05)
+        for args in (["quantify", tmp_path / "c.toml", "--out", out, "--force"],
+                     ["quantify", tmp_path / "c.toml", "--out", out, "--resume"], ["resume", out]):
+            one_line_error(cli(*args), f"pid {first.pid}")
+        assert first.poll() is None  # the first writer runs on, untouched
+    finally:
+        first.send_signal(signal.SIGINT)
+        first.wait(60)
+
+
+# -- 3. bad paths and bad files: one line each ------------------------------------------------
+def test_out_is_a_file_or_unwritable(config, tmp_path):
+    (tmp_path / "file").write_text("x")
+    one_line_error(cli("quantify", config, "--out", tmp_path / "file"), "not a directory")
+    one_line_error(cli("quantify", config, "--out", "/proc/scenario-farm"), "cannot create the directory")
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        if os.access(ro, os.W_OK):
+            pytest.skip("running as a user who can write anywhere")
+        one_line_error(cli("quantify", config, "--out", ro / "out"), "not writable")
+    finally:
+        ro.chmod(0o700)
+
+
+@pytest.mark.parametrize("case, text, words", [
+    ("constraints_not_a_list", '[scenario]\nname = "lead-follow"\n[validate]\nconstraints = 3\n',
+     ["validate.constraints"]),
+    ("action_value_a_table", '[scenario]\nname = "lead-follow"\n[actions]\nmode = "constant"\nvalue = { a = 1 }\n',
+     ["actions.value"]),
+    ("b_a_string", '[scenario]\nname = "lead-follow"\n[validate]\nconstraints = [{ a = { v0 = 1.0 }, b = "10" }]\n',
+     ["validate.constraints", "b"]),
+    ("empty", "", ["scenario"]),
+    ("not_toml", "[scenario\nname=", ["TOML"]),
+    ("unknown_section", '[scenario]\nname = "lead-follow"\n[farms]\n', ["farms", "farm"]),
+    ("nan", '[scenario]\nname = "lead-follow"\n[validate]\nepsilon = nan\n', ["validate.epsilon"]),
+])
+def test_bad_configs(tmp_path, case, text, words):
+    (tmp_path / "c.toml").write_text(text)
+    one_line_error(cli("validate", tmp_path / "c.toml"), *words)
+
+
+def test_config_that_is_a_directory_or_unreadable(tmp_path):
+    one_line_error(cli("validate", tmp_path), str(tmp_path))
+    (tmp_path / "c.toml").write_text(GOOD)
+    (tmp_path / "c.toml").chmod(0)
+    try:
+        if os.access(tmp_path / "c.toml", os.R_OK):
+            pytest.skip("running as a user who can read anything")
+        one_line_error(cli("validate", tmp_path / "c.toml"), "c.toml")
+    finally:
+        (tmp_path / "c.toml").chmod(0o600)
+
+
+def test_a_domain_set_with_zero_half_width(tmp_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    pq.write_table(pa.table({"v0": [1.0], "v1": [1.0], "p10": [40.0], "half_width": [0.0]}), tmp_path / "s.parquet")
+    (tmp_path / "v.toml").write_text(f'[scenario]\nname = "lead-follow"\n[validate]\n'
+                                     f'domain_set = "{tmp_path / "s.parquet"}"\n')
+    one_line_error(cli("validate", tmp_path / "v.toml"), "half_width")
+
+
+def test_replay_and_resume_on_things_that_are_not_campaigns(campaign, tmp_path):
+    out = copy_of(campaign, tmp_path, unfinished=False)
+    one_line_error(cli("replay", out, "--sample", str(2**70)), "--sample")
+    one_line_error(cli("replay", out / "summary.json", "--sample", "1"), "not a campaign directory")
+    one_line_error(cli("resume", out / "summary.json"), "not a campaign directory")
+    one_line_error(cli("compare", out, "--grid", "-5"), "--grid")
+
+
+@pytest.mark.parametrize("damage", ["drop_array", "drop_counters", "config_section", "ledger_values"])
+def test_damaged_or_tampered_campaign_files(campaign, tmp_path, damage):
+    out = copy_of(campaign, tmp_path)
+    if damage in ("drop_array", "drop_counters"):
+        with np.load(out / "checkpoint.npz", allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+        if damage == "drop_array":
+            del arrays["algo.coverage"]
+        else:
+            meta = json.loads(arrays["__meta__"].tobytes().decode())
+            del meta["counters"]
+            arrays["__meta__"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
+        np.savez(out / "checkpoint.npz", **arrays)
+    elif damage == "config_section":
+        data = json.loads((out / "config.json").read_text())
+        del data["config"]["scenario"]
+        (out / "config.json").write_text(json.dumps(data))
+    else:  # changed values in a committed ledger segment, same size and schema
+        import pyarrow.parquet as pq
+
+        seg = sorted((out / "ledger").glob("segment-*.parquet"))[0]
+        table = pq.read_table(seg)
+        steps = table.column("steps").to_numpy().copy()
+        steps[0] += 1
+        pq.write_table(table.set_column(table.column_names.index("steps"), "steps",
+                                        __import__("pyarrow").array(steps)), seg)
+    before = snapshot(out)
+    r = cli("resume", out)
+    one_line_error(r)
+    assert snapshot(out) == before
+
+
+def test_garbage_status_json_is_reported_and_rewritten(campaign, tmp_path):
+    out = copy_of(campaign, tmp_path)
+    (out / "status.json").write_text("\x00garbage")
+    r = cli("status", out)
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r.stderr
+    assert cli("resume", out).returncode == 0
+    assert json.loads((out / "status.json").read_text())["state"] == "done"
+
+
+# -- disk full: a write that fails (a file-size limit stands in for a full disk) -------------
+LIMIT = 60_000  # bytes: more than the config files, less than the first checkpoint
+
+
+def test_a_failing_write_loses_nothing_and_resume_finishes(tmp_path):
+    (tmp_path / "c.toml").write_text(GOOD.replace("delta_min = 2.0", "delta_min = 1.0") + "checkpoint_every = 0.0\n")
+    whole = cli("quantify", tmp_path / "c.toml", "--out", tmp_path / "whole")
+    assert whole.returncode == 0, whole.stderr
+
+    def small_disk():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails with EFBIG
+        resource.setrlimit(resource.RLIMIT_FSIZE, (LIMIT, LIMIT))
+
+    out = tmp_path / "out"
+    r = cli("quantify", tmp_path / "c.toml", "--out", out, preexec_fn=small_disk)
+    one_line_error(r, "File too large")
+    r = cli("resume", out)
+    assert r.returncode == 0, r.stderr
+    got, want = (json.loads((d / "summary.json").read_text()) for d in (out, tmp_path / "whole"))
+    assert got["result_hash"] == want["result_hash"] and got["runs_committed"] == want["runs_committed"]
+    assert not [p for p in out.rglob("*") if ".tmp-" in p.name]
