@@ -44,17 +44,18 @@ def index_of_size(boxes: int, rng) -> tuple[PointIndex, float]:
 
 def visited_queries(queries: int = 400_000) -> np.ndarray:
     """States visited by lead-follow idm runs (uniform Gamma) from uniform starts."""
-    from coordinator.runs import visited_states
-    from scenarios.streams import RunStreams
     from scenarios import make_scenario
     from scenarios.actions import make_action_policy
-    from scenarios.run import run_scenario
+    from scenarios.backend import NumpyBackend
+    from scenarios.rollout import run_scenario
+    from scenarios.streams import RunStreams
 
     sc = make_scenario("lead-follow", sv_policy="idm")
     rng = np.random.default_rng(0)
     starts = sc.lower + (sc.upper - sc.lower) * rng.random((queries // 20, sc.n))
-    batch = run_scenario(sc, starts, 50, make_action_policy("uniform", sc), RunStreams.of(0, np.arange(len(starts))))
-    states, _ = visited_states(batch, np.arange(len(starts)))
+    batch = run_scenario(NumpyBackend(sc), starts, 50, make_action_policy("uniform", sc),
+                         RunStreams.of(0, np.arange(len(starts))))
+    states, _ = batch.visited()
     return states[rng.permutation(len(states))[:queries]]
 
 
@@ -74,7 +75,7 @@ def query_rate(boxes: int, q: np.ndarray | None = None, repeats: int = 7) -> tup
         times.append(time.perf_counter() - t0)
     rate = queries / float(np.median(times))
     home = np.floor((q - index.origin) / index.cell).astype(np.int64)  # the home-cell lookup, again
-    misses = float(np.mean(index._dense[index._flat(home)] == 0))
+    misses = float(np.mean(index._centre_point[index._flat(home)] < 0))
     return rate, index.alive_count, misses
 
 
@@ -83,8 +84,8 @@ def campaign_scaling() -> tuple[list[tuple[int, float]], float]:
     from coordinator.covering import n_eps
     from coordinator.spe import SPE, SPESettings
     from farm.executors import LocalExecutor
-from scenarios.simulator import SimSpec
     from scenarios import make_scenario
+    from scenarios.simulator import SimSpec
 
     sc = make_scenario("lead-follow", sv_policy="idm")
     algo = SPE(sc, SPESettings(delta0=2.0, delta_min=0.25))

@@ -19,15 +19,17 @@ import numpy as np
 from farm.executors import build_simulator
 from scenarios.simulator import SimSpec
 from scenarios.streams import RunStreams
-from scenarios.run import run_scenario
+from scenarios.rollout import run_scenario
 
 TARGET = 3e7
 
 
 def measure(mode: str, batch: int = 100_000, horizon: int = 50, repeats: int = 9) -> tuple[float, float, int]:
     """-> (median, best) scenario-steps/s and the steps of one rollout."""
-    sc, policy = build_simulator(SimSpec({"name": "lead-follow", "sv_policy": "idm"}, {"mode": mode}, horizon, 0))
-    starts = sc.lower + (sc.upper - sc.lower) * np.random.default_rng(0).random((batch, sc.n))
+    sim = build_simulator(SimSpec({"name": "lead-follow", "sv_policy": "idm"}, {"mode": mode}, horizon, 0))
+    sc, policy = sim.backend, sim.policy
+    lo, hi = sim.scenario.lower, sim.scenario.upper
+    starts = lo + (hi - lo) * np.random.default_rng(0).random((batch, sim.scenario.n))
     streams = RunStreams.of(0, np.arange(batch))
     run_scenario(sc, starts, horizon, policy, streams)  # warm-up
     times = []

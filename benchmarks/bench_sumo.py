@@ -23,24 +23,25 @@ KRAUSS = {"car_follow_model": "Krauss", "params": {"sigma": 0.0}}
 
 
 def measure(batch: int, horizon: int = 50, repeats: int = 5, full_length: bool = False) -> tuple[float, float]:
-    from scenarios.streams import RunStreams
-    from scenarios import make_scenario
     from scenarios.actions import UniformActions
-    from scenarios.run import run_scenario
+    from scenarios.registry import make_backend
+    from scenarios.rollout import run_scenario
+    from scenarios.streams import RunStreams
 
-    sc = make_scenario("lead-follow", backend="sumo", sv_policy="sumo", sumo=KRAUSS)
+    backend = make_backend({"name": "lead-follow", "backend": "sumo", "sv_policy": "sumo", "sumo": KRAUSS})
+    sc = backend.scenario
     rng = np.random.default_rng(0)
     lower, upper = sc.lower.copy(), sc.upper.copy()
     if full_length:  # a start box from which (almost) every run lasts all K states
         lower, upper = np.array([5.0, 12.0, 40.0]), np.array([8.0, 14.0, 50.0])
     best, mean_len = np.inf, 0.0
-    run_scenario(sc, lower + (upper - lower) * rng.random((batch, sc.n)), horizon, UniformActions(),
+    run_scenario(backend, lower + (upper - lower) * rng.random((batch, sc.n)), horizon, UniformActions(),
                  RunStreams.of(0, np.arange(batch)))  # warm-up: loads the simulation
     for rep in range(repeats):
         starts = lower + (upper - lower) * rng.random((batch, sc.n))
         streams = RunStreams.of(1, np.arange(rep * batch, (rep + 1) * batch))
         t0 = time.perf_counter()
-        out = run_scenario(sc, starts, horizon, UniformActions(), streams)
+        out = run_scenario(backend, starts, horizon, UniformActions(), streams)
         best = min(best, time.perf_counter() - t0)
         mean_len = float(out.lengths.mean())
     return batch / best, mean_len

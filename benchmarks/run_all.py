@@ -8,7 +8,8 @@ import subprocess
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-BENCHMARKS = ["bench_numpy.py", "bench_coordinator.py", "bench_campaign.py", "bench_ray.py", "bench_sumo.py", "bench_sumo_ray.py"]
+BENCHMARKS = ["bench_numpy.py", "bench_coordinator.py", "bench_campaign.py", "bench_ray.py", "bench_scaling.py",
+              "bench_sumo.py", "bench_sumo_ray.py"]
 
 if __name__ == "__main__":
     failed = []

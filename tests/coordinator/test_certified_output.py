@@ -61,7 +61,7 @@ def test_the_guarantee_in_plain_words_carries_the_config_values(tmp_path):
                   "collide", "within 3 s", "delta = 2"):
         assert words in plain, (words, plain)
     assert "(0.01, 2)-almost robustly controlled forward invariant w.r.t. Gamma" in formal
-    assert "confidence 0.95" in formal and "N_eps" in formal
+    assert "confidence 0.95" in formal and "beta_i = 6 beta / (pi^2 i^2)" in formal
 
 
 def test_a_certificate_lists_only_the_parameters_its_algorithm_used():
