@@ -302,8 +302,12 @@ class SPE(Algorithm):
 
     # -- output ---------------------------------------------------------------------------
     def counts(self) -> dict:
-        return {"boxes": self.vertices.alive_count, "vertices": self.vertices.count,
-                "failures": self.failures.count, "delta": self.delta, "round": self.round}
+        out = {"boxes": self.vertices.alive_count, "vertices": self.vertices.count,
+               "failures": self.failures.count, "delta": self.delta, "round": self.round}
+        if self.enumerates:
+            alive = self.vertices.alive[: self.vertices.count]
+            out["certified"] = int(np.count_nonzero(self.certificates.certified(self.vertices.count) & alive))
+        return out
 
     # -- persistence --------------------------------------------------------------------
     def state(self) -> dict:

@@ -278,10 +278,10 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
 
 
 # -- comparison -------------------------------------------------------------------------------
-def compare(target, *, grid: int | None = None) -> dict:
+def compare(target, *, grid: int | None = None, progress=None) -> dict:
     """A finished campaign (directory or QuantifyResult) against the reference safe set:
     IoU, precision, recall, Hausdorff; writes compare.json and plots/compare.png."""
     from farm.compare import compare as run_compare
 
     directory = target.directory if isinstance(target, QuantifyResult) else Path(target)
-    return run_compare(directory, grid=grid)
+    return run_compare(directory, grid=grid, progress=progress)

@@ -41,7 +41,11 @@ def cmd_validate(args) -> int:
     overrides = _farm_kwargs(args)
     if args.algorithm:
         overrides["validate__algorithm"] = args.algorithm
-    cert = api.validate(args.config, out=args.out, force=args.force, **overrides)
+    from farm.progress import Progress
+
+    progress = Progress(mode=_mode(args))
+    cert = api.validate(args.config, out=args.out, force=args.force,
+                        progress=lambda done, total: progress.count("validation runs", done, total), **overrides)
     print(json.dumps(cert.data, indent=2) if args.json else f"{cert.guarantee}\nFormally: {cert.statement}")
     return EXIT_OK if cert.certified else EXIT_COUNTEREXAMPLE
 
@@ -50,13 +54,23 @@ def _farm_kwargs(args) -> dict:
     return {k.replace(".", "__"): v for k, v in _overrides(args).items() if v is not None}
 
 
+def _mode(args) -> str:
+    return "quiet" if getattr(args, "quiet", False) else "verbose" if getattr(args, "verbose", False) else "auto"
+
+
+def _add_output_flags(p) -> None:
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--quiet", action="store_true", help="no progress output (errors and the result only)")
+    g.add_argument("--verbose", action="store_true", help="a progress line every 2 s and at every round end")
+
+
 def cmd_quantify(args) -> int:
     from farm import api, quantification
     from farm.progress import Progress
 
     cfg = api.load_config(args.config, **_farm_kwargs(args))
-    summary = quantification.run(cfg, Path(args.out), resume=args.resume, force=args.force, progress=Progress(),
-                           config_text=Path(args.config).read_text())
+    summary = quantification.run(cfg, Path(args.out), resume=args.resume, force=args.force,
+                                 progress=Progress(mode=_mode(args)), config_text=Path(args.config).read_text())
     _print_summary(summary, Path(args.out))
     return EXIT_OK
 
@@ -73,7 +87,7 @@ def cmd_resume(args) -> int:
     if done is not None:
         print(f"{out}: the campaign has finished (result hash {done['result_hash']}); nothing to resume")
         return EXIT_OK
-    summary = quantification.run(cfg, out, resume=True, progress=Progress())
+    summary = quantification.run(cfg, out, resume=True, progress=Progress(mode=_mode(args)))
     _print_summary(summary, out)
     return EXIT_OK
 
@@ -104,8 +118,14 @@ def cmd_report(args) -> int:
 
 
 def cmd_status(args) -> int:
-    from farm.status import describe
+    from farm.status import describe, watch
 
+    if args.watch:
+        try:
+            watch(Path(args.dir))
+        except KeyboardInterrupt:
+            pass  # Ctrl-C ends the watch, not the campaign
+        return EXIT_OK
     print(describe(Path(args.dir)))
     return EXIT_OK
 
@@ -122,7 +142,9 @@ def cmd_compare(args) -> int:
     from farm import api
     from farm.compare import describe
 
-    metrics = api.compare(args.dir, grid=args.grid)
+    from farm.progress import Progress
+
+    metrics = api.compare(args.dir, grid=args.grid, progress=Progress(mode=_mode(args)))
     print(describe(Path(args.dir), metrics))
     return EXIT_OK
 
@@ -146,6 +168,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="replace an existing certificate.json")
     p.add_argument("--algorithm", choices=["delta", "eps", "eps-delta"], help="overrides validate.algorithm")
     _add_farm_flags(p)
+    _add_output_flags(p)
     p.set_defaults(func=cmd_validate)
 
     p = sub.add_parser("quantify", help="find the maximal safe sub-domain (SPE and baselines)")
@@ -156,12 +179,14 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--force", action="store_true", help="replace the campaign in --out (only a campaign directory)")
     p.add_argument("--checkpoint-every", type=float, help="seconds between checkpoints (farm.checkpoint_every)")
     _add_farm_flags(p)
+    _add_output_flags(p)
     p.set_defaults(func=cmd_quantify)
 
     p = sub.add_parser("resume", help="continue a stopped or killed campaign")
     p.add_argument("dir")
     p.add_argument("--checkpoint-every", type=float)
     _add_farm_flags(p, seed=False)
+    _add_output_flags(p)
     p.set_defaults(func=cmd_resume)
 
     p = sub.add_parser("report", help="redraw the plots and print the summary of a campaign")
@@ -172,6 +197,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("status", help="report a running or stopped campaign from its files")
     p.add_argument("dir")
+    p.add_argument("--watch", action="store_true", help="follow a running campaign until it ends (Ctrl-C stops "
+                                                        "watching, not the campaign)")
     p.set_defaults(func=cmd_status)
 
     p = sub.add_parser("replay", help="re-run one committed run from its stream key and check it")
@@ -182,6 +209,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("compare", help="compare a quantified set with the reference safe set")
     p.add_argument("dir")
     p.add_argument("--grid", type=int, default=None, help="reference grid points per axis")
+    _add_output_flags(p)
     p.set_defaults(func=cmd_compare)
 
     p = sub.add_parser("schema", help="print the JSON Schema of the config (for editors)")

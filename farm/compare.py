@@ -6,6 +6,7 @@ plots/compare.png (2-D slices: claimed but unsafe in red, safe but not claimed i
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -15,9 +16,12 @@ from farm.files import read_safe_set, write_json
 from farm.executors import build_simulator
 
 
-def compare(directory: Path, grid: int | None = None) -> dict:
+def compare(directory: Path, grid: int | None = None, progress=None) -> dict:
     """Metrics of a finished campaign against its reference (also written to
-    compare.json, with plots/compare.png); ``notes`` says how the reference was made."""
+    compare.json, with plots/compare.png); ``notes`` says how the reference was made.
+    ``progress``: a farm.progress.Progress told of each phase (the reference can take
+    a minute)."""
+    say = progress.line if progress is not None else (lambda text: None)
     from farm.quantification import load_frozen_config, spec_of
     from farm.storage import CampaignDir
 
@@ -36,11 +40,16 @@ def compare(directory: Path, grid: int | None = None) -> dict:
     scenario = backend.scenario
     centres, h = read_safe_set(directory / "safe_set.parquet", scenario.state_names)
     points = _grid(scenario, grid)
+    t0 = time.monotonic()
+    say(f"compare: reference safe set on {len(points):,} grid points "
+        f"({'simulated under Gamma*' if simulated or scenario.reference_safe(points[:1]) is None else 'model'})")
     truth = reference_safe(backend, points)
+    say(f"compare: reference done in {time.monotonic() - t0:.1f} s; measuring the claimed set")
     metrics = compare_boxes(backend, centres, h, truth=truth, grid_points_per_axis=_k(scenario, grid))
     notes = []
     if cfg.actions.mode != "adversarial" and scenario.name != "toy" and scenario.sv_policy_name != "brake":
         sample = points[truth][:: max(1, int(truth.sum()) // 20000)]
+        say(f"compare: random action sequences from {len(sample):,} reference-safe points (falsification)")
         broken = falsify(backend, sample)
         metrics["falsified_reference_points"] = [broken, int(len(sample))]
         notes.append(f"reference = worst case under Gamma*; random action sequences broke {broken} of "

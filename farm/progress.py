@@ -1,4 +1,11 @@
-"""Live progress of a long campaign on a terminal (quiet when not a terminal)."""
+"""Progress of long work, where the user looks.
+
+- On a terminal: a live line drawn by ``rich`` (round, delta, boxes, the N_eps counter as
+  a bar, runs, runs/s, elapsed), redrawn in place.
+- Not a terminal (``ray job logs``, CI, a file): a plain line every ``interval`` seconds
+  and at every round end, so a job log shows the campaign moving.
+- ``quiet``: nothing; ``verbose``: plain lines every 2 s on a terminal too, plus round ends.
+"""
 
 from __future__ import annotations
 
@@ -7,28 +14,91 @@ import time
 
 from farm.status import snapshot
 
+PLAIN_INTERVAL_S = 10.0
+
 
 class Progress:
-    def __init__(self, enabled: bool | None = None, stream=None):
+    def __init__(self, enabled: bool | None = None, stream=None, *, mode: str = "auto",
+                 interval: float = PLAIN_INTERVAL_S):
+        """``enabled`` False is ``mode="quiet"`` (the Python API's default); ``mode``:
+        auto | quiet | verbose."""
         self.stream = stream or sys.stderr
-        self.enabled = self.stream.isatty() if enabled is None else enabled
+        if enabled is False:
+            mode = "quiet"
+        self.mode = mode
+        tty = bool(getattr(self.stream, "isatty", lambda: False)())
+        self.live = mode == "auto" and tty
+        self.interval = 2.0 if mode == "verbose" else interval
+        self.enabled = mode != "quiet"
         self._last = 0.0
+        self._round = None
+        self._bar = None
 
+    # -- campaigns -------------------------------------------------------------------------
     def update(self, label: str, algorithm, campaign, n_eps: int) -> None:
         if not self.enabled:
             return
+        s = snapshot(algorithm, campaign, n_eps)
+        new_round = s["round"] != self._round
+        self._round = s["round"]
+        if self.live:
+            self._draw(label, s, campaign)
+            return
         now = time.monotonic()
-        if now - self._last < 0.5 and not campaign.counters.done:
+        if new_round or campaign.counters.done or now - self._last >= self.interval:
+            self._last = now
+            side = "" if label == "total" else f"{label} side: "
+            self.line(f"{side}round {s['round']}  delta {s['delta']:g}  boxes {s['boxes']:,}  {_counter(s)}  "
+                      f"runs {s['runs_committed']:,}  {s['runs_per_s'] or 0:,.0f} runs/s  {s['elapsed_s']:.0f} s")
+
+    def _draw(self, label, s, campaign) -> None:
+        now = time.monotonic()
+        if now - self._last < 0.2 and not campaign.counters.done:
             return
         self._last = now
-        s = snapshot(algorithm, campaign, n_eps)
-        line = (f"[{label}] round {s['round']}  delta {s['delta']:g}  boxes {s['boxes']}  "
-                f"N_eps {s['n_eps_counter']}/{n_eps}  runs {s['runs_committed']}  "
-                f"{s['runs_per_s'] or 0:,.0f} runs/s  {s['elapsed_s']:.0f}s")
-        self.stream.write("\r" + line.ljust(110))
+        if self._bar is None:
+            from rich.console import Console
+            from rich.progress import BarColumn, Progress as Bar, TextColumn, TimeElapsedColumn
+
+            self._bar = Bar(TextColumn("{task.description}"), BarColumn(bar_width=12),
+                            TextColumn("{task.fields[what]} {task.completed:,.0f}/{task.total:,.0f}"),
+                            TextColumn("{task.fields[detail]}"), TimeElapsedColumn(),
+                            console=Console(file=self.stream), transient=False)
+            self._bar.start()
+            self._task = self._bar.add_task("", total=1, detail="", what="N_eps")
+        done, total = (s["certified"], s["centres"]) if "certified" in s else (s["n_eps_counter"], s["n_eps_needed"])
+        side = "" if label == "total" else f"{label} side: "  # no [brackets]: rich reads them as markup
+        self._bar.update(self._task, description=f"{side}round {s['round']} delta {s['delta']:g}",
+                         completed=done, total=max(total, 1), what="certified" if "certified" in s else "N_eps",
+                         detail=f"boxes {s['boxes']:,}  runs {s['runs_committed']:,}  "
+                                f"{s['runs_per_s'] or 0:,.0f}/s", refresh=True)
+
+    # -- anything with a count ---------------------------------------------------------------
+    def count(self, what: str, done: int, total: int) -> None:
+        """Progress of a job of ``total`` items (validation runs, compare grid points)."""
+        if not self.enabled:
+            return
+        now = time.monotonic()
+        if done < total and now - self._last < (0.2 if self.live else self.interval):
+            return
+        self._last = now
+        end = "\n" if done >= total or not self.live else ""
+        self.stream.write(("\r" if self.live else "") + f"scenario-farm: {what} {done:,}/{total:,}" + end)
         self.stream.flush()
 
-    def close(self) -> None:
+    def line(self, text: str) -> None:
         if self.enabled:
-            self.stream.write("\n")
+            self.stream.write(f"scenario-farm: {text}\n")
             self.stream.flush()
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+            self._bar = None
+
+
+def _counter(s: dict) -> str:
+    if "certified" in s:
+        return f"certified {s['certified']:,}/{s['centres']:,} centres"
+    return f"N_eps {s['n_eps_counter']:,}/{s['n_eps_needed']:,}"
+

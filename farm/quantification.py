@@ -141,6 +141,7 @@ class Part:
 
     # -- running ------------------------------------------------------------------------------
     def prepare(self, resume: bool, progress: Progress, status: StatusWriter) -> None:
+        self.progress = progress
         """Set up the campaign driver; when resuming, load and check the checkpoint
         (nothing is written here)."""
         cfg, farm = self.cfg, self.cfg.farm
@@ -176,6 +177,8 @@ class Part:
             executor = make_executor(farm.executor, self.spec, farm.workers, farm.address, farm.max_retries,
                                      check_step_bound=self.cfg.quantify.boundary)
             self.startup_s = time.monotonic() - t0
+            if farm.executor == "ray":
+                self.progress.line(f"Ray ({farm.address}) up with {farm.workers} workers in {self.startup_s:.1f} s")
             self.campaign.executor = executor
             try:
                 self.campaign.run()

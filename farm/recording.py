@@ -1,24 +1,25 @@
 """Run recordings as MCAP files that Foxglove opens without project code.
 
-One topic per scenario, ``/scenario/<name>/state``, JSON-encoded messages with a JSON
-schema built from the state names: ``sample_index``, ``step``, ``time`` [s], one number
-per state variable, and ``outcome`` on a run's last message (null before). Runs are laid
-one after another on the log timeline (each starts 1 s after the previous one ends) so
-Foxglove shows them in sequence; the true time within the run is the ``time`` field.
-Metadata: a record ``scenario-farm`` (config hash, seed, ...) and one ``run/<index>`` per
-run (sample index, outcome, length).
+One topic per run, ``/scenario/<name>/run/<sample index>``, every run starting at log
+time 0: in Foxglove each run is its own series, overlaid on one time axis (a plot of
+``/scenario/lead-follow/run/*.v0`` shows every run's v0 from its start; with one topic
+laid back to back, runs joined into one line). JSON-encoded messages with a JSON schema
+built from the state names: ``sample_index``, ``step``, ``time`` [s], one number per
+state variable, and ``outcome`` on a run's last message (null before). Messages are
+written in log-time order. Metadata: a record ``scenario-farm`` (config hash, seed, ...)
+and one ``run/<index>`` per run (sample index, outcome, length). Beside each recording, a
+Foxglove layout (``<name>.layout.json``: one plot per state variable with every run of the
+file as a series; Foxglove: Layouts > Import from file).
 """
 
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 
-GAP_NS = 1_000_000_000
-
+from farm.files import atomic_write
 
 def schema_for(scenario_name: str, state_names: list[str]) -> dict:
     props = {"sample_index": {"type": "integer"}, "step": {"type": "integer"},
@@ -34,36 +35,51 @@ def write_recording(path, *, scenario_name: str, state_names: list[str], dt: flo
     """Write ``runs`` (dicts with sample_index, trajectory (L, n), outcome) atomically."""
     from mcap.writer import Writer
 
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    topic = f"/scenario/{scenario_name}/state"
-    with open(tmp, "wb") as fh:
+    def write(fh) -> None:
         writer = Writer(fh)
         writer.start(profile="", library="scenario-farm")
         schema_id = writer.register_schema(name=f"scenario_farm.{scenario_name}.State", encoding="jsonschema",
                                            data=json.dumps(schema_for(scenario_name, state_names)).encode())
-        channel_id = writer.register_channel(topic=topic, message_encoding="json", schema_id=schema_id)
         writer.add_metadata("scenario-farm", {k: str(v) for k, v in metadata.items()})
-        clock = 0
+        trajs = [np.asarray(run["trajectory"], dtype=float) for run in runs]
+        channels = [writer.register_channel(topic=f"/scenario/{scenario_name}/run/{int(run['sample_index'])}",
+                                            message_encoding="json", schema_id=schema_id) for run in runs]
         step_ns = int(round(dt * 1e9))
-        for run in runs:
-            traj = np.asarray(run["trajectory"], dtype=float)
-            index = int(run["sample_index"])
-            for k, state in enumerate(traj):
-                msg = {"sample_index": index, "step": k, "time": k * dt}
-                msg.update({name: float(v) for name, v in zip(state_names, state)})
+        for k in range(max((len(t) for t in trajs), default=0)):  # log-time order across runs
+            for run, traj, channel in zip(runs, trajs, channels):
+                if k >= len(traj):
+                    continue
+                msg = {"sample_index": int(run["sample_index"]), "step": k, "time": k * dt}
+                msg.update({name: float(v) for name, v in zip(state_names, traj[k])})
                 msg["outcome"] = run["outcome"] if k == len(traj) - 1 else None
-                stamp = clock + k * step_ns
-                writer.add_message(channel_id=channel_id, log_time=stamp, publish_time=stamp, sequence=k,
+                writer.add_message(channel_id=channel, log_time=k * step_ns, publish_time=k * step_ns, sequence=k,
                                    data=json.dumps(msg).encode())
-            clock += len(traj) * step_ns + GAP_NS
-            meta = {"sample_index": str(index), "outcome": run["outcome"], "length": str(len(traj))}
+        for run, traj in zip(runs, trajs):
+            meta = {"sample_index": str(int(run["sample_index"])), "outcome": run["outcome"], "length": str(len(traj))}
             meta.update({k: str(metadata[k]) for k in ("seed", "config_hash") if k in metadata})
-            writer.add_metadata(f"run/{index}", meta)
+            writer.add_metadata(f"run/{int(run['sample_index'])}", meta)
         writer.finish()
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+
+    atomic_write(Path(path), write)
+    write_layout(Path(path).with_suffix(".layout.json"), scenario_name, state_names,
+                 [int(run["sample_index"]) for run in runs])
+
+
+def write_layout(path: Path, scenario_name: str, state_names: list[str], indices: list[int]) -> None:
+    """A Foxglove layout: a column of plots, one per state variable, a series per run."""
+    from farm.files import write_json
+
+    panels = {}
+    for name in state_names:
+        panels[f"Plot!{name}"] = {
+            "title": name, "showLegend": len(indices) <= 16, "xAxisVal": "timestamp", "isSynced": True,
+            "paths": [{"value": f"/scenario/{scenario_name}/run/{i}.{name}", "enabled": True,
+                       "timestampMethod": "receiveTime", "label": f"run {i}"} for i in indices]}
+    layout: object = f"Plot!{state_names[-1]}"
+    for name in reversed(state_names[:-1]):
+        layout = {"direction": "column", "first": f"Plot!{name}", "second": layout}
+    write_json(path, {"configById": panels, "globalVariables": {}, "userNodes": {}, "linkedGlobalVariables": [],
+                      "playbackConfig": {"speed": 1}, "layout": layout})
 
 
 def read_recording(path) -> dict:

@@ -41,7 +41,15 @@ def snapshot(algorithm, campaign, n_eps: int) -> dict:
     return {"round": counts.get("round", 0), "delta": counts.get("delta"), "boxes": counts.get("boxes"),
             "n_eps_counter": c.quiet, "n_eps": n_eps, "runs_committed": c.committed,
             "runs_simulated": c.runs_simulated, "changes": c.changes, "elapsed_s": round(c.elapsed_s, 1),
-            "runs_per_s": round(c.committed / c.elapsed_s, 1) if c.elapsed_s > 0 else None}
+            "runs_per_s": round(c.committed / c.elapsed_s, 1) if c.elapsed_s > 0 else None,
+            "n_eps_needed": campaign.quiet_needed(), **_certification(algorithm, counts)}
+
+
+def _certification(algorithm, counts) -> dict:
+    """A deterministic certification counts centres run, not runs in a row."""
+    if not getattr(algorithm, "enumerates", False):
+        return {}
+    return {"certified": counts.get("certified", 0), "centres": counts.get("boxes", 0)}
 
 
 def read_status(directory: Path) -> dict | None:
@@ -83,3 +91,25 @@ def describe(directory: Path) -> str:
         lines.append(f"  finished: {s['boxes']} boxes, volume {s['volume_union']:.6g}, result hash {s['result_hash']}")
         lines.append(f"  {s['guarantee']}")
     return "\n".join(lines)
+
+
+def watch(directory: Path, every: float = EVERY_S, stream=None, max_s: float | None = None) -> str:
+    """Print ``describe`` each time the status changes, until the campaign is done or no
+    process works on it any more (``scenario-farm status DIR --watch``); -> the last text."""
+    import sys
+
+    stream = stream or sys.stdout
+    shown, start = None, time.monotonic()
+    while True:
+        text = describe(directory)
+        body = "\n".join(line for line in text.splitlines() if "updated" not in line) + \
+            str((read_status(directory) or {}).get("runs_committed"))
+        if body != shown:
+            stream.write(text + "\n")
+            stream.flush()
+            shown = body
+        ended = CampaignDir(directory).holder() is None and (read_status(directory) or {}).get("state") != "starting"
+        if ended or (max_s is not None and time.monotonic() - start > max_s):
+            return text
+        time.sleep(every)
+

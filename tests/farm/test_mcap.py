@@ -29,10 +29,15 @@ def test_round_trip_and_plain_reader(tmp_path):
     assert len(messages) == 14
     schema, channel, message = messages[0]
     assert schema.encoding == "jsonschema" and channel.message_encoding == "json"
-    assert channel.topic == "/scenario/lead-follow/state"
+    # one topic per run, every run from log time 0: Foxglove overlays them
+    assert {m[1].topic for m in messages} == {f"/scenario/lead-follow/run/{i}" for i in (3, 9, 40)}
+    assert [m[2].log_time for m in messages if m[1].topic.endswith("/40")] == [k * 100_000_000 for k in range(7)]
     assert set(json.loads(schema.data)["properties"]) == {"sample_index", "step", "time", "v0", "v1", "p10", "outcome"}
     times = [m[2].log_time for m in messages]
-    assert times == sorted(times)  # runs one after another on the timeline
+    assert times == sorted(times)  # written in log-time order
+    layout = json.loads(path.with_suffix(".layout.json").read_text())
+    series = [p["value"] for panel in layout["configById"].values() for p in panel["paths"]]
+    assert len(series) == 3 * 3 and {v.rsplit(".", 1)[0] for v in series} == {m[1].topic for m in messages}
 
 
 def test_damaged_recording_is_a_clear_error(tmp_path):
