@@ -136,6 +136,12 @@ class QuantifyResult:
         nx.write_graphml(graph, path)
         return path
 
+    def report_html(self, path=None) -> Path:
+        """One self-contained HTML page: guarantee, figures, rounds, summary (DIR/report.html)."""
+        from farm.report import write_html
+
+        return write_html(self.directory, path)
+
     def plot(self, out_dir=None) -> list[Path]:
         """Redraw the figures (into DIR/plots by default); -> the files written."""
         from farm.plots import draw

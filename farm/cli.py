@@ -114,6 +114,8 @@ def cmd_report(args) -> int:
     print(f"{'plots':>18}: {', '.join(str(p) for p in paths)}")
     if args.graph:
         print(f"{'graph':>18}: {result.export_graph()}")
+    if args.html:
+        print(f"{'report':>18}: {result.report_html()}")
     return EXIT_OK
 
 
@@ -191,6 +193,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("report", help="redraw the plots and print the summary of a campaign")
     p.add_argument("dir")
+    p.add_argument("--html", action="store_true", help="also write DIR/report.html (figures, guarantee, rounds)")
     p.add_argument("--graph", action="store_true",
                    help="also write the exploration graph as GraphML (DIR/exploration_graph.graphml)")
     p.set_defaults(func=cmd_report)

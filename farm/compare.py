@@ -40,6 +40,7 @@ def compare(directory: Path, grid: int | None = None, progress=None) -> dict:
     scenario = backend.scenario
     centres, h = read_safe_set(directory / "safe_set.parquet", scenario.state_names)
     points = _grid(scenario, grid)
+    reference_safe(backend, points[:1])  # no reference at all: say so before any work
     t0 = time.monotonic()
     say(f"compare: reference safe set on {len(points):,} grid points "
         f"({'simulated under Gamma*' if simulated or scenario.reference_safe(points[:1]) is None else 'model'})")

@@ -246,6 +246,10 @@ def finish(cfg: Config, out: Path, parts: dict[str, Part]) -> dict:
         "epsilon": cfg.quantify.epsilon,
         "beta": cfg.quantify.beta,
         "n_eps": part.n_eps,
+        # a sampled certification's attempts, and the quiet runs its last one needed
+        # (beta split over attempts); 0 and n_eps without certification
+        "certification_attempts": c.attempts,
+        "n_eps_final": campaign.quiet_needed() if c.attempts and not part.algorithm.enumerates else part.n_eps,
         "delta_final": h,
         "rounds": c.rounds_completed,
         "converged": c.converged,

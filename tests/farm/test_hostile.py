@@ -37,7 +37,8 @@ def cli(*args, cwd=None, preexec_fn=None, timeout=120):
 
 def one_line_error(r, *words):
     assert r.returncode == 2, (r.returncode, r.stdout, r.stderr)
-    lines = r.stderr.strip().splitlines()
+    lines = [line for line in r.stderr.strip().splitlines()  # progress lines aside
+             if not line.startswith("scenario-farm: ") or "error" in line]
     assert len(lines) == 1 and lines[0].startswith("scenario-farm: error: ") and "Traceback" not in r.stderr, \
         r.stderr
     for w in words:

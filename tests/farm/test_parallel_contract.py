@@ -7,7 +7,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from coordinator.covering import n_eps
+from coordinator.covering import n_eps, n_eps_attempt
 from farm import config as config_mod
 from farm.quantification import run
 
@@ -39,10 +39,15 @@ def test_n_eps_rule_is_exact_in_the_committed_record(reference, tmp_path):
     idx = ledger["sample_index"].to_numpy()
     np.testing.assert_array_equal(idx, np.arange(len(idx)))  # none missing, none twice
     assert len(idx) == summary["runs_committed"]
-    need = n_eps(0.005, 0.1)
     changed = ledger["changed"].to_numpy()
     counted = ledger["counted"].to_numpy()
-    for end in summary["round_ends"]:
+    # every round ends after N_eps quiet runs; the certification round (the last) after
+    # the N its attempt needs (beta split over the attempts)
+    assert summary["certification_attempts"] >= 1
+    needs = [n_eps(0.005, 0.1)] * (len(summary["round_ends"]) - 1)
+    needs.append(n_eps_attempt(0.005, 0.1, summary["certification_attempts"]))
+    assert needs[-1] == summary["n_eps_final"]
+    for end, need in zip(summary["round_ends"], needs):
         tail = slice(end - need, end)
         assert counted[tail].all() and not changed[tail].any()  # N_eps quiet, current-state runs
         assert changed[end - need - 1] or not counted[end - need - 1]  # ... and not one more
