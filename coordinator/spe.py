@@ -258,7 +258,7 @@ class SPE(Algorithm):
 
     def _prune(self, ids: np.ndarray) -> None:
         self.coverage.apply(Kill(ids), self.version)
-        self.certificates.invalidate(self.vertices.alive)
+        self.certificates.invalidate(ids)
 
     def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray, starts: np.ndarray) -> None:
         """Keep committed, non-failing runs for experience replay (coordinator/replay.py)."""
