@@ -281,7 +281,6 @@ class Rescreen:
 
     def _changes(self, rows: np.ndarray) -> np.ndarray:
         """(len(rows),) bool: these runs change the state now (one classification)."""
-        sc = self.screening
         failed = self.outcomes[rows] == FAILURE
         parts = [self.candidates(int(r)) if not f else np.empty((0, self.coverage.n))
                  for r, f in zip(rows, failed)]

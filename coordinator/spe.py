@@ -32,7 +32,7 @@ from coordinator.covering import Lattice
 from coordinator.graph import ExplorationForest
 from coordinator.priorities import FailureDistances
 from coordinator.replay import ReplayBuffer
-from scenarios.base import FAILURE, Scenario
+from scenarios.base import Scenario
 from scenarios.streams import PURPOSE_START, RunStreams
 
 ALPHAS = {"identity": lambda x: x, "square": np.square, "sqrt": np.sqrt}

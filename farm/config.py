@@ -126,7 +126,7 @@ class QuantifyConfig(Section):
     @model_validator(mode="after")
     def _delta_order(self):
         if self.delta_min > self.delta0:
-            raise ValueError(f"DELTA_ORDER")
+            raise ValueError("DELTA_ORDER")
         return self
 
     def settings(self) -> SPESettings:

@@ -13,21 +13,9 @@ import time
 import numpy as np
 import pytest
 
-GOOD = """
-[scenario]
-name = "lead-follow"
-sv_policy = "idm"
-[actions]
-mode = "uniform"
-[quantify]
-delta0 = 4.0
-delta_min = 2.0
-epsilon = 0.01
-horizon = 30
-[farm]
-executor = "local"
-batch_size = 256
-"""
+from small_campaign import lead_follow_toml
+
+GOOD = lead_follow_toml()
 
 
 def cli(*args, cwd=None, preexec_fn=None, timeout=120):

@@ -11,24 +11,10 @@ import time
 import pyarrow.parquet as pq
 import pytest
 
-CONFIG = """
-[scenario]
-name = "lead-follow"
-sv_policy = "idm"
-[actions]
-mode = "uniform"
-[quantify]
-delta0 = 4.0
-delta_min = 1.0
-epsilon = 0.002
-horizon = 40
-[farm]
-executor = "{executor}"
-workers = 2
-batch_size = 256
-pipeline_depth = 2
-seed = 5
-"""
+from small_campaign import lead_follow_toml
+
+CONFIG = lead_follow_toml(delta_min=1.0, epsilon=0.002, horizon=40, executor="{executor}",
+                          farm_extra="workers = 2\npipeline_depth = 2\nseed = 5\n")
 MOMENTS = (0.05, 0.2, 0.4, 0.6, 0.8)  # shares of the uninterrupted run's ledger segments
 
 

@@ -5,25 +5,11 @@ import subprocess
 import sys
 import time
 
-CONFIG = """
-[scenario]
-name = "lead-follow"
-sv_policy = "idm"
-[actions]
-mode = "uniform"
-[quantify]
-delta0 = 4.0
-delta_min = {delta_min}
-epsilon = 0.01
-horizon = 30
-[farm]
-executor = "local"
-batch_size = 256
-"""
+from small_campaign import lead_follow_toml
 
 
 def test_progress_lines_reach_a_log_and_quiet_silences_them(tmp_path):
-    (tmp_path / "c.toml").write_text(CONFIG.format(delta_min=1.0))
+    (tmp_path / "c.toml").write_text(lead_follow_toml(delta_min=1.0))
     r = subprocess.run([sys.executable, "-m", "farm", "quantify", str(tmp_path / "c.toml"), "--out",
                         str(tmp_path / "a"), "--verbose"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
@@ -37,7 +23,7 @@ def test_progress_lines_reach_a_log_and_quiet_silences_them(tmp_path):
 
 
 def test_status_watch_follows_a_campaign_to_its_end(tmp_path):
-    (tmp_path / "c.toml").write_text(CONFIG.format(delta_min=0.25))
+    (tmp_path / "c.toml").write_text(lead_follow_toml(delta_min=0.25))
     out = tmp_path / "out"
     campaign = subprocess.Popen([sys.executable, "-m", "farm", "quantify", str(tmp_path / "c.toml"), "--out",
                                  str(out), "--quiet"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
@@ -54,7 +40,7 @@ def test_status_watch_follows_a_campaign_to_its_end(tmp_path):
 
 
 def test_resume_of_a_finished_campaign_says_so_and_touches_nothing(tmp_path):
-    (tmp_path / "c.toml").write_text(CONFIG.format(delta_min=2.0))
+    (tmp_path / "c.toml").write_text(lead_follow_toml(delta_min=2.0))
     out = tmp_path / "out"
     r = subprocess.run([sys.executable, "-m", "farm", "quantify", str(tmp_path / "c.toml"), "--out", str(out)],
                        capture_output=True, text=True, timeout=300)

@@ -4,27 +4,13 @@ resume, a set of another scenario refused, one damaged recording does not hide o
 
 import json
 import resource
-import shutil
 import subprocess
 import sys
 
 import pytest
+from small_campaign import lead_follow_toml
 
-LEAD_FOLLOW = """
-[scenario]
-name = "lead-follow"
-sv_policy = "idm"
-[actions]
-mode = "uniform"
-[quantify]
-delta0 = 4.0
-delta_min = 2.0
-epsilon = 0.01
-horizon = 30
-[farm]
-executor = "local"
-batch_size = 256
-"""
+LEAD_FOLLOW = lead_follow_toml()
 
 
 def cli(*args, limit_gb=None, timeout=120):
@@ -147,7 +133,8 @@ print(len(procs), sorted(set(listening)), len(listening))
 """
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=180)
     assert r.returncode == 0, r.stderr
-    n_procs, addresses, n = r.stdout.strip().split(" ", 1)[0], eval(r.stdout.strip().split(" ", 1)[1].rsplit(" ", 1)[0]), 0
+    n_procs, rest = r.stdout.strip().split(" ", 1)
+    addresses = eval(rest.rsplit(" ", 1)[0])  # the printed list of listening addresses
     assert int(n_procs) >= 4  # gcs, raylet, workers: the check looked at Ray's own processes
     assert addresses and set(addresses) <= {"127.0.0.1", "::1", "::ffff:127.0.0.1"}, addresses
     assert "Token authentication" not in r.stderr  # the banner is kept out of local-mode output

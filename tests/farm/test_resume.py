@@ -10,23 +10,9 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-CONFIG = """
-[scenario]
-name = "lead-follow"
-sv_policy = "idm"
-[actions]
-mode = "uniform"
-[quantify]
-delta0 = 4.0
-delta_min = 1.0
-epsilon = 0.002
-horizon = 40
-[farm]
-executor = "local"
-batch_size = 256
-pipeline_depth = 2
-seed = 5
-"""
+from small_campaign import lead_follow_toml
+
+CONFIG = lead_follow_toml(delta_min=1.0, epsilon=0.002, horizon=40, farm_extra="pipeline_depth = 2\nseed = 5\n")
 
 
 def cli(*args, **kw):
