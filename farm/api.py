@@ -142,6 +142,26 @@ class QuantifyResult:
 
         return write_html(self.directory, path)
 
+    def plot_failures(self, path=None) -> Path | None:
+        """The recorded failing runs over the safe set (DIR/plots/failures.png); None if
+        the campaign recorded none."""
+        from farm.plots import draw_failures
+        from farm.recording import read_recording
+
+        runs = []
+        for rec in sorted((self.directory / "recordings").glob("runs-*.mcap")):
+            runs += [r["trajectory"] for r in read_recording(rec)["runs"].values()]
+        if not runs:
+            return None
+        return draw_failures(Path(path) if path else self.directory / "plots" / "failures.png", self._scenario(),
+                             self.centres, self.half_width, runs[:64])
+
+    def _scenario(self):
+        from farm.quantification import load_frozen_config, spec_of
+        from scenarios.registry import make_backend
+
+        return make_backend(spec_of(load_frozen_config(self.directory)).scenario).scenario
+
     def plot(self, out_dir=None) -> list[Path]:
         """Redraw the figures (into DIR/plots by default); -> the files written."""
         from farm.plots import draw
@@ -284,6 +304,19 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
 
 
 # -- comparison -------------------------------------------------------------------------------
+def overlay(results, path) -> Path:
+    """Two or more campaigns of one scenario on the same slices (like the paper's Fig. 2:
+    brake against idm); ``results``: directories or QuantifyResults."""
+    from farm.plots import draw_overlay
+
+    results = [r if isinstance(r, QuantifyResult) else open_campaign(r) for r in results]
+    names = {r.summary["scenario"] for r in results}
+    if len(names) != 1:
+        raise ValueError(f"overlay: the campaigns quantify different scenarios ({', '.join(sorted(names))})")
+    labels = [f"{r.summary.get('sv_policy')} / {r.summary.get('actions', '')} ({r.directory.name})" for r in results]
+    return draw_overlay(Path(path), results[0]._scenario(), [(r.centres, r.half_width) for r in results], labels)
+
+
 def compare(target, *, grid: int | None = None, progress=None) -> dict:
     """A finished campaign (directory or QuantifyResult) against the reference safe set:
     IoU, precision, recall, Hausdorff; writes compare.json and plots/compare.png."""

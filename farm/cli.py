@@ -108,14 +108,22 @@ def _print_summary(summary: dict, out: Path) -> None:
 def cmd_report(args) -> int:
     from farm import api
 
-    result = api.open_campaign(args.dir)
-    paths = result.plot()
-    _print_summary(result.summary, Path(args.dir))
-    print(f"{'plots':>18}: {', '.join(str(p) for p in paths)}")
-    if args.graph:
-        print(f"{'graph':>18}: {result.export_graph()}")
-    if args.html:
-        print(f"{'report':>18}: {result.report_html()}")
+    if args.overlay:
+        if len(args.dir) < 2:
+            raise ValueError("report --overlay: give two or more campaign directories")
+        path = api.overlay(args.dir, Path(args.dir[0]) / "plots" / "overlay.png")
+        print(f"{'overlay':>18}: {path}")
+        return EXIT_OK
+    for directory in args.dir:
+        result = api.open_campaign(directory)
+        paths = result.plot()
+        failures = result.plot_failures()
+        _print_summary(result.summary, Path(directory))
+        print(f"{'plots':>18}: {', '.join(str(p) for p in paths + ([failures] if failures else []))}")
+        if args.graph:
+            print(f"{'graph':>18}: {result.export_graph()}")
+        if args.html:
+            print(f"{'report':>18}: {result.report_html()}")
     return EXIT_OK
 
 
@@ -192,7 +200,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_resume)
 
     p = sub.add_parser("report", help="redraw the plots and print the summary of a campaign")
-    p.add_argument("dir")
+    p.add_argument("dir", nargs="+")
+    p.add_argument("--overlay", action="store_true",
+                   help="draw the campaigns on the same slices (DIR1/plots/overlay.png), e.g. brake against idm")
     p.add_argument("--html", action="store_true", help="also write DIR/report.html (figures, guarantee, rounds)")
     p.add_argument("--graph", action="store_true",
                    help="also write the exploration graph as GraphML (DIR/exploration_graph.graphml)")

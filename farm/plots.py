@@ -1,11 +1,22 @@
 """PNG figures of a quantified safe set (matplotlib, headless).
 
-The union of boxes is rasterized with the spatial index (exact membership at each pixel).
-lead-follow: the boundary surface "smallest safe p10 over (v0, v1)" in 3-D like the
-paper's Fig. 2, and 2-D slices (v0, p10) at several lead speeds with the safe region
-shaded. fleet3: the lead-side (v0, v1, p10) and rear-side (v0, v2, p20) views like the
-paper's Fig. 4 (the other coordinates at mid-range), and slices. Other scenarios:
-the first two coordinates.
+The safe set is a union of l-inf boxes (``centres`` (M, n), half-width ``h``); it is
+rasterized with the spatial index (exact membership at each grid point). What is drawn
+comes from the scenario's hints (``scenarios.base.View`` / ``Slices``):
+
+- ``safe_set_3d.png``: per view, the boundary surface of the safe set (smallest safe z,
+  or largest for a set that lies below it) over the plane (x, y), like the paper's
+  Figs. 2 and 4;
+- ``safe_set_slices.png``: 2-D cuts (x, y) at a few values of a third coordinate.
+
+Coordinates a figure does not show are held fixed (the view's ``fixed`` or mid-range),
+and the figure says which and at what value. A side campaign (fleet3's lead / rear side:
+a scenario whose ``failure_facets`` is a subset) gets only the views and slices about its
+own facets. ``draw_overlay`` compares sets of one scenario on the same slices;
+``draw_failures`` draws failing runs over the safe set's projection.
+
+The ``*_figure`` functions return matplotlib Figures (inspected by the tests); the
+``draw*`` functions save them as PNG and close them.
 """
 
 from __future__ import annotations
@@ -17,128 +28,426 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.colors import to_rgba  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+from matplotlib.patches import Patch, Rectangle  # noqa: E402
 
 from coordinator.spatial import PointIndex  # noqa: E402
 
-RESOLUTION = 120
+RESOLUTION = 120  # grid points per axis of a slice
+SURFACE_GRID, SURFACE_DEPTH = 41, 141  # (x, y) grid and z samples of a 3-D boundary
+LEVELS = 4  # slices per Slices hint (values of the varied coordinate, ends included)
+SAFE_COLOUR = "#3a9d48"
+OUTSIDE_COLOUR = "#f4c9c4"  # light red: must not be confused with white paper
+OVERLAY_COLOURS = ("#1f5fbf", "#e8710a", "#7b3fb5", "#1a9e8f", "#c2185b", "#6d5d00")
+SLICES_FILE, SURFACE_FILE = "safe_set_slices.png", "safe_set_3d.png"
 
 
-def _member(centres: np.ndarray, h: float, lower) -> callable:
-    index = PointIndex(centres.shape[1], 2 * h, lower)
-    if len(centres):
-        index.insert(centres)
+# -- membership and grids -----------------------------------------------------------------
+def _member(centres: np.ndarray, h: float, lower, upper=None) -> callable:
+    """Membership in the union of boxes, (G, n) -> (G,) bool. With ``upper`` the index
+    uses its dense fast path (Sigma as bounds)."""
+    centres = np.asarray(centres, dtype=float).reshape(-1, len(lower))
+    if not len(centres) or h <= 0:  # an empty set (a zero cell would break the index)
+        return lambda pts: np.zeros(len(pts), dtype=bool)
+    bounds = None if upper is None else (np.asarray(lower, float), np.asarray(upper, float))
+    index = PointIndex(centres.shape[1], 2 * h, lower, capacity=len(centres), bounds=bounds)
+    index.insert(centres)
     return lambda pts: index.any_within(pts, h)
 
 
-def _plane(scenario, x: int, y: int, fixed: dict[int, float], res=RESOLUTION):
-    lo, hi = scenario.lower, scenario.upper
-    xs = np.linspace(lo[x], hi[x], res)
-    ys = np.linspace(lo[y], hi[y], res)
-    gx, gy = np.meshgrid(xs, ys, indexing="ij")
-    pts = np.empty((gx.size, scenario.n))
-    for axis in range(scenario.n):
-        pts[:, axis] = fixed.get(axis, (lo[axis] + hi[axis]) / 2)
-    pts[:, x], pts[:, y] = gx.ravel(), gy.ravel()
-    return xs, ys, pts
+def _points(scenario, grids: dict[int, np.ndarray], fixed: dict[int, float]) -> np.ndarray:
+    """All combinations of ``grids`` (axis -> values, 'ij' order) as rows of states; the
+    other coordinates at ``fixed`` (axis -> value)."""
+    axes = list(grids)
+    mesh = np.meshgrid(*(grids[a] for a in axes), indexing="ij")
+    pts = np.full((mesh[0].size, scenario.n), np.nan)  # a coordinate left unset is in no box
+    for axis, value in fixed.items():
+        pts[:, axis] = value
+    for axis, values in zip(axes, mesh):
+        pts[:, axis] = values.ravel()
+    return pts
 
 
-def _surface(ax, scenario, member, axes, label, title):
-    """Smallest safe value of the third axis over a grid of the first two (others mid)."""
-    x, y, z = axes
+def _held(scenario, shown, fixed: dict[int, float] | None = None) -> dict[int, float]:
+    """The coordinates a figure does not show -> the value they are held at (``fixed``,
+    else mid-range)."""
+    fixed = fixed or {}
+    mid = (np.asarray(scenario.lower) + np.asarray(scenario.upper)) / 2
+    return {a: float(fixed.get(a, mid[a])) for a in range(scenario.n) if a not in shown}
+
+
+def _samples(lo: float, hi: float, count: int) -> np.ndarray:
+    """Pixel centres across [lo, hi]: an image's pixels then sit where they were
+    sampled, and no sample lands exactly on a box face of a grid-aligned set (where
+    neighbouring boxes touch and a single column would stick out)."""
+    return lo + (np.arange(count) + 0.5) * ((hi - lo) / count)
+
+
+def _axis(scenario, name: str) -> int:
+    return list(scenario.state_names).index(name)
+
+
+# -- words --------------------------------------------------------------------------------
+def _label(scenario, axis: int) -> str:
+    """Axis label with unit, "v0 [m/s]"."""
+    name = scenario.state_names[axis]
+    unit = getattr(scenario, "units", {}).get(name)
+    return f"{name} [{unit}]" if unit else name
+
+
+def _setting(scenario, axis: int, value: float) -> str:
+    """A held coordinate in words, "v1 = 6.67 m/s"."""
+    name = scenario.state_names[axis]
+    unit = getattr(scenario, "units", {}).get(name)
+    return f"{name} = {value:.3g}" + (f" {unit}" if unit else "")
+
+
+def _settings(scenario, held: dict[int, float]) -> str:
+    return ", ".join(_setting(scenario, a, v) for a, v in held.items())
+
+
+def _title(scenario, centres, h, summary: dict) -> str:
+    parts = [summary.get("scenario") or scenario.name,
+             summary.get("sv_policy") or getattr(scenario, "sv_policy_name", None), summary.get("algorithm")]
+    return f"{' / '.join(str(p) for p in parts if p)}: {len(centres)} boxes, half-width {h:g}"
+
+
+# -- what to draw ---------------------------------------------------------------------------
+def _own(items, scenario, names_of) -> list:
+    """The hints about the scenario's failure facets (a side campaign counts only its
+    own: fleet3's rear side has no business with the lead-side view); all if none is."""
+    facets = set(getattr(scenario, "failure_facets", ()))
+    own = [item for item in items if facets & set(names_of(item))]
+    return own or list(items)
+
+
+def _views(scenario) -> list:
+    return _own(scenario.views(), scenario, lambda v: v.axes[2:])
+
+
+def _slices(scenario) -> list:
+    return _own(scenario.slices(), scenario, lambda s: (s.x, s.y))
+
+
+def _cuts(scenario, spec) -> list[tuple[int, int, dict[int, float]]]:
+    """A Slices hint -> panels (x, y, held coordinates): one per level of ``varied``."""
+    x, y = _axis(scenario, spec.x), _axis(scenario, spec.y)
+    if spec.varied is None:
+        return [(x, y, _held(scenario, (x, y)))]
+    v = _axis(scenario, spec.varied)
+    # the varied coordinate first: it is what changes along a row, so it leads the title
+    return [(x, y, {v: float(level), **_held(scenario, (x, y, v))})
+            for level in np.linspace(scenario.lower[v], scenario.upper[v], LEVELS)]
+
+
+def _panel_title(scenario, held: dict[int, float]) -> str:
+    return _settings(scenario, held) if held else "the whole state plane"
+
+
+# -- 3-D boundary surfaces -----------------------------------------------------------------
+def _boundary(scenario, member, view):
+    """Over the (x, y) grid, the smallest (safe_above) or largest safe z; NaN where no z
+    is safe. -> xs, ys, z (len(xs), len(ys)), held coordinates."""
+    x, y, z = (_axis(scenario, name) for name in view.axes)
     lo, hi = scenario.lower, scenario.upper
-    xs = np.linspace(lo[x], hi[x], 41)
-    ys = np.linspace(lo[y], hi[y], 41)
-    zs = np.linspace(lo[z], hi[z], 141)
-    gx, gy, gz = np.meshgrid(xs, ys, zs, indexing="ij")
-    pts = np.empty((gx.size, scenario.n))
-    for axis in range(scenario.n):
-        pts[:, axis] = (lo[axis] + hi[axis]) / 2
-    pts[:, x], pts[:, y], pts[:, z] = gx.ravel(), gy.ravel(), gz.ravel()
-    safe = member(pts).reshape(gx.shape)
+    held = _held(scenario, (x, y, z), {_axis(scenario, k): v for k, v in view.fixed})
+    xs, ys = _samples(lo[x], hi[x], SURFACE_GRID), _samples(lo[y], hi[y], SURFACE_GRID)
+    zs = np.linspace(lo[z], hi[z], SURFACE_DEPTH)  # ends included: a boundary on Sigma's face
+    if not view.safe_above:
+        zs = zs[::-1]  # the first safe sample along the column is then the largest
+    safe = member(_points(scenario, {x: xs, y: ys, z: zs}, held)).reshape(len(xs), len(ys), len(zs))
     first = np.where(safe.any(axis=2), zs[np.argmax(safe, axis=2)], np.nan)
-    ax.plot_surface(gx[:, :, 0], gy[:, :, 0], first, cmap="viridis", linewidth=0, antialiased=True, alpha=0.9)
-    names = scenario.state_names
-    ax.set_xlabel(names[x])
-    ax.set_ylabel(names[y])
-    ax.set_zlabel(f"smallest safe {names[z]}")
-    ax.set_zlim(lo[z], hi[z])
-    ax.set_title(f"{title}\n{label}", fontsize=9)
+    return xs, ys, first, held
 
 
-def _slice(ax, scenario, member, x, y, fixed):
-    xs, ys, pts = _plane(scenario, x, y, fixed)
+def _zlim(scenario, view, values):
+    """The surface's range with a margin, inside Sigma: the surface fills the box."""
+    z = _axis(scenario, view.axes[2])
+    lo, hi = float(scenario.lower[z]), float(scenario.upper[z])
+    if not np.isfinite(values).any():
+        return lo, hi
+    pad = 0.05 * (hi - lo)
+    zmin, zmax = max(lo, np.nanmin(values) - pad), min(hi, np.nanmax(values) + pad)
+    return (zmin, zmax) if zmax > zmin else (lo, hi)
+
+
+def _draw_view(fig, ax, scenario, member, view) -> None:
+    xs, ys, first, held = _boundary(scenario, member, view)
+    x, y, z = (_axis(scenario, name) for name in view.axes)
+    zmin, zmax = _zlim(scenario, view, first)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    surface = ax.plot_surface(gx, gy, first, cmap="viridis" if view.safe_above else "magma",
+                              vmin=zmin, vmax=zmax, linewidth=0, antialiased=True, alpha=0.95)
+    which = "smallest" if view.safe_above else "largest"
+    fig.colorbar(surface, ax=ax, shrink=0.6, pad=0.1, label=f"{which} safe {_label(scenario, z)}")
+    ax.set_xlabel(_label(scenario, x))
+    ax.set_ylabel(_label(scenario, y))
+    ax.set_zlabel(_label(scenario, z))  # what the height means is on the colour bar
+    ax.set_xlim(scenario.lower[x], scenario.upper[x])
+    ax.set_ylim(scenario.lower[y], scenario.upper[y])
+    ax.set_zlim(zmin, zmax)
+    words = [f"{view.title} ({', '.join(view.axes)}): safe {'above' if view.safe_above else 'below'} the surface"]
+    if held:
+        words.append(f"held at {_settings(scenario, held)}")
+    if not np.isfinite(first).any():
+        words.append("no safe state in this view")
+    ax.set_title("\n".join(words), fontsize=9)
+
+
+def surface_figure(scenario, centres, h, summary: dict, views=None):
+    """The 3-D boundary surfaces of ``views`` (default: the scenario's own) in one
+    Figure, or None when there is no view (a 2-D scenario)."""
+    views = _views(scenario) if views is None else views
+    if not views:
+        return None
+    member = _member(centres, h, scenario.lower, scenario.upper)
+    fig = plt.figure(figsize=(7 * len(views), 6), layout="constrained")
+    for k, view in enumerate(views):
+        _draw_view(fig, fig.add_subplot(1, len(views), k + 1, projection="3d"), scenario, member, view)
+    fig.suptitle(_title(scenario, centres, h, summary), fontsize=10)
+    return fig
+
+
+# -- 2-D slices -------------------------------------------------------------------------------
+def _plane(scenario, x, y, held, res=RESOLUTION):
+    lo, hi = scenario.lower, scenario.upper
+    xs, ys = _samples(lo[x], hi[x], res), _samples(lo[y], hi[y], res)
+    return xs, ys, _points(scenario, {x: xs, y: ys}, held)
+
+
+def _frame(ax, scenario, x, y, held) -> None:
+    ax.set_xlabel(_label(scenario, x))
+    ax.set_ylabel(_label(scenario, y))
+    ax.set_title(_panel_title(scenario, held), fontsize=9)
+
+
+def _extent(scenario, x, y) -> tuple:
+    return (scenario.lower[x], scenario.upper[x], scenario.lower[y], scenario.upper[y])
+
+
+def _paint(ax, mask: np.ndarray, extent, colour, alpha=1.0, background=None) -> None:
+    """A boolean (x, y) grid as an image: ``colour`` where True, ``background`` (or
+    transparent) elsewhere. Colours are explicit RGBA, so no colormap can wash them out."""
+    img = np.zeros(mask.T.shape + (4,))
+    if background is not None:
+        img[~mask.T] = to_rgba(background)
+    img[mask.T] = to_rgba(colour, alpha)
+    ax.imshow(img, origin="lower", aspect="auto", extent=extent, interpolation="nearest")
+
+
+def _draw_slice(ax, scenario, member, x, y, held) -> None:
+    xs, ys, pts = _plane(scenario, x, y, held)
     safe = member(pts).reshape(len(xs), len(ys))
-    ax.imshow(safe.T, origin="lower", aspect="auto", cmap="Greens", vmin=0, vmax=1.6,
-              extent=(xs[0], xs[-1], ys[0], ys[-1]), interpolation="nearest")
-    names = scenario.state_names
-    ax.set_xlabel(names[x])
-    ax.set_ylabel(names[y])
-    ax.set_title(", ".join(f"{names[a]} = {v:.3g}" for a, v in fixed.items()) or "safe set", fontsize=9)
+    _paint(ax, safe, _extent(scenario, x, y), SAFE_COLOUR, background=OUTSIDE_COLOUR)
+    _frame(ax, scenario, x, y, held)
+
+
+def _set_legend():
+    return [Patch(facecolor=SAFE_COLOUR, label="in the safe set"),
+            Patch(facecolor=OUTSIDE_COLOUR, edgecolor="0.6", label="not in the safe set")]
+
+
+def _panel_grid(rows: list[list], width=4.2, height=3.8):
+    ncols = max(len(r) for r in rows)
+    fig, axs = plt.subplots(len(rows), ncols, figsize=(width * ncols, height * len(rows) + 0.9),
+                            squeeze=False, layout="constrained")
+    for r, row in enumerate(rows):
+        for ax in axs[r, len(row):]:
+            ax.set_visible(False)
+    return fig, axs
+
+
+def slices_figure(scenario, centres, h, summary: dict, slices=None):
+    """2-D cuts of the safe set (default: the scenario's own Slices hints), one row per
+    hint, as a Figure with a legend."""
+    rows = [_cuts(scenario, spec) for spec in (_slices(scenario) if slices is None else slices)]
+    member = _member(centres, h, scenario.lower, scenario.upper)
+    fig, axs = _panel_grid(rows)
+    for r, row in enumerate(rows):
+        for ax, (x, y, held) in zip(axs[r], row):
+            _draw_slice(ax, scenario, member, x, y, held)
+    fig.suptitle(f"{_title(scenario, centres, h, summary)}\n2-D cuts of the safe set", fontsize=10)
+    fig.legend(handles=_set_legend(), loc="outside lower center", ncol=2, fontsize=9)
+    return fig
+
+
+# -- campaign figures --------------------------------------------------------------------------
+def build_figures(scenario, centres: np.ndarray, h: float, summary: dict) -> dict:
+    """File name -> Figure: the slices, and the 3-D surfaces if the scenario has views."""
+    figures = {}
+    surfaces = surface_figure(scenario, centres, h, summary)
+    if surfaces is not None:
+        figures[SURFACE_FILE] = surfaces
+    figures[SLICES_FILE] = slices_figure(scenario, centres, h, summary)
+    return figures
+
+
+def _save(fig, path: Path, dpi=100) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        fig.savefig(path, dpi=dpi)
+    finally:
+        plt.close(fig)
+    return path
 
 
 def draw(out_dir: Path, scenario, centres: np.ndarray, h: float, summary: dict) -> list[Path]:
+    """Write safe_set_3d.png (if the scenario has 3-D views) and safe_set_slices.png in
+    ``out_dir``; -> the files written."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    member = _member(centres, h, scenario.lower)
-    title = (f"{summary.get('scenario')} / {summary.get('sv_policy')} / {summary.get('algorithm')}: "
-             f"{len(centres)} boxes, half-width {h:g}")
-    written = []
-    lo, hi = scenario.lower, scenario.upper
-    if scenario.name == "fleet3":
-        views = [((0, 1, 3), "lead side (v0, v1, p10)"), ((0, 2, 4), "rear side (v0, v2, p20)")]
-        slices = [(0, 3, 1), (0, 4, 2)]  # (x, y, varied axis)
-    elif scenario.n >= 3:
-        views = [((0, 1, scenario.n - 1), "boundary of the safe set")]
-        slices = [(0, scenario.n - 1, 1)]
-    else:
-        views, slices = [], []
-    if views:
-        fig = plt.figure(figsize=(6.5 * len(views), 5.5))
-        for k, (axes, label) in enumerate(views):
-            ax = fig.add_subplot(1, len(views), k + 1, projection="3d")
-            if scenario.name == "fleet3" and axes[2] == 4:
-                # rear side: the safe set lies *below* a largest p20 (follower behind)
-                flipped = lambda pts, m=member: m(pts)  # noqa: E731
-                _surface_rear(ax, scenario, flipped, axes, label, title)
-            else:
-                _surface(ax, scenario, member, axes, label, title)
-        fig.tight_layout()
-        path = out_dir / "safe_set_3d.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        written.append(path)
-    if slices:
-        fig, axs = plt.subplots(len(slices), 4, figsize=(16, 4 * len(slices)), squeeze=False)
-        for row, (x, y, varied) in enumerate(slices):
-            for ax, level in zip(axs[row], np.linspace(lo[varied], hi[varied], 4)):
-                _slice(ax, scenario, member, x, y, {varied: float(level)})
-    else:
-        fig, ax = plt.subplots(figsize=(5.5, 5))
-        _slice(ax, scenario, member, 0, 1, {})
-        axs = np.array([[ax]])
-    fig.suptitle(f"{title}\nsafe region shaded (other coordinates at mid-range)", fontsize=10)
-    fig.tight_layout()
-    path = out_dir / "safe_set_slices.png"
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    written.append(path)
-    return written
+    centres = np.asarray(centres, dtype=float).reshape(-1, scenario.n)
+    return [_save(fig, out_dir / name, dpi=110 if name == SURFACE_FILE else 100)
+            for name, fig in build_figures(scenario, centres, h, summary).items()]
 
 
-def _surface_rear(ax, scenario, member, axes, label, title):
-    x, y, z = axes
-    lo, hi = scenario.lower, scenario.upper
-    xs, ys, zs = np.linspace(lo[x], hi[x], 41), np.linspace(lo[y], hi[y], 41), np.linspace(lo[z], hi[z], 141)
-    gx, gy, gz = np.meshgrid(xs, ys, zs, indexing="ij")
-    pts = np.empty((gx.size, scenario.n))
-    for axis in range(scenario.n):
-        pts[:, axis] = (lo[axis] + hi[axis]) / 2
-    pts[:, x], pts[:, y], pts[:, z] = gx.ravel(), gy.ravel(), gz.ravel()
-    safe = member(pts).reshape(gx.shape)[:, :, ::-1]
-    last = np.where(safe.any(axis=2), zs[::-1][np.argmax(safe, axis=2)], np.nan)
-    ax.plot_surface(gx[:, :, 0], gy[:, :, 0], last, cmap="magma", linewidth=0, alpha=0.9)
-    names = scenario.state_names
-    ax.set_xlabel(names[x])
-    ax.set_ylabel(names[y])
-    ax.set_zlabel(f"largest safe {names[z]}")
-    ax.set_title(f"{title}\n{label}", fontsize=9)
+# -- overlay of several sets ----------------------------------------------------------------------
+def _stroke(k: int) -> tuple[str, float]:
+    """Line style and width of set k: later sets thinner and dashed, so that outlines
+    that coincide (a side set and the total often share a boundary) all stay visible."""
+    return ("solid", "dashed", "dotted", "dashdot")[k % 4], max(1.2, 3.2 - 0.8 * k)
+
+
+def _outline(ax, xs, ys, mask, colour, k) -> None:
+    # a constant grid has no boundary inside the panel (contour would only warn)
+    if mask.any() and not mask.all():
+        style, width = _stroke(k)
+        ax.contour(xs, ys, mask.T.astype(float), levels=[0.5], colors=[colour], linewidths=width,
+                   linestyles=style)
+
+
+def overlay_figure(scenario, sets, labels):
+    """Figure of ``overlay`` (see draw_overlay)."""
+    sets, labels = list(sets), [str(label) for label in labels]
+    if not sets or len(sets) != len(labels):
+        raise ValueError(f"overlay: {len(sets)} sets and {len(labels)} labels; need one label per set, at least one")
+    colours = [OVERLAY_COLOURS[k % len(OVERLAY_COLOURS)] for k in range(len(sets))]
+    members = [_member(np.asarray(c, float).reshape(-1, scenario.n), h, scenario.lower, scenario.upper)
+               for c, h in sets]
+    rows = [_cuts(scenario, spec) for spec in scenario.slices()]
+    fig, axs = _panel_grid(rows)
+    for r, row in enumerate(rows):
+        for ax, (x, y, held) in zip(axs[r], row):
+            xs, ys, pts = _plane(scenario, x, y, held)
+            extent = _extent(scenario, x, y)
+            for k, (member, colour) in enumerate(zip(members, colours)):
+                mask = member(pts).reshape(len(xs), len(ys))
+                _paint(ax, mask, extent, colour, alpha=0.12)  # faint: overlaps stay readable
+                _outline(ax, xs, ys, mask, colour, k)
+            ax.set_xlim(extent[:2])
+            ax.set_ylim(extent[2:])
+            _frame(ax, scenario, x, y, held)
+    handles = [Line2D([], [], color=c, linestyle=_stroke(k)[0], linewidth=_stroke(k)[1],
+                      label=f"{label} ({len(np.atleast_2d(s[0]))} boxes)")
+               for k, (c, label, s) in enumerate(zip(colours, labels, sets))]
+    fig.suptitle(f"{scenario.name}: safe sets compared ({' vs '.join(labels)})\n"
+                 "each set shaded and outlined in its colour", fontsize=10)
+    fig.legend(handles=handles, loc="outside lower center", ncol=min(len(handles), 4), fontsize=9)
+    return fig
+
+
+def draw_overlay(path, scenario, sets, labels) -> Path:
+    """Overlay quantified safe sets of one scenario on the same 2-D cuts (the scenario's
+    Slices hints), like the paper's Fig. 2 comparing the brake and idm SV policies.
+
+    ``sets``: a list of ``(centres (M, n), h)``, one per set (e.g. from two campaign
+    directories); ``labels``: one name per set, shown in the legend. Each set is shaded
+    translucently and outlined in its own colour. Writes the PNG at ``path`` (parent
+    directories created); -> ``path``. Raises ValueError if labels and sets differ in
+    number."""
+    return _save(overlay_figure(scenario, sets, labels), path)
+
+
+# -- failing runs ------------------------------------------------------------------------------
+def _planes(scenario) -> list[tuple[int, int]]:
+    """The distinct (x, y) planes of the scenario's slices (fleet3: (v0, p10), (v0, p20))."""
+    planes = []
+    for spec in _slices(scenario):
+        plane = (_axis(scenario, spec.x), _axis(scenario, spec.y))
+        if plane not in planes:
+            planes.append(plane)
+    return planes
+
+
+def _projection(scenario, centres, h, x, y):
+    """The safe set's shadow on the plane (x, y) as a grid: a run's projected start lies
+    in it whatever its other coordinates, which no single slice could promise."""
+    flat = np.unique(centres[:, [x, y]], axis=0)
+    lo, hi = scenario.lower[[x, y]], scenario.upper[[x, y]]
+    member = _member(flat, h, lo, hi)
+    xs, ys = _samples(lo[0], hi[0], RESOLUTION), _samples(lo[1], hi[1], RESOLUTION)
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    return xs, ys, member(np.column_stack([gx.ravel(), gy.ravel()])).reshape(gx.shape)
+
+
+def _limits(lo, hi, trajectories, axis):
+    """Sigma's range widened to the runs (a failing run leaves Sigma), with a margin."""
+    values = [lo, hi] + [v for t in trajectories for v in (t[:, axis].min(), t[:, axis].max())]
+    a, b = min(values), max(values)
+    pad = 0.03 * (b - a or 1.0)
+    return a - pad, b + pad
+
+
+def _draw_runs(ax, trajectories, labels, x, y) -> None:
+    # up to 10 runs: tab10's distinct colours; more: a continuous map (adjacent runs differ)
+    many = len(trajectories) > 10
+    colours = plt.get_cmap("turbo")(np.linspace(0.05, 0.95, len(trajectories))) if many else \
+        [plt.get_cmap("tab10")(k) for k in range(len(trajectories))]
+    for t, colour, label in zip(trajectories, colours, labels):
+        ax.plot(t[:, x], t[:, y], color=colour, linewidth=1.3, label=label)
+        ax.plot(t[0, x], t[0, y], "o", color=colour, markeredgecolor="black", markersize=6)
+        ax.plot(t[-1, x], t[-1, y], "X", color=colour, markeredgecolor="black", markersize=7)
+
+
+def failures_figure(scenario, centres, h, trajectories, labels=None):
+    """Figure of ``failures`` (see draw_failures)."""
+    trajectories = [np.asarray(t, dtype=float) for t in trajectories]
+    for k, t in enumerate(trajectories):
+        if t.ndim != 2 or t.shape[1] != scenario.n or not len(t):
+            raise ValueError(f"failures: trajectory {k} has shape {t.shape}; expected (T >= 1, {scenario.n})")
+    if labels is not None and len(labels) != len(trajectories):
+        raise ValueError(f"failures: {len(labels)} labels for {len(trajectories)} trajectories")
+    named = labels is not None and len(trajectories) <= 10  # a longer legend would bury the plot
+    labels = [str(s) for s in labels] if named else [None] * len(trajectories)
+    centres = np.asarray(centres, dtype=float).reshape(-1, scenario.n)
+    planes = _planes(scenario)
+    fig, axs = plt.subplots(1, len(planes), figsize=(6 * len(planes) + 1.8, 5.2), squeeze=False, layout="constrained")
+    for ax, (x, y) in zip(axs[0], planes):
+        xs, ys, shadow = _projection(scenario, centres, h, x, y)
+        _paint(ax, shadow, _extent(scenario, x, y), SAFE_COLOUR, alpha=0.35)
+        lo, hi = scenario.lower, scenario.upper
+        ax.add_patch(Rectangle((lo[x], lo[y]), hi[x] - lo[x], hi[y] - lo[y], fill=False, linestyle="--",
+                               edgecolor="0.3"))
+        _draw_runs(ax, trajectories, labels, x, y)
+        ax.set_xlim(*_limits(lo[x], hi[x], trajectories, x))
+        ax.set_ylim(*_limits(lo[y], hi[y], trajectories, y))
+        ax.set_xlabel(_label(scenario, x))
+        ax.set_ylabel(_label(scenario, y))
+        others = [scenario.state_names[a] for a in range(scenario.n) if a not in (x, y)]
+        ax.set_title(f"projection onto ({scenario.state_names[x]}, {scenario.state_names[y]})"
+                     + (f" along {', '.join(others)}" if others else ""), fontsize=9)
+    handles = [Patch(facecolor=SAFE_COLOUR, alpha=0.35, label="safe set (projected)"),
+               Line2D([], [], color="0.3", linestyle="--", label="Sigma"),
+               Line2D([], [], marker="o", linestyle="", color="0.5", markeredgecolor="black", label="start"),
+               Line2D([], [], marker="X", linestyle="", color="0.5", markeredgecolor="black", label="last state")]
+    handles += [Line2D([], [], color=line.get_color(), label=line.get_label())
+                for line in axs[0, 0].get_lines() if named and not line.get_label().startswith("_")]
+    fig.suptitle(f"{scenario.name}: {len(trajectories)} failing run{'s' * (len(trajectories) != 1)} "
+                 f"over the safe set ({len(centres)} boxes, half-width {h:g})", fontsize=10)
+    fig.legend(handles=handles, loc="outside right center", fontsize=9)
+    return fig
+
+
+def draw_failures(path, scenario, centres, h, trajectories, labels=None) -> Path:
+    """Failing runs drawn over the safe set (``centres`` (M, n), half-width ``h``).
+
+    ``trajectories``: a list of (T, n) state arrays (e.g. the failing runs of a campaign
+    recording, ``farm.recording.read_recording(...)["runs"][i]["trajectory"]``);
+    ``labels``: optional names, one per run, listed in the legend (when there are at most
+    10 runs). One panel per plane of the scenario's slices (fleet3: (v0, p10) and
+    (v0, p20)), on which the safe set is shown as its projection (shadow) along the other
+    coordinates, Sigma dashed, each run as a line from its start (circle) to its last
+    state (cross). Writes the PNG at ``path`` (parent directories created); -> ``path``.
+    Raises ValueError on a trajectory of the wrong shape or a label count mismatch."""
+    return _save(failures_figure(scenario, centres, h, trajectories, labels), path)

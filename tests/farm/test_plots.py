@@ -1,0 +1,221 @@
+"""Figures of a safe set: the files quantification writes, and what the figures say.
+
+Synthetic sets (grid-aligned boxes inside Sigma, with a known boundary) instead of
+campaigns, so that every test takes a second or two; the figure-building functions
+return matplotlib Figures, inspected here before anything is saved."""
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
+from matplotlib.colors import to_rgba
+from matplotlib.text import Text
+
+from farm import plots
+from scenarios.fleet3 import Fleet3
+from scenarios.lead_follow import LeadFollow
+from scenarios.toy import Toy
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(autouse=True)
+def close_figures():
+    yield
+    plt.close("all")
+
+
+def grid_centres(scenario, h, keep):
+    """Centres of the boxes of half-width h tiling Sigma, those where ``keep`` holds."""
+    axes = [np.arange(lo + h, hi, 2 * h) for lo, hi in zip(scenario.lower, scenario.upper)]
+    centres = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, scenario.n)
+    return centres[keep(centres)]
+
+
+def lead_follow_set():
+    # safe when the gap is at least 2 * (v0 - v1): boundary from 0 m up to 40 m of 70 m
+    sc = LeadFollow("idm")
+    return sc, grid_centres(sc, 1.0, lambda c: c[:, 2] + 1 >= 2 * (c[:, 0] - c[:, 1])), 1.0
+
+
+def fleet3_set(failure_facets=None):
+    # lead side: p10 large enough when v0 > v1; rear side: p20 small enough when v2 > v0
+    sc = Fleet3("idm", failure_facets=failure_facets)
+    facets = set(sc.failure_facets)
+
+    def keep(c):
+        ok = np.ones(len(c), dtype=bool)
+        if "p10" in facets:
+            ok &= (c[:, 3] >= 8) | (c[:, 0] <= c[:, 1])
+        if "p20" in facets:
+            ok &= (c[:, 4] <= -8) | (c[:, 2] <= c[:, 0])
+        return ok
+
+    return sc, grid_centres(sc, 1.5, keep), 1.5
+
+
+def texts(fig):
+    return [t.get_text() for t in fig.findobj(Text) if t.get_text()]
+
+
+def visible_axes(fig, projection=None):
+    return [ax for ax in fig.axes if ax.get_visible() and (projection is None or ax.name == projection)]
+
+
+def legend_texts(fig):
+    return [t.get_text() for legend in fig.legends for t in legend.get_texts()]
+
+
+def assert_png(path):
+    assert path.exists() and path.stat().st_size > 5000
+    assert path.read_bytes()[:8] == PNG
+
+
+def test_draw_writes_the_public_files_for_lead_follow(tmp_path):
+    sc, centres, h = lead_follow_set()
+    written = plots.draw(tmp_path / "plots", sc, centres, h, {"scenario": "lead-follow", "algorithm": "spe"})
+    assert written == [tmp_path / "plots" / "safe_set_3d.png", tmp_path / "plots" / "safe_set_slices.png"]
+    for path in written:
+        assert_png(path)
+
+
+def test_draw_writes_the_files_of_fleet3_total_and_sides(tmp_path):
+    # as farm.quantification calls it: the total, then one directory per side
+    sc, centres, h = fleet3_set()
+    summary = {"scenario": "fleet3", "sv_policy": "idm", "algorithm": "spe"}
+    plots.draw(tmp_path / "plots", sc, centres, h, summary)
+    for label, facet in [("lead", "p10"), ("rear", "p20")]:
+        side, sc_side, h_side = fleet3_set((facet,))
+        plots.draw(tmp_path / "plots" / f"{label}_side", side, sc_side, h_side,
+                   {**summary, "algorithm": f"{label} side"})
+    for folder in ("", "lead_side", "rear_side"):
+        for name in ("safe_set_3d.png", "safe_set_slices.png"):
+            assert_png(tmp_path / "plots" / folder / name)
+
+
+def test_3d_axes_carry_units_a_colour_bar_and_limits_that_fit_the_surface():
+    sc, centres, h = lead_follow_set()
+    fig = plots.surface_figure(sc, centres, h, {})
+    (ax,) = visible_axes(fig, "3d")
+    assert (ax.get_xlabel(), ax.get_ylabel(), ax.get_zlabel()) == ("v0 [m/s]", "v1 [m/s]", "p10 [m]")
+    colour_bars = [a for a in fig.axes if a is not ax]
+    assert len(colour_bars) == 1 and colour_bars[0].get_ylabel() == "smallest safe p10 [m]"
+    assert ax.get_xlim() == (0.0, 20.0) and ax.get_ylim() == (0.0, 20.0)
+    zmin, zmax = ax.get_zlim()
+    # the boundary runs from 0 m (v0 <= v1) to 34 m (the box at v0 = 19, v1 = 1): the z axis
+    # spans that, not all of Sigma's 70 m
+    assert zmin == pytest.approx(0.0) and 34 <= zmax <= 40
+    assert "mid-range" not in " ".join(texts(fig)) and "held at" not in " ".join(texts(fig))
+
+
+def test_slices_have_a_legend_units_and_two_distinct_non_white_colours():
+    sc, centres, h = lead_follow_set()
+    fig = plots.slices_figure(sc, centres, h, {})
+    panels = visible_axes(fig)
+    assert len(panels) == 4
+    for ax in panels:
+        assert (ax.get_xlabel(), ax.get_ylabel()) == ("v0 [m/s]", "p10 [m]")
+    assert legend_texts(fig) == ["in the safe set", "not in the safe set"]
+    safe, outside = (np.array(to_rgba(c)[:3]) for c in (plots.SAFE_COLOUR, plots.OUTSIDE_COLOUR))
+    assert np.abs(safe - outside).max() > 0.4  # told apart at a glance
+    assert np.abs(outside - 1.0).max() > 0.15  # not paper white
+    # the first panel is v1 = 0: (v0 = 2, p10 = 60) is safe, (v0 = 18, p10 = 5) is not
+    image = panels[0].images[0].get_array()  # (y, x, RGBA), origin lower, extent = Sigma
+    row, col = lambda p10: int(p10 / 70 * image.shape[0]), lambda v0: int(v0 / 20 * image.shape[1])
+    np.testing.assert_allclose(image[row(60), col(2), :3], safe)
+    np.testing.assert_allclose(image[row(5), col(18), :3], outside)
+
+
+def test_a_slice_of_a_three_state_scenario_names_its_fixed_coordinate_not_mid_range():
+    sc, centres, h = lead_follow_set()
+    fig = plots.slices_figure(sc, centres, h, {})
+    words = texts(fig)
+    assert not any("mid-range" in w or "other coordinates" in w for w in words)
+    assert [ax.get_title() for ax in visible_axes(fig)] == ["v1 = 0 m/s", "v1 = 6.67 m/s", "v1 = 13.3 m/s",
+                                                           "v1 = 20 m/s"]
+
+
+def test_fleet3_slices_and_views_say_where_the_hidden_coordinates_are_held():
+    sc, centres, h = fleet3_set()
+    slices = plots.slices_figure(sc, centres, h, {})
+    titles = [ax.get_title() for ax in visible_axes(slices)]
+    assert titles[0] == "v1 = 0 m/s, v2 = 3 m/s, p20 = -15 m"
+    assert titles[4] == "v2 = 0 m/s, v1 = 3 m/s, p10 = 15 m"
+    surfaces = plots.surface_figure(sc, centres, h, {})
+    lead, rear = (ax.get_title() for ax in visible_axes(surfaces, "3d"))
+    assert lead.startswith("lead side (v0, v1, p10)") and "held at v2 = 3 m/s, p20 = -15 m" in lead
+    assert rear.startswith("rear side (v0, v2, p20)") and "held at v1 = 3 m/s, p10 = 15 m" in rear
+
+
+def test_the_rear_side_figures_show_the_rear_side_only():
+    sc, centres, h = fleet3_set(("p20",))
+    summary = {"scenario": "fleet3", "algorithm": "rear side"}
+    surfaces = plots.surface_figure(sc, centres, h, summary)
+    (ax,) = visible_axes(surfaces, "3d")
+    assert "rear" in ax.get_title() and "lead" not in ax.get_title()
+    assert ax.get_zlabel() == "p20 [m]"
+    assert [a.get_ylabel() for a in surfaces.axes if a is not ax] == ["largest safe p20 [m]"]
+    assert "rear side" in surfaces._suptitle.get_text()
+    slices = plots.slices_figure(sc, centres, h, summary)
+    assert {a.get_ylabel() for a in visible_axes(slices)} == {"p20 [m]"}
+    assert not any("lead" in w for w in texts(surfaces) + texts(slices))
+
+
+def test_a_two_state_scenario_gets_slices_only_and_no_held_coordinates(tmp_path):
+    sc = Toy()
+    centres = grid_centres(sc, 0.5, lambda c: (c[:, 0] > 1) & (c[:, 0] < 4))
+    assert plots.draw(tmp_path, sc, centres, 0.5, {}) == [tmp_path / "safe_set_slices.png"]
+    fig = plots.slices_figure(sc, centres, 0.5, {})
+    (ax,) = visible_axes(fig)
+    assert ax.get_title() == "the whole state plane" and (ax.get_xlabel(), ax.get_ylabel()) == ("x", "y")
+
+
+def test_an_empty_set_is_drawn_and_says_so(tmp_path):
+    sc = LeadFollow("idm")
+    written = plots.draw(tmp_path, sc, np.zeros((0, 3)), 1.0, {})
+    assert len(written) == 2
+    fig = plots.surface_figure(sc, np.zeros((0, 3)), 1.0, {})
+    assert "no safe state in this view" in visible_axes(fig, "3d")[0].get_title()
+
+
+def test_overlay_writes_a_png_whose_legend_lists_every_set(tmp_path):
+    sc, centres, h = lead_follow_set()
+    wider = grid_centres(sc, 1.0, lambda c: c[:, 2] + 1 >= (c[:, 0] - c[:, 1]))
+    path = plots.draw_overlay(tmp_path / "cmp" / "overlay.png", sc, [(centres, h), (wider, h)], ["brake", "idm"])
+    assert path == tmp_path / "cmp" / "overlay.png"
+    assert_png(path)
+    fig = plots.overlay_figure(sc, [(centres, h), (wider, h)], ["brake", "idm"])
+    assert legend_texts(fig) == [f"brake ({len(centres)} boxes)", f"idm ({len(wider)} boxes)"]
+    panels = visible_axes(fig)
+    assert len(panels) == 4 and all(ax.get_ylabel() == "p10 [m]" for ax in panels)
+    # each set is outlined in its own colour where its boundary crosses the panel
+    outline_colours = {tuple(np.round(c.get_edgecolor()[0][:3], 3)) for c in panels[0].collections}
+    assert len(outline_colours) == 2
+    with pytest.raises(ValueError, match="one label per set"):
+        plots.overlay_figure(sc, [(centres, h)], ["a", "b"])
+
+
+def test_failures_writes_a_png_with_runs_and_their_starts(tmp_path):
+    sc, centres, h = lead_follow_set()
+    runs = [np.column_stack([np.linspace(18, 12, 30), np.linspace(10, 0, 30), np.linspace(20, -1, 30)]),
+            np.column_stack([np.linspace(15, 9, 20), np.full(20, 2.0), np.linspace(8, -0.5, 20)])]
+    path = plots.draw_failures(tmp_path / "failures.png", sc, centres, h, runs, ["run 3", "run 9"])
+    assert_png(path)
+    fig = plots.failures_figure(sc, centres, h, runs, ["run 3", "run 9"])
+    (ax,) = visible_axes(fig)
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("v0 [m/s]", "p10 [m]")
+    assert {"start", "last state", "run 3", "run 9"} <= set(legend_texts(fig))
+    starts = [line.get_xydata()[0] for line in ax.get_lines() if line.get_marker() == "o"]
+    np.testing.assert_allclose(starts, [[18, 20], [15, 8]])
+    assert ax.get_ylim()[0] < -1  # a failing run leaves Sigma: the axes show where
+    with pytest.raises(ValueError, match="trajectory 0"):
+        plots.failures_figure(sc, centres, h, [np.zeros((5, 2))])
+
+
+def test_failures_of_fleet3_get_one_panel_per_plane(tmp_path):
+    sc, centres, h = fleet3_set()
+    run = np.tile([4.5, 1.5, 1.5, 9.5, -15.0], (10, 1))
+    run[:, 3] = np.linspace(9.5, 4.8, 10)
+    fig = plots.failures_figure(sc, centres, h, [run])
+    assert [(ax.get_xlabel(), ax.get_ylabel()) for ax in visible_axes(fig)] == [("v0 [m/s]", "p10 [m]"),
+                                                                               ("v0 [m/s]", "p20 [m]")]
+    assert_png(plots.draw_failures(tmp_path / "f.png", sc, centres, h, [run]))
