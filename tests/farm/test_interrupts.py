@@ -1,6 +1,9 @@
 """Interrupts: SIGINT, SIGTERM and kill -9 at several moments of a real campaign (real
 processes, local and Ray executors), each followed by a resume, reach the uninterrupted
-run's result_hash and its ledger row for row; no temp file outlives a resume."""
+run's result_hash and its ledger row for row; no temp file outlives a resume.
+
+The Ray chains start Ray 18 times (about 4 minutes): they are soak tests, run with
+`python -m pytest -m soak` (README), not in every CI run."""
 
 import json
 import signal
@@ -27,7 +30,7 @@ def segments(out):
     return len(list((out / "ledger").glob("segment-*.parquet"))) if (out / "ledger").is_dir() else 0
 
 
-@pytest.fixture(scope="module", params=["local", "ray"])
+@pytest.fixture(scope="module", params=["local", pytest.param("ray", marks=pytest.mark.soak)])
 def reference(request, tmp_path_factory):
     d = tmp_path_factory.mktemp(f"whole-{request.param}")
     (d / "c.toml").write_text(CONFIG.format(executor=request.param))
