@@ -22,6 +22,7 @@ from coordinator.spe import SPESettings
 from farm.executors import LocalExecutor
 from scenarios.simulator import SimSpec
 from scenarios import make_scenario
+from scenarios.backend import NumpyBackend
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 VARIANTS = [
@@ -53,7 +54,7 @@ def study(delta_min: float = 0.5, budget: int = 1_500_000, snapshots: int = 12, 
         def on_batch(c, algo=algo, curve=curve, marks=marks):
             if len(curve) < len(marks) and c.counters.committed >= marks[len(curve)]:
                 centres, h = algo.result()
-                m = compare_boxes(scenario, centres, h, grid_points_per_axis=grid)
+                m = compare_boxes(NumpyBackend(scenario), centres, h, grid_points_per_axis=grid)
                 curve.append((c.counters.committed, m["iou"], m["claimed_volume"], m["reference_volume"]))
 
         t0 = time.perf_counter()
@@ -64,7 +65,7 @@ def study(delta_min: float = 0.5, budget: int = 1_500_000, snapshots: int = 12, 
                             seed=0, on_batch=on_batch).run()
         wall = time.perf_counter() - t0
         centres, h = algo.result()
-        m = compare_boxes(scenario, centres, h, grid_points_per_axis=grid)
+        m = compare_boxes(NumpyBackend(scenario), centres, h, grid_points_per_axis=grid)
         curve.append((counters.committed, m["iou"], m["claimed_volume"], m["reference_volume"]))
         curves[label] = curve
         rows.append({"variant": label, "runs": counters.committed, "converged": counters.converged,

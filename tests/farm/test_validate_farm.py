@@ -68,16 +68,18 @@ def test_status_reports_a_killed_campaign_as_stopped(tmp_path):
     assert "stopped while running (process gone" in stopped.stdout and "runs_committed" in stopped.stdout
 
 
-def test_progress_line_on_a_terminal_and_silence_otherwise():
+def test_progress_lines_when_not_a_terminal_and_silence_when_quiet():
     from coordinator.campaign import Campaign
     from coordinator.spe import SPE, SPESettings
     from scenarios import make_scenario
 
     algo = SPE(make_scenario("toy", sv_policy="none"), SPESettings(delta0=1.0, delta_min=1.0))
     c = Campaign(algo, None, n_eps=10, budget=10, batch_size=1, pipeline_depth=1, seed=0)
-    buf = io.StringIO()
-    Progress(enabled=True, stream=buf).update("total", algo, c, 10)
-    assert "round 0" in buf.getvalue() and "N_eps 0/10" in buf.getvalue()
+    log = io.StringIO()  # not a terminal: plain lines, as a job log gets them
+    Progress(stream=log).update("total", algo, c, 10)
+    assert log.getvalue().startswith("scenario-farm: round 0") and "N_eps 0/10" in log.getvalue()
+    Progress(stream=log).update("total", algo, c, 10)
     quiet = io.StringIO()
-    Progress(stream=quiet).update("total", algo, c, 10)  # StringIO is not a terminal
+    Progress(stream=quiet, mode="quiet").update("total", algo, c, 10)
+    Progress(enabled=False, stream=quiet).update("total", algo, c, 10)
     assert quiet.getvalue() == ""
