@@ -38,24 +38,25 @@ class Progress:
     def update(self, label: str, algorithm, campaign, n_eps: int) -> None:
         if not self.enabled:
             return
+        # called after every committed chunk: decide from cheap fields whether to show
+        # anything before taking a snapshot (its counts are O(boxes) while certifying)
+        rnd = getattr(algorithm, "round", 0)
+        new_round, self._round = rnd != self._round, rnd
+        now = time.monotonic()
+        due = now - self._last >= (0.2 if self.live else self.interval)
+        if not (new_round or due or campaign.counters.done):
+            return
         s = snapshot(algorithm, campaign, n_eps)
-        new_round = s["round"] != self._round
-        self._round = s["round"]
         if self.live:
             self._draw(label, s, campaign)
             return
-        now = time.monotonic()
-        if new_round or campaign.counters.done or now - self._last >= self.interval:
-            self._last = now
-            side = "" if label == "total" else f"{label} side: "
-            self.line(f"{side}round {s['round']}  delta {s['delta']:g}  boxes {s['boxes']:,}  {_counter(s)}  "
-                      f"runs {s['runs_committed']:,}  {s['runs_per_s'] or 0:,.0f} runs/s  {s['elapsed_s']:.0f} s")
+        self._last = now
+        side = "" if label == "total" else f"{label} side: "
+        self.line(f"{side}round {s['round']}  delta {s['delta']:g}  boxes {s['boxes']:,}  {_counter(s)}  "
+                  f"runs {s['runs_committed']:,}  {s['runs_per_s'] or 0:,.0f} runs/s  {s['elapsed_s']:.0f} s")
 
     def _draw(self, label, s, campaign) -> None:
-        now = time.monotonic()
-        if now - self._last < 0.2 and not campaign.counters.done:
-            return
-        self._last = now
+        self._last = time.monotonic()
         if self._bar is None:
             from rich.console import Console
             from rich.progress import BarColumn, Progress as Bar, TextColumn, TimeElapsedColumn
