@@ -184,11 +184,6 @@ class Campaign:
                 counted[pos : pos + offset] = True
                 c.quiet += offset
                 c.escaped_in_streak += int(np.count_nonzero(chunk.screening.escaped[pos : pos + offset]))
-            if self.certify and algo.final_round and not algo.certifying and algo.deterministic:
-                # a deterministic run that stayed in the set certifies its centre ahead of
-                # the certification round, for as long as its witnesses live
-                quiet = np.arange(pos, pos + offset)
-                algo.certify_runs(chunk, quiet, ids[quiet], rescreen.trusted(quiet) & ~chunk.screening.escaped[quiet])
             pos += offset
             if ended or pos == k:
                 break
