@@ -113,7 +113,7 @@ class Campaign:
     def __init__(self, algorithm: Algorithm, executor, *, n_eps: int, budget: int, batch_size: int,
                  pipeline_depth: int, seed: int, on_batch: Callable[["Campaign"], None] | None = None,
                  record_limit: int = 0, certify: bool = False,
-                 certify_quiet: Callable[[int], int] | None = None):
+                 certify_quiet: Callable[[int], int] | None = None, adversary=None):
         self.algorithm = algorithm
         self.executor = executor
         self.n_eps = n_eps
@@ -133,6 +133,9 @@ class Campaign:
         self.certify_quiet = certify_quiet
         self.recordings: list[dict] = []  # runs to record, since the last flush
         self._stop = False
+        # actions.mode = "search" (coordinator/adversary.py): sees every committed run and
+        # re-weights the action mixture at each round end; None for a fixed policy
+        self.adversary = adversary
 
     # -- drawing ------------------------------------------------------------------------
     def _next_draw_index(self) -> int:
@@ -154,7 +157,11 @@ class Campaign:
         for p in self.pending:
             if not p.handles:
                 first = p.first_index + p.done
-                p.handles = self.executor.submit(first, p.starts[p.done :], self.algorithm.coverage)
+                p.handles = self.executor.submit(first, p.starts[p.done :], self.algorithm.coverage,
+                                                 actions=self._actions())
+
+    def _actions(self) -> dict | None:
+        return self.adversary.policy.state() if self.adversary is not None else None
 
     # -- committing ------------------------------------------------------------------------
     def _commit(self, p: Pending, chunk: Chunk) -> bool:
@@ -203,6 +210,8 @@ class Campaign:
         p.done = at + pos
         self.log.add(chunk.first_index, starts, chunk, rows, rnd, delta, changed[:pos], counted[:pos])
         algo.record(chunk, rows, ids[:pos], starts[:pos])
+        if self.adversary is not None:
+            self.adversary.observe(chunk.first_index + rows, chunk.outcomes[:pos])
         return ended
 
     def _maybe_record(self, chunk: Chunk, row: int, start: np.ndarray) -> None:
@@ -242,6 +251,9 @@ class Campaign:
                 self._drop_in_flight()
                 c.round_ends.append(c.committed)
                 c.rounds_completed += 1
+                if self.adversary is not None and not (self.algorithm.final_round and
+                                                       (self.algorithm.certifying or not self.certify)):
+                    self.adversary.end_round(c.committed)  # the next round samples the new mixture
                 if self.algorithm.final_round and self.certify and not self.algorithm.certifying:
                     self.algorithm.begin_certification()
                     c.attempts = 1

@@ -1,15 +1,20 @@
 """The executor contract: where batches of runs are simulated and screened.
 
-    submit(first_index, starts, screen) -> handles   simulate runs first_index.. from
-                                                     ``starts``; one handle per chunk, in
+    submit(first_index, starts, screen, actions) -> handles   simulate runs first_index..
+                                                     from ``starts``; one handle per chunk, in
                                                      index order (how a batch is cut
                                                      into chunks is the executor's
-                                                     business: results never depend on it)
+                                                     business: results never depend on it);
+                                                     ``actions``: the action policy's adaptive
+                                                     state (``ActionPolicy.state()``) for these
+                                                     runs, or None
     result(handle) -> Chunk                          wait for one chunk
     cancel(handle)                                   drop a chunk (it is not committed)
     screen_stored(pieces, coverage) -> [(states, run)]   experience replay: for each stored
                                                      piece (coordinator/replay.py), its states
-                                                     that are new under ``coverage``
+                                                     that are new under ``coverage`` (a piece
+                                                     re-simulated from its keys uses the
+                                                     newest ``actions`` submitted)
     close()
 
 ``screen`` is what the runs are screened against on the worker: a
@@ -73,7 +78,7 @@ class Chunk:
 class Executor(Protocol):
     workers: int
 
-    def submit(self, first_index: int, starts: np.ndarray, screen=None) -> list: ...
+    def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None) -> list: ...
 
     def result(self, handle) -> Chunk: ...
 
@@ -106,7 +111,7 @@ def screen_piece(simulator, source, piece, coverage) -> tuple[np.ndarray, np.nda
     from coordinator.replay import new_states, select
 
     if source is None:
-        batch = simulator.simulate(0, piece.starts, indices=piece.indices)
+        batch = simulator.simulate(0, piece.starts, indices=piece.indices)  # the newest actions state
         states, offsets = batch.visited()
         rows = np.arange(len(piece.indices))
     else:

@@ -324,3 +324,15 @@ def compare(target, *, grid: int | None = None, progress=None) -> dict:
 
     directory = target.directory if isinstance(target, QuantifyResult) else Path(target)
     return run_compare(directory, grid=grid, progress=progress)
+
+
+def falsify(target, *, gamma_star=None, points: int = 10_000, tries: int = 4, seed: int | None = None,
+            progress=None) -> dict:
+    """Try a worst case Gamma* on the black box (farm/falsify.py): ``gamma_star`` (m
+    numbers; default: the proposal in the campaign's adversary.json) held from uniform
+    start states; random sequences from Gamma from every start that survives it. Returns
+    the report written to falsify.json (``refuted``, ``counterexamples`` with stream keys)."""
+    from farm.falsify import falsify as run_falsify
+
+    directory = target.directory if isinstance(target, QuantifyResult) else Path(target)
+    return run_falsify(directory, gamma_star=gamma_star, points=points, tries=tries, seed=seed, progress=progress)

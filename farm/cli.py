@@ -159,6 +159,17 @@ def cmd_compare(args) -> int:
     return EXIT_OK
 
 
+def cmd_falsify(args) -> int:
+    from farm import api
+    from farm.falsify import describe
+    from farm.progress import Progress
+
+    report = api.falsify(args.dir, gamma_star=args.gamma_star, points=args.points, tries=args.tries, seed=args.seed,
+                         progress=Progress(mode=_mode(args)))
+    print(describe(Path(args.dir), report))
+    return EXIT_COUNTEREXAMPLE if report["refuted"] else EXIT_OK
+
+
 def cmd_schema(args) -> int:
     from farm.config import schema
 
@@ -224,6 +235,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--grid", type=int, default=None, help="reference grid points per axis")
     _add_output_flags(p)
     p.set_defaults(func=cmd_compare)
+
+    p = sub.add_parser("falsify", help="try the worst case Gamma* a search campaign proposed (adversary.json)")
+    p.add_argument("dir")
+    p.add_argument("--gamma-star", type=float, nargs="+", help="the actions to try instead of the proposal "
+                                                                 "(one number per action)")
+    p.add_argument("--points", type=int, default=10_000, help="uniform start states (default 10000)")
+    p.add_argument("--tries", type=int, default=4, help="random sequences per Gamma*-safe start (default 4)")
+    p.add_argument("--seed", type=int, default=None, help="default: the campaign's farm.seed")
+    _add_output_flags(p)
+    p.set_defaults(func=cmd_falsify)
 
     p = sub.add_parser("schema", help="print the JSON Schema of the config (for editors)")
     p.set_defaults(func=cmd_schema)

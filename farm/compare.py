@@ -31,9 +31,11 @@ def compare(directory: Path, grid: int | None = None, progress=None) -> dict:
     if grid is not None and not (2 <= grid <= 4096):
         raise ValueError(f"--grid: {grid} is out of range; allowed [2, 4096] points per axis")
     simulated = cfg.scenario.backend != "numpy"
-    if simulated and cfg.actions.mode != "adversarial":
-        raise ValueError("compare: a black-box SV has no model; its reference is simulated under Gamma*, which needs "
-                         "actions.mode = 'adversarial'")
+    if simulated and cfg.actions.mode not in ("adversarial", "uniform", "search"):
+        # constant or feedback actions quantify a different set than the worst case
+        raise ValueError(f"compare: a black-box SV has no model; its reference is simulated under Gamma*, which "
+                         f"compares with actions.mode = 'adversarial', 'uniform' or 'search', not "
+                         f"{cfg.actions.mode!r}")
     if simulated and grid is None:
         grid = 24  # every grid point is a 40 s simulation
     backend = build_simulator(spec_of(cfg)).backend

@@ -77,7 +77,7 @@ class ScenarioConfig(Section):
 class ActionsConfig(Section):
     """[actions]: how the scenario's actions u are chosen."""
 
-    mode: Literal["uniform", "adversarial", "constant", "feedback"] = "uniform"
+    mode: Literal["uniform", "adversarial", "constant", "feedback", "search"] = "uniform"
     value: Annotated[float | list[float] | None, Field(description="constant action (one number per action)")] = None
     policy: Annotated[str | None, Field(description="feedback policy 'package.module:function'")] = None
 

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from coordinator.adversary import AdversarySearch
 from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign, Counters
 from coordinator.covering import n_eps, n_eps_attempt
@@ -33,6 +34,7 @@ from farm.ray_executor import make_executor
 from farm.status import StatusWriter
 from farm.resources import check_quantify
 from farm.storage import CampaignDir, CampaignError, Ledger
+from scenarios.search import SearchActions
 from scenarios.simulator import SimSpec
 from scenarios.version import __version__
 
@@ -118,6 +120,8 @@ class Part:
             campaign.recordings = []
         arrays = {f"algo.{k}": v for k, v in self.algorithm.state().items()}
         arrays.update(campaign.pending_state())
+        if campaign.adversary is not None:
+            arrays.update(campaign.adversary.state())
         meta = {"config_hash": self.config_hash, "algorithm": self.algorithm.name, "part": self.label,
                 "counters": campaign.counters.__dict__, "final_distribution": campaign.final_distribution,
                 "ledger_digests": self.ledger.digests, "ledger_rows": self.ledger.rows}
@@ -134,6 +138,8 @@ class Part:
             self.algorithm.state_epoch = int(meta.get("epoch", 0))
             self.campaign.load_pending(arrays)
             self.campaign.counters = Counters(**meta["counters"])
+            if self.campaign.adversary is not None:
+                self.campaign.adversary.load_state(arrays)
         except (KeyError, TypeError, ValueError) as exc:
             raise CampaignError(f"{self.journal.main}: checkpoint lacks {exc} (damaged?); nothing was changed") \
                 from None
@@ -158,7 +164,9 @@ class Part:
                                  batch_size=farm.batch_size, pipeline_depth=farm.pipeline_depth, seed=farm.seed,
                                  on_batch=on_chunk, record_limit=cfg.record.quantify_runs,
                                  certify=cfg.quantify.certify and cfg.quantify.algorithm == "spe",
-                                 certify_quiet=partial(n_eps_attempt, cfg.quantify.epsilon, cfg.quantify.beta))
+                                 certify_quiet=partial(n_eps_attempt, cfg.quantify.epsilon, cfg.quantify.beta),
+                                 adversary=AdversarySearch(self.policy, farm.seed)
+                                 if isinstance(self.policy, SearchActions) else None)
         if resume and self.journal.exists():
             self.restore()
         elif resume and any((self.directory / "ledger").glob("segment-*.parquet")):
@@ -286,6 +294,10 @@ def finish(cfg: Config, out: Path, parts: dict[str, Part]) -> dict:
                        {"config_hash": chash, "side": label})
     write_safe_set(out / "safe_set.parquet", centres, h, scenario.state_names,
                    {"config_hash": chash, "result_hash": rhash})
+    for label, p in parts.items():
+        if p.campaign.adversary is not None:
+            name = "adversary.json" if label == "total" else f"adversary_{label}_side.json"
+            write_json(out / name, p.campaign.adversary.report(p.scenario))
     write_json(out / "summary.json", summary)
     from farm.plots import draw
 

@@ -57,12 +57,12 @@ def _actor_class():
             self.tasks = 0
 
         @ray.method(num_returns=2)
-        def run(self, first_index: int, starts: np.ndarray, message):
+        def run(self, first_index: int, starts: np.ndarray, message, actions=None):
             t0 = time.perf_counter()
             screen = self._screen(message)
             if screen is RESYNC:
                 return RESYNC, None
-            batch = self.simulator.simulate(first_index, starts)
+            batch = self.simulator.simulate(first_index, starts, actions=actions)
             summary, visited = summarize(batch, screen)
             self.busy_s += time.perf_counter() - t0
             self.tasks += 1
@@ -88,8 +88,10 @@ def _actor_class():
                 self.mirror.sync(block)
             return self.mirror
 
-        def replay_screen(self, piece, source_refs, message):
+        def replay_screen(self, piece, source_refs, message, actions=None):
             """Experience replay on a stored piece: its new states under the coverage."""
+            if actions is not None:  # a re-simulation needs the policy the runs had
+                self.simulator.policy.load(actions)
             screen = self._screen(message)
             if screen is RESYNC:
                 return RESYNC
@@ -179,6 +181,7 @@ class _Part:
     first: int
     starts: np.ndarray
     screen: object
+    actions: dict | None = None  # the policy's adaptive state for this chunk
     sent: tuple | None = None  # the coverage (id, epoch, seq) its message brings the actor to
     tries: int = 0
 
@@ -211,6 +214,7 @@ class RayExecutor:
         self._snapshot: tuple = (None, None)  # (coverage id, epoch, seq), ref of its state
         self._jobs: dict[int, _Part] = {}
         self._next = 0
+        self._actions: dict | None = None  # the newest adaptive policy state submitted
 
     def pids(self) -> list[int]:
         return self.ray.get([a.pid.remote() for a in self.actors])
@@ -255,14 +259,17 @@ class RayExecutor:
             screen.trim_log(min(confirmed))
 
     # -- the contract -------------------------------------------------------------------
-    def submit(self, first_index: int, starts: np.ndarray, screen=None) -> list[int]:
+    def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None) -> list[int]:
+        # the policy's adaptive state goes with every chunk (a few numbers): an actor that
+        # Ray restarted from its constructor needs nothing else
+        self._actions = actions
         handles = []
         for rows in np.array_split(np.arange(len(starts)), min(self.workers, max(len(starts), 1))):
             if len(rows) == 0:
                 continue
             actor = int(np.argmin(self._queued))
             first = first_index + int(rows[0])
-            part = _Part(None, None, actor, first, starts[rows], screen)
+            part = _Part(None, None, actor, first, starts[rows], screen, actions)
             self._launch(part)
             self._jobs[self._next] = part
             handles.append(self._next)
@@ -273,7 +280,7 @@ class RayExecutor:
         self._queued[part.actor] += 1
         message = self._message(part.actor, part.screen, fresh)
         part.sent = self._synced[part.actor]
-        part.ref, part.visited_ref = self.actors[part.actor].run.remote(part.first, part.starts, message)
+        part.ref, part.visited_ref = self.actors[part.actor].run.remote(part.first, part.starts, message, part.actions)
 
     def result(self, handle: int) -> Chunk:
         part = self._jobs.pop(handle)
@@ -305,14 +312,16 @@ class RayExecutor:
             self._queued[actor] += 1
             stripped = Stored(None, part.indices, part.rows, part.takes, part.parents, part.starts)
             refs.append((actor, self.actors[actor].replay_screen.remote(
-                stripped, [part.source] if part.source is not None else [], self._message(actor, screen))))
+                stripped, [part.source] if part.source is not None else [], self._message(actor, screen),
+                self._actions)))
         found = []
         for (actor, ref), part in zip(refs, parts):
             result = self.ray.get(ref)
             while isinstance(result, str):  # the actor was restarted without its mirror
                 stripped = Stored(None, part.indices, part.rows, part.takes, part.parents, part.starts)
                 result = self.ray.get(self.actors[actor].replay_screen.remote(
-                    stripped, [part.source] if part.source is not None else [], self._message(actor, screen, True)))
+                    stripped, [part.source] if part.source is not None else [], self._message(actor, screen, True),
+                    self._actions))
             self._queued[actor] -= 1
             found.append(result)
         # back to one result per piece (re-simulated pieces came in parts)

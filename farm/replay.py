@@ -52,6 +52,19 @@ def _recorded(directory: Path, index: int):
     return None, None
 
 
+def _load_adaptive_actions(directory: Path, simulator) -> None:
+    """An adaptive action policy (actions.mode = "search") is a function of the run's key
+    and the campaign's weight schedule, which the last checkpoint holds."""
+    if simulator.policy.state() is None:
+        return
+    from farm.journal import Journal
+
+    arrays, _ = Journal(directory).load()
+    if "adv.firsts" in arrays:
+        simulator.policy.load({"schedule": [[int(a), list(w)] for a, w in zip(arrays["adv.firsts"],
+                                                                               arrays["adv.weights"])]})
+
+
 def replay(directory: Path, index: int) -> tuple[bool, str]:
     from farm.storage import CampaignDir
 
@@ -70,6 +83,7 @@ def replay(directory: Path, index: int) -> tuple[bool, str]:
     row = rows[0]
     spec = SimSpec(cfg.scenario.model_dump(), cfg.actions.model_dump(), cfg.quantify.horizon, cfg.farm.seed)
     simulator = build_simulator(spec)
+    _load_adaptive_actions(directory, simulator)
     scenario = simulator.scenario
     start = np.array([row[name] for name in scenario.state_names])
     traj, outcome = rerun(simulator, index, start)

@@ -25,6 +25,18 @@ class ActionPolicy:
         """The actions in plain words, for the guarantee: 'with ... ' completes it."""
         return f"with actions {self.description}"
 
+    def state(self) -> dict | None:
+        """Adaptive state the coordinator ships with each batch (None: the policy is fixed
+        by the config)."""
+        return None
+
+    def load(self, state: dict) -> None:
+        """Take the coordinator's adaptive state (see ``state``)."""
+
+    def __call__(self, scenario: Scenario, states: np.ndarray, t: int, streams: RunStreams) -> np.ndarray:
+        """(B, m) actions of step ``t`` for runs in ``states`` (B, n) with ``streams``."""
+        raise NotImplementedError
+
 
 def _named(scenario: Scenario, values) -> str:
     """'the lead vehicle's acceleration at -5 m/s^2 and ...' for one action vector."""
@@ -34,8 +46,6 @@ def _named(scenario: Scenario, values) -> str:
         parts.append(f"{scenario.action_words.get(name, name)} at {value:g}{' ' + unit if unit else ''}")
     return " and ".join(parts)
 
-    def __call__(self, scenario: Scenario, states: np.ndarray, t: int, streams: RunStreams) -> np.ndarray:
-        raise NotImplementedError
 
 
 @dataclass
@@ -153,8 +163,12 @@ def make_action_policy(mode: str, scenario: Scenario, value=None, policy: str | 
             if not lo <= v <= hi:
                 raise ValueError(f"actions.value: {name} = {v} outside Gamma; allowed range [{lo:g}, {hi:g}]")
         return ConstantActions(vals)
+    if mode == "search":
+        from scenarios.search import SearchActions  # it builds on this module
+
+        return SearchActions(scenario)
     if mode == "feedback":
         if not policy:
             raise ValueError("actions.policy: required for mode = 'feedback' ('package.module:function')")
         return FeedbackActions(policy)
-    raise ValueError(f"actions.mode: unknown mode {mode!r}; allowed: uniform, adversarial, constant, feedback")
+    raise ValueError(f"actions.mode: unknown mode {mode!r}; allowed: uniform, adversarial, constant, feedback, search")

@@ -46,9 +46,14 @@ class Simulator:
         """A run is a function of its start state alone (one action, no disturbance)."""
         return self.policy.deterministic and self.scenario.disturbance == 0 and self.backend.deterministic
 
-    def simulate(self, first_index: int, starts: np.ndarray, indices: np.ndarray | None = None) -> RunBatch:
+    def simulate(self, first_index: int, starts: np.ndarray, indices: np.ndarray | None = None,
+                 actions: dict | None = None) -> RunBatch:
         """Runs ``first_index, first_index + 1, ...`` (or the given sample ``indices``)
-        from ``starts``."""
+        from ``starts``. ``actions``: the policy's adaptive state (``policy.state()``, e.g.
+        the search mixture's weight schedule) as the coordinator has it now; None keeps
+        the last one given."""
+        if actions is not None:
+            self.policy.load(actions)
         if indices is None:
             indices = np.arange(first_index, first_index + len(starts), dtype=np.uint64)
         indices = np.asarray(indices, dtype=np.uint64)

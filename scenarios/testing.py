@@ -34,9 +34,10 @@ def _starts(scenario, count: int, seed: int = 7) -> np.ndarray:
     return rng.uniform(scenario.lower, scenario.upper, (count, scenario.n))
 
 
-def _run(backend, starts, indices, seed=3, horizon=HORIZON, check_step_bound=False):
+def _run(backend, starts, indices, seed=3, horizon=HORIZON, check_step_bound=False, policy=None):
     streams = RunStreams.of(seed, np.asarray(indices, dtype=np.uint64))
-    return run_scenario(backend, starts, horizon, UniformActions(), streams, check_step_bound=check_step_bound)
+    return run_scenario(backend, starts, horizon, policy or UniformActions(), streams,
+                        check_step_bound=check_step_bound)
 
 
 def check_declarations(scenario) -> None:
@@ -54,16 +55,17 @@ def check_declarations(scenario) -> None:
     assert scenario.step_bound() > 0, f"{name}: step_bound() must be positive"
 
 
-def check_key_only(backend, runs: int = 64) -> None:
-    """The same keys and starts give the same runs, alone, reversed or among others."""
+def check_key_only(backend, runs: int = 64, policy=None) -> None:
+    """The same keys and starts give the same runs, alone, reversed or among others
+    (with uniform actions, or with ``policy``)."""
     sc = backend.scenario
     starts = _starts(sc, runs)
     keys = np.arange(100, 100 + runs)
-    a = _run(backend, starts, keys)
+    a = _run(backend, starts, keys, policy=policy)
     rev = slice(None, None, -1)
-    b = _run(backend, starts[rev], keys[rev])
+    b = _run(backend, starts[rev], keys[rev], policy=policy)
     others = _starts(sc, runs, seed=11)
-    c = _run(backend, np.concatenate([others, starts]), np.concatenate([keys + 10_000, keys]))
+    c = _run(backend, np.concatenate([others, starts]), np.concatenate([keys + 10_000, keys]), policy=policy)
     for r in range(runs):
         ta = a.trajectory(r)
         for tb, label in ((b.trajectory(runs - 1 - r), "reversed"), (c.trajectory(runs + r), "among other runs")):
@@ -122,3 +124,30 @@ def check_backend(backend) -> None:
     check_finite(backend)
     check_step_bound(backend)
     check_outcomes(backend)
+
+
+def check_action_policy(policy, scenario, runs: int = 256, steps: int = HORIZON) -> None:
+    """An action policy's contract (scenarios/actions.py): (B, m) finite actions inside
+    Gamma, each run's depending on its key, its state and the step alone (not on its
+    batch-mates), and an adaptive state that survives a round trip as plain data."""
+    name = f"{type(policy).__name__} on {scenario.name}"
+    states = _starts(scenario, runs)
+    keys = np.arange(500, 500 + runs, dtype=np.uint64)
+    for t in range(1, steps):
+        u = np.asarray(policy(scenario, states, t, RunStreams.of(5, keys)), dtype=float)
+        assert u.shape == (runs, scenario.m), f"{name}: step {t} gave actions of shape {u.shape}"
+        assert np.isfinite(u).all(), f"{name}: non-finite actions at step {t}"
+        assert ((u >= scenario.action_lower - 1e-12) & (u <= scenario.action_upper + 1e-12)).all(), \
+            f"{name}: actions outside Gamma at step {t}"
+        rows = np.arange(runs)[::-7]
+        alone = np.asarray(policy(scenario, states[rows], t, RunStreams.of(5, keys[rows])), dtype=float)
+        assert np.array_equal(alone, u[rows]), f"{name}: a run's action at step {t} depends on its batch"
+    state = policy.state()
+    if state is not None:
+        import json
+
+        assert json.loads(json.dumps(state)) == state, f"{name}: state() must be plain JSON data"
+        policy.load(state)
+        again = np.asarray(policy(scenario, states, 1, RunStreams.of(5, keys)), dtype=float)
+        first = np.asarray(policy(scenario, states, 1, RunStreams.of(5, keys)), dtype=float)
+        assert np.array_equal(again, first), f"{name}: load(state()) changed the actions"

@@ -38,6 +38,24 @@ def test_a_run_depends_on_its_key_and_start_alone(backend):
     testing.check_key_only(backend)
 
 
+def test_search_actions_depend_on_the_key_and_start_alone(backend):
+    """actions.mode = "search" needs only the black-box contract: on every back end."""
+    from scenarios.search import SearchActions
+
+    testing.check_key_only(backend, policy=SearchActions(backend.scenario))
+
+
+@pytest.mark.parametrize("mode", ["uniform", "adversarial", "constant", "search", "feedback"])
+@pytest.mark.parametrize("name", ["lead-follow", "fleet3", "toy"])
+def test_every_action_policy_keeps_the_policy_contract(mode, name):
+    from scenarios.actions import make_action_policy
+
+    scenario = make_backend({"name": name}).scenario
+    value = list(scenario.action_lower) if mode == "constant" else None
+    policy = make_action_policy(mode, scenario, value, f"conformance_policies:{name.replace('-', '_')}")
+    testing.check_action_policy(policy, scenario)
+
+
 def test_runs_stay_finite(backend):
     testing.check_finite(backend)
 
@@ -72,3 +90,23 @@ def test_the_suite_catches_a_scenario_whose_runs_see_their_batch():
 
     with pytest.raises(AssertionError, match="leaky: sample index .* ran differently"):
         testing.check_key_only(make_backend({"name": "lead-follow"}).__class__(Leaky(sv_policy="idm")))
+
+
+def test_the_policy_check_catches_a_policy_that_sees_its_batch_or_leaves_gamma():
+    from scenarios.actions import UniformActions
+
+    scenario = make_backend({"name": "lead-follow"}).scenario
+
+    class Herd(UniformActions):
+        def __call__(self, scenario, states, t, streams):
+            u = super().__call__(scenario, states, t, streams)
+            return np.clip(u + 1e-3 * np.mean(states[:, 0]), scenario.action_lower, scenario.action_upper)
+
+    class Wild(UniformActions):
+        def __call__(self, scenario, states, t, streams):
+            return super().__call__(scenario, states, t, streams) * 2
+
+    with pytest.raises(AssertionError, match="depends on its batch"):
+        testing.check_action_policy(Herd(), scenario)
+    with pytest.raises(AssertionError, match="outside Gamma"):
+        testing.check_action_policy(Wild(), scenario)
