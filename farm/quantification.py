@@ -153,7 +153,13 @@ class Part:
         cfg, farm = self.cfg, self.cfg.farm
         last = [time.monotonic()]
 
+        seen_updates = [0]
+
         def on_chunk(c: Campaign) -> None:
+            if c.adversary is not None and len(c.adversary.history) > seen_updates[0]:
+                seen_updates[0] = len(c.adversary.history)
+                side = "" if self.label == "total" else f"{self.label} side: "
+                progress.line(f"{side}search: next round samples {c.adversary.policy.description}")
             progress.update(self.label, self.algorithm, c, self.n_eps)
             status.update(self.label, self.algorithm, c, self.n_eps)
             if time.monotonic() - last[0] >= farm.checkpoint_every:

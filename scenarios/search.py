@@ -155,4 +155,5 @@ class SearchActions(ActionPolicy):
     def words(self, scenario) -> str:
         order = np.argsort(self.weights)[::-1]
         parts = [f"{100 * self.weights[k]:.3g}% {self.families[k].words(scenario)}" for k in order]
-        return ("with each scenario's actions drawn from the final round's search mixture: " + "; ".join(parts))
+        which = "the final round's search mixture" if len(self.schedule) > 1 else "the search mixture"
+        return f"with each scenario's actions drawn from {which}: " + "; ".join(parts)

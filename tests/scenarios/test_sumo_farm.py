@@ -67,3 +67,26 @@ def test_compare_on_a_sumo_campaign_uses_the_simulated_reference(tmp_path):
     assert "simulated under Gamma*" in r.stdout
     metrics = json.loads((out / "compare.json").read_text())
     assert metrics["iou"] >= 0.95 and metrics["precision"] >= 0.97
+
+
+def test_the_adversary_search_finds_krauss_worst_case_on_sumo(tmp_path):
+    """actions.mode = "search" needs only the black-box contract: on SUMO it proposes
+    maximal lead braking, nobody having told it, and falsify cannot refute it."""
+    import json
+    import subprocess
+    import sys
+
+    cfg = tmp_path / "c.toml"
+    cfg.write_text('[scenario]\nname = "lead-follow"\nbackend = "sumo"\nsv_policy = "sumo"\n'
+                   '[scenario.sumo]\ncar_follow_model = "Krauss"\nparams = { sigma = 0.0 }\n'
+                   '[actions]\nmode = "search"\n[quantify]\ndelta0 = 4.0\ndelta_min = 2.0\nepsilon = 0.005\n'
+                   '[farm]\nexecutor = "local"\n')
+    out = tmp_path / "q"
+    r = subprocess.run([sys.executable, "-m", "farm", "quantify", str(cfg), "--out", str(out), "--quiet"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    found = json.loads((out / "adversary.json").read_text())
+    assert found["proposed_gamma_star"]["actions"] == [[-5.0]]
+    r = subprocess.run([sys.executable, "-m", "farm", "falsify", str(out), "--points", "400", "--tries", "2"],
+                       capture_output=True, text=True)
+    assert r.returncode == 0 and "not refuted" in r.stdout, r.stdout + r.stderr
