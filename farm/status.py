@@ -42,7 +42,15 @@ def snapshot(algorithm, campaign, n_eps: int) -> dict:
             "n_eps_counter": c.quiet, "n_eps": n_eps, "runs_committed": c.committed,
             "runs_simulated": c.runs_simulated, "changes": c.changes, "elapsed_s": round(c.elapsed_s, 1),
             "runs_per_s": round(c.committed / c.elapsed_s, 1) if c.elapsed_s > 0 else None,
-            "n_eps_needed": campaign.quiet_needed(), **_certification(algorithm, counts)}
+            "n_eps_needed": campaign.quiet_needed(), **_certification(algorithm, counts), **_search(campaign)}
+
+
+def _search(campaign) -> dict:
+    """actions.mode = "search": the mixture the current round samples."""
+    if getattr(campaign, "adversary", None) is None:
+        return {}
+    policy = campaign.adversary.policy
+    return {"search_weights": {f.label(): round(w, 4) for f, w in zip(policy.families, policy.weights)}}
 
 
 def _certification(algorithm, counts) -> dict:
@@ -86,6 +94,8 @@ def describe(directory: Path) -> str:
                   "runs_per_s", "elapsed_s", "result_hash"]
         detail = ", ".join(f"{k} {st[k]}" for k in fields if st.get(k) is not None)
         lines.append(f"  {state}" + (f": {detail}" if detail else ""))
+        if st.get("search_weights"):
+            lines.append("  search mixture: " + ", ".join(f"{k} {v:.3f}" for k, v in st["search_weights"].items()))
     if (directory / "summary.json").exists():
         s = json.loads((directory / "summary.json").read_text())
         lines.append(f"  finished: {s['boxes']} boxes, volume {s['volume_union']:.6g}, result hash {s['result_hash']}")

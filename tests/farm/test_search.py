@@ -143,6 +143,8 @@ def test_kill_9_mid_campaign_then_resume_gives_the_same_search(tmp_path):
     proc.send_signal(signal.SIGKILL)
     proc.wait(30)
     assert not (out / "summary.json").exists(), "the campaign ended before it was killed"
+    status = cli("status", str(out))
+    assert "search mixture: uniform 0." in status.stdout and "bang-bang 0." in status.stdout, status.stdout
     r = cli("resume", str(out), "--quiet")
     assert r.returncode == 0, r.stderr
     a, b = (json.loads((d / "summary.json").read_text()) for d in (tmp_path / "whole", out))
