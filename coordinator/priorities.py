@@ -16,8 +16,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 BUCKETS_PER_AXIS = {1: 4096, 2: 64, 3: 16, 4: 8, 5: 6}
-RESORT_SHARE = 0.1
-LOWEST_NONE = np.iinfo(np.int64).max  # re-sort when the unsorted tail exceeds this share of the vertices
+RESORT_SHARE = 0.1  # re-sort when the unsorted tail exceeds this share of the vertices
 
 
 class FailureDistances:
@@ -25,21 +24,14 @@ class FailureDistances:
         self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
         n = len(self.lower)
         self.per_axis = BUCKETS_PER_AXIS.get(n, 4)
-        self._buffer = np.empty(0)
-        self.dist = self._buffer[:0]  # a view of _buffer: the first seen_vertices entries are valid
+        self.dist = np.empty(0)
         self.seen_vertices = 0
         self.seen_failures = 0
-        self.lowest_changed = 0  # smallest vertex id whose distance changed since take_lowest_changed()
         self._sorted = 0  # vertices [0, _sorted) are in the bucket structure
         self._order = np.empty(0, dtype=np.int64)
         self._starts = np.zeros(1, dtype=np.int64)
         self._box_lo = self._box_hi = np.empty((0, n))
         self._bucket_max = np.empty(0)
-
-    def take_lowest_changed(self) -> int:
-        """The smallest vertex id whose distance changed (or appeared) since the last call."""
-        lowest, self.lowest_changed = self.lowest_changed, LOWEST_NONE
-        return lowest
 
     def update(self, points: np.ndarray, vertex_count: int, failures: np.ndarray, failure_count: int) -> np.ndarray:
         """The distances of vertices [0, vertex_count) to failures [0, failure_count)."""
@@ -47,27 +39,17 @@ class FailureDistances:
             return np.full(vertex_count, np.inf)
         if self.seen_failures == 0:  # nothing known yet: every vertex is new
             self.seen_vertices = self._sorted = 0
-        self.lowest_changed = min(self.lowest_changed, self.seen_vertices)  # appended vertices
+            self.dist = np.empty(0)
         if failure_count > self.seen_failures and self.seen_vertices:
             for f in failures[self.seen_failures : failure_count]:
                 self._lower_by(points, f)
         if vertex_count > self.seen_vertices:
             d_new, _ = cKDTree(failures[:failure_count]).query(points[self.seen_vertices : vertex_count], p=np.inf)
-            self._grow(vertex_count)
-            self.dist[self.seen_vertices : vertex_count] = d_new
+            self.dist = np.concatenate([self.dist[: self.seen_vertices], d_new])
         self.seen_vertices, self.seen_failures = vertex_count, failure_count
         if vertex_count - self._sorted > max(RESORT_SHARE * vertex_count, 4096):
             self._sort(points)
         return self.dist
-
-    def _grow(self, count: int) -> None:
-        """``dist`` as a view of ``count`` entries of a buffer grown by doubling: appending
-        a batch's vertices must not copy 1e6 distances (it did, once per batch)."""
-        if count > len(self._buffer):
-            bigger = np.empty(max(count, 2 * len(self._buffer)))
-            bigger[: self.seen_vertices] = self._buffer[: self.seen_vertices]
-            self._buffer = bigger
-        self.dist = self._buffer[:count]
 
     def _lower_by(self, points: np.ndarray, f: np.ndarray) -> None:
         """Lower the known distances by failure ``f``, skipping buckets it cannot reach."""
@@ -90,11 +72,7 @@ class FailureDistances:
         gap = np.abs(points[ids, 0] - f[0])
         for axis in range(1, points.shape[1]):
             np.maximum(gap, np.abs(points[ids, axis] - f[axis]), out=gap)
-        old = self.dist[ids]
-        lowered = gap < old
-        if lowered.any():
-            self.lowest_changed = min(self.lowest_changed, int(ids[lowered].min()))
-            self.dist[ids] = np.minimum(old, gap)
+        self.dist[ids] = np.minimum(self.dist[ids], gap)
 
     def _sort(self, points: np.ndarray) -> None:
         count = self.seen_vertices

@@ -32,12 +32,10 @@ from coordinator.covering import Lattice
 from coordinator.graph import ExplorationForest
 from coordinator.priorities import FailureDistances
 from coordinator.replay import ReplayBuffer
-from coordinator.sampling import PrioritizedCDF
 from scenarios.base import Scenario
 from scenarios.streams import PURPOSE_START, RunStreams
 
-# alpha of prioritized sampling, applied in place to d* - d_i
-ALPHAS = {"identity": lambda x: None, "square": lambda x: np.square(x, out=x), "sqrt": lambda x: np.sqrt(x, out=x)}
+ALPHAS = {"identity": lambda x: x, "square": np.square, "sqrt": np.sqrt}
 REPLAY_CHUNK = 4096  # stored states per greedy pass in experience replay
 
 
@@ -79,7 +77,6 @@ class SPE(Algorithm):
         self.replay = ReplayBuffer(settings.replay_capacity if settings.replay else 0, deterministic, scenario.n)
         self._dist = FailureDistances(scenario.lower, scenario.upper)
         self._draw_cache: tuple | None = None
-        self._cdf = PrioritizedCDF(ALPHAS[settings.alpha])  # prioritized sampling, updated from the first change
         self.certifying = False
         # deterministic certification: centres drawn in the current pass (not drawn again
         # until every uncertified centre was)
@@ -102,16 +99,13 @@ class SPE(Algorithm):
     def final_round(self) -> bool:
         return self.delta <= self.settings.delta_min * (1 + 1e-12)
 
-    def _cumulative_weights(self, ids: np.ndarray) -> np.ndarray | None:
-        """Prioritized sampling over ``ids`` computed whole (the boundary band, whose ids
-        move with the distances); None: uniform."""
-        if not self.settings.prioritized or self.failures.count == 0 or len(ids) == 0:
+    def _weights(self, ids: np.ndarray) -> np.ndarray | None:
+        """Prioritized sampling: rho_i ~ alpha(d* - d_i), d_i = d(sigma_i, PhiBar)."""
+        if not self.settings.prioritized or self.failures.count == 0:
             return None
-        weights = self._failure_distances()[ids]
-        np.subtract(weights.max(), weights, out=weights)
-        ALPHAS[self.settings.alpha](weights)
-        cdf = np.cumsum(weights)
-        return cdf if cdf[-1] > 0 else None  # weights >= 0: a zero total means all equidistant
+        dist = self._failure_distances()[ids]
+        weights = ALPHAS[self.settings.alpha](dist.max() - dist)
+        return weights if weights.sum() > 0 else None  # all equidistant: rho is uniform
 
     def _failure_distances(self) -> np.ndarray:
         """d(sigma_i, PhiBar) for every vertex id, kept up to date incrementally
@@ -153,17 +147,13 @@ class SPE(Algorithm):
         quiet stretches that end a round, many batches are drawn from one version."""
         if self._draw_cache is not None and self._draw_cache[0] == self.version:
             return self._draw_cache[1], self._draw_cache[2]
-        if self.settings.prioritized and self.failures.count and not self.settings.boundary:
-            dist = self._failure_distances()
-            self._cdf.touched(self._dist.take_lowest_changed())
-            ids, cdf = self._cdf.update(self.vertices.alive[: self.vertices.count], dist)
-        else:
-            ids = self.vertices.alive_ids()
-            if self.settings.boundary and len(ids):
-                ids = self._band(ids)
-            cdf = self._cumulative_weights(ids)
+        ids = self.vertices.alive_ids()
         if len(ids) == 0:
             raise EmptySetError("the safe set is empty: every centre was pruned")
+        if self.settings.boundary:
+            ids = self._band(ids)
+        weights = self._weights(ids)
+        cdf = None if weights is None else np.cumsum(weights)
         self._draw_cache = (self.version, ids, cdf)
         return ids, cdf
 
@@ -267,8 +257,6 @@ class SPE(Algorithm):
         return "explored"
 
     def _prune(self, ids: np.ndarray) -> None:
-        if len(ids):
-            self._cdf.touched(ids.min())
         self.coverage.apply(Kill(ids), self.version)
         self.certificates.invalidate(ids)
 
@@ -287,7 +275,6 @@ class SPE(Algorithm):
         children = self.lattice.children(centres, self.delta, new_delta)
         self.version += 1
         self.coverage.apply(Recell(new_delta), self.version)
-        self._cdf.reset()
         if len(children):
             children = children[~self.failures.any_within(children, new_delta)]
         self._add_roots(children)
@@ -345,4 +332,3 @@ class SPE(Algorithm):
         self.replay.load_state(state)
         self._dist = FailureDistances(self.scenario.lower, self.scenario.upper)
         self._draw_cache = None
-        self._cdf.reset()
