@@ -7,7 +7,12 @@ comes from the scenario's hints (``scenarios.base.View`` / ``Slices``):
 - ``safe_set_3d.png``: per view, the boundary surface of the safe set (smallest safe z,
   or largest for a set that lies below it) over the plane (x, y), like the paper's
   Figs. 2 and 4;
-- ``safe_set_slices.png``: 2-D cuts (x, y) at a few values of a third coordinate.
+- ``safe_set_slices.png``: 2-D cuts (x, y) at a few values of a third coordinate, in
+  three classes: safe (in the quantified set), unsafe / pruned (explored by the campaign
+  and not in the set: boxes of pruned vertices, of failing runs' starts, of every run's
+  start at its round's delta), and never explored (covered by neither). What was
+  explored is read from the campaign directory (``explored_boxes``: its ledger and
+  checkpoint); without that record the cut tells only "in the set" from "not in it".
 
 Coordinates a figure does not show are held fixed (the view's ``fixed`` or mid-range),
 and the figure says which and at what value. A side campaign (fleet3's lead / rear side:
@@ -28,6 +33,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.collections import PatchCollection  # noqa: E402
 from matplotlib.colors import to_rgba  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Patch, Rectangle  # noqa: E402
@@ -35,10 +41,19 @@ from matplotlib.patches import Patch, Rectangle  # noqa: E402
 from coordinator.spatial import PointIndex  # noqa: E402
 
 RESOLUTION = 120  # grid points per axis of a slice
-SURFACE_GRID, SURFACE_DEPTH = 41, 141  # (x, y) grid and z samples of a 3-D boundary
+HIDDEN_SAMPLES = 27  # failure figures: samples of the coordinates a plane hides (in all)
+SURFACE_GRID, SURFACE_DEPTH = 40, 141  # (x, y) grid and z samples of a 3-D boundary
+# the camera stands at the corner of low x and high y: a boundary that rises toward high x
+# and low y (lead-follow: fast follower, slow lead; fleet3's lead side) shows its whole slope
+# instead of hiding behind the flat part (looked at on lead-follow and both fleet3 sides)
+VIEW_ELEVATION, VIEW_AZIMUTH = 28, 135
 LEVELS = 4  # slices per Slices hint (values of the varied coordinate, ends included)
-SAFE_COLOUR = "#3a9d48"
-OUTSIDE_COLOUR = "#f4c9c4"  # light red: must not be confused with white paper
+# Okabe-Ito blue and vermillion: told apart with every common colour-vision deficiency
+# (blue against a red-brown, and by lightness), neither near white
+SAFE_COLOUR = "#0072B2"
+PRUNED_COLOUR = "#D55E00"
+NEVER_COLOUR, NEVER_HATCH, NEVER_HATCH_COLOUR = "#e4e4e4", "////", "#a6a6a6"  # light grey, hatched
+OUTSIDE_COLOUR = "#f4c9c4"  # "not in the safe set" when there is no exploration record
 OVERLAY_COLOURS = ("#1f5fbf", "#e8710a", "#7b3fb5", "#1a9e8f", "#c2185b", "#6d5d00")
 SLICES_FILE, SURFACE_FILE = "safe_set_slices.png", "safe_set_3d.png"
 
@@ -86,6 +101,100 @@ def _samples(lo: float, hi: float, count: int) -> np.ndarray:
 
 def _axis(scenario, name: str) -> int:
     return list(scenario.state_names).index(name)
+
+
+# -- what the campaign explored ------------------------------------------------------------
+def explored_boxes(directory, state_names) -> tuple[np.ndarray, np.ndarray] | None:
+    """The boxes a campaign explored, from its directory: ``(points (P, n), half_widths
+    (P,))``, or None when the directory holds no record of it (no ledger, no checkpoint).
+
+    - every committed run's start state (the ledger), at its round's delta: its box was
+      in the covering when it was drawn;
+    - the checkpoint's vertices, alive or pruned, at the final delta; SPE's first roots
+      (the first block of graph roots: the tiling of Sigma it starts from) at delta0;
+    - the checkpoint's failure points (PhiBar), at the final delta.
+
+    Outside the safe set, these boxes are the states the campaign explored and pruned;
+    the rest it never explored (for SPE, which starts from all of Sigma, nothing)."""
+    directory = Path(directory)
+    names = list(state_names)
+    points, widths = [], []
+    ledger = directory / "ledger"
+    if any(ledger.glob("segment-*.parquet")):
+        import pyarrow.dataset as ds
+
+        table = ds.dataset(ledger, format="parquet").to_table(columns=["delta", *names])
+        if table.num_rows:
+            points.append(np.column_stack([table.column(c).to_numpy() for c in names]).astype(float))
+            widths.append(table.column("delta").to_numpy().astype(float))
+    if (directory / "checkpoint.npz").exists():
+        from farm.journal import Journal
+
+        state, _ = Journal(directory).load()
+        delta = float(state["algo.scalars"][0]) if "algo.scalars" in state else 0.0
+        vertices = state.get("algo.vertices.points", np.zeros((0, len(names))))
+        if delta > 0 and len(vertices):
+            wide = np.full(len(vertices), delta)
+            parent = state.get("algo.graph.parent")
+            if parent is not None and len(parent) and parent[0] == -1:
+                first = int(np.argmax(parent != -1)) if (parent != -1).any() else len(parent)
+                wide[:first] = max(delta, _delta0(directory, delta))
+            points.append(vertices.reshape(-1, len(names)))
+            widths.append(wide)
+        failures = state.get("algo.failures.points")
+        if delta > 0 and failures is not None and len(failures):
+            points.append(failures.reshape(-1, len(names)))
+            widths.append(np.full(len(failures), delta))
+    if not points:
+        return None
+    return np.concatenate(points), np.concatenate(widths)
+
+
+def _delta0(directory: Path, default: float) -> float:
+    """quantify.delta0 of the campaign's frozen config (a side campaign: its parent's)."""
+    import json
+
+    for folder in (directory, *directory.parents[:3]):
+        try:
+            return float(json.loads((folder / "config.json").read_text())["config"]["quantify"]["delta0"])
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+    return default
+
+
+def _campaign_of(out_dir: Path) -> Path | None:
+    """The campaign directory whose figures go to ``out_dir``: DIR for DIR/plots, a side
+    campaign DIR/sides/<label> for DIR/plots/<label>_side; None for any other place."""
+    out_dir = Path(out_dir)
+    if out_dir.name == "plots":
+        return out_dir.parent
+    if out_dir.parent.name == "plots" and out_dir.name.endswith("_side"):
+        return out_dir.parent.parent / "sides" / out_dir.name[: -len("_side")]
+    return None
+
+
+def _distinct_rows(points: np.ndarray) -> np.ndarray:
+    """The distinct rows of ``points`` (a campaign's starts repeat its vertices): sorted
+    on one axis, then duplicates dropped where every coordinate equals the previous row's.
+    ``np.unique(axis=0)`` takes 5 s on 3.6 M rows; this, a fraction of a second."""
+    if len(points) < 2:
+        return points
+    points = points[np.lexsort(points.T[::-1])]
+    keep = np.ones(len(points), dtype=bool)
+    keep[1:] = (points[1:] != points[:-1]).any(axis=1)
+    return points[keep]
+
+
+def _explored_member(explored, n: int) -> callable:
+    """Membership in the union of boxes of varying half-width (one index per width)."""
+    points, widths = explored
+    points = np.asarray(points, dtype=float).reshape(-1, n)
+    widths = np.broadcast_to(np.asarray(widths, dtype=float), (len(points),))
+    members = []
+    for w in np.unique(widths[widths > 0]):
+        group = _distinct_rows(points[widths == w])
+        members.append(_member(group, float(w), group.min(axis=0)))
+    return lambda pts: np.logical_or.reduce([m(pts) for m in members] + [np.zeros(len(pts), dtype=bool)])
 
 
 # -- words --------------------------------------------------------------------------------
@@ -187,6 +296,7 @@ def _draw_view(fig, ax, scenario, member, view) -> None:
     ax.set_xlim(scenario.lower[x], scenario.upper[x])
     ax.set_ylim(scenario.lower[y], scenario.upper[y])
     ax.set_zlim(zmin, zmax)
+    ax.view_init(elev=VIEW_ELEVATION, azim=VIEW_AZIMUTH)
     words = [f"{view.title} ({', '.join(view.axes)}): safe {'above' if view.safe_above else 'below'} the surface"]
     if held:
         words.append(f"held at {_settings(scenario, held)}")
@@ -236,16 +346,51 @@ def _paint(ax, mask: np.ndarray, extent, colour, alpha=1.0, background=None) -> 
     ax.imshow(img, origin="lower", aspect="auto", extent=extent, interpolation="nearest")
 
 
-def _draw_slice(ax, scenario, member, x, y, held) -> None:
+def _hatch(ax, xs, ys, mask) -> None:
+    """Hatch the True cells of ``mask`` (the never-explored states), cell for cell: one
+    rectangle per run of True cells along x in each row of the grid."""
+    if not mask.any():
+        return
+    dx, dy = xs[1] - xs[0] if len(xs) > 1 else 1.0, ys[1] - ys[0] if len(ys) > 1 else 1.0
+    rects = []
+    for j in range(mask.shape[1]):
+        edges = np.diff(np.concatenate([[0], mask[:, j].astype(np.int8), [0]]))
+        for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)):
+            rects.append(Rectangle((xs[a] - dx / 2, ys[j] - dy / 2), (b - a) * dx, dy))
+    with plt.rc_context({"hatch.color": NEVER_HATCH_COLOUR, "hatch.linewidth": 0.8}):
+        ax.add_collection(PatchCollection(rects, facecolor="none", edgecolor="none", hatch=NEVER_HATCH,
+                                          linewidth=0))
+
+
+def _draw_slice(ax, scenario, member, x, y, held, explored_member=None) -> int:
+    """Paint one cut; -> how many of its grid points were never explored."""
     xs, ys, pts = _plane(scenario, x, y, held)
     safe = member(pts).reshape(len(xs), len(ys))
-    _paint(ax, safe, _extent(scenario, x, y), SAFE_COLOUR, background=OUTSIDE_COLOUR)
+    extent = _extent(scenario, x, y)
+    if explored_member is None:
+        _paint(ax, safe, extent, SAFE_COLOUR, background=OUTSIDE_COLOUR)
+    else:
+        explored = explored_member(pts).reshape(len(xs), len(ys))
+        _paint(ax, safe | explored, extent, PRUNED_COLOUR, background=NEVER_COLOUR)
+        _paint(ax, safe, extent, SAFE_COLOUR)
+        never = ~(safe | explored)
+        _hatch(ax, xs, ys, never)
+        ax.set_xlim(extent[:2])
+        ax.set_ylim(extent[2:])
+        _frame(ax, scenario, x, y, held)
+        return int(never.sum())
     _frame(ax, scenario, x, y, held)
+    return 0
 
 
-def _set_legend():
-    return [Patch(facecolor=SAFE_COLOUR, label="in the safe set"),
-            Patch(facecolor=OUTSIDE_COLOUR, edgecolor="0.6", label="not in the safe set")]
+def _set_legend(classes: bool = False, never: bool = True):
+    if not classes:
+        return [Patch(facecolor=SAFE_COLOUR, label="in the safe set"),
+                Patch(facecolor=OUTSIDE_COLOUR, edgecolor="0.6", label="not in the safe set")]
+    return [Patch(facecolor=SAFE_COLOUR, label="safe (in the quantified set)"),
+            Patch(facecolor=PRUNED_COLOUR, label="unsafe: explored and pruned"),
+            Patch(facecolor=NEVER_COLOUR, edgecolor=NEVER_HATCH_COLOUR, hatch=NEVER_HATCH,
+                  label="never explored" if never else "never explored (none in these cuts)")]
 
 
 def _panel_grid(rows: list[list], width=4.2, height=3.8):
@@ -258,28 +403,34 @@ def _panel_grid(rows: list[list], width=4.2, height=3.8):
     return fig, axs
 
 
-def slices_figure(scenario, centres, h, summary: dict, slices=None):
+def slices_figure(scenario, centres, h, summary: dict, slices=None, explored=None):
     """2-D cuts of the safe set (default: the scenario's own Slices hints), one row per
-    hint, as a Figure with a legend."""
+    hint, as a Figure with a legend. ``explored``: the boxes the campaign explored
+    (``(points (P, n), half_widths (P,))``, see ``explored_boxes``): the cuts then tell
+    safe, unsafe (explored and pruned) and never explored apart; None: safe or not."""
     rows = [_cuts(scenario, spec) for spec in (_slices(scenario) if slices is None else slices)]
     member = _member(centres, h, scenario.lower, scenario.upper)
+    explored_member = None if explored is None else _explored_member(explored, scenario.n)
     fig, axs = _panel_grid(rows)
+    never = 0
     for r, row in enumerate(rows):
         for ax, (x, y, held) in zip(axs[r], row):
-            _draw_slice(ax, scenario, member, x, y, held)
-    fig.suptitle(f"{_title(scenario, centres, h, summary)}\n2-D cuts of the safe set", fontsize=10)
-    fig.legend(handles=_set_legend(), loc="outside lower center", ncol=2, fontsize=9)
+            never += _draw_slice(ax, scenario, member, x, y, held, explored_member)
+    what = "safe, pruned and never-explored states" if explored is not None else "the safe set"
+    fig.suptitle(f"{_title(scenario, centres, h, summary)}\n2-D cuts: {what}", fontsize=10)
+    handles = _set_legend(explored is not None, never > 0)
+    fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=9)
     return fig
 
 
 # -- campaign figures --------------------------------------------------------------------------
-def build_figures(scenario, centres: np.ndarray, h: float, summary: dict) -> dict:
+def build_figures(scenario, centres: np.ndarray, h: float, summary: dict, explored=None) -> dict:
     """File name -> Figure: the slices, and the 3-D surfaces if the scenario has views."""
     figures = {}
     surfaces = surface_figure(scenario, centres, h, summary)
     if surfaces is not None:
         figures[SURFACE_FILE] = surfaces
-    figures[SLICES_FILE] = slices_figure(scenario, centres, h, summary)
+    figures[SLICES_FILE] = slices_figure(scenario, centres, h, summary, explored=explored)
     return figures
 
 
@@ -293,13 +444,24 @@ def _save(fig, path: Path, dpi=100) -> Path:
     return path
 
 
-def draw(out_dir: Path, scenario, centres: np.ndarray, h: float, summary: dict) -> list[Path]:
+def draw(out_dir: Path, scenario, centres: np.ndarray, h: float, summary: dict, explored=None) -> list[Path]:
     """Write safe_set_3d.png (if the scenario has 3-D views) and safe_set_slices.png in
-    ``out_dir``; -> the files written."""
+    ``out_dir``; -> the files written.
+
+    ``explored``: the boxes the campaign explored (``(points, half_widths)``, see
+    ``explored_boxes``), so that the slices tell safe, pruned and never explored apart.
+    None (the default): read them from the campaign directory ``out_dir`` belongs to
+    (DIR/plots -> DIR, DIR/plots/<side>_side -> DIR/sides/<side>) if it holds a record;
+    False: draw safe / not safe only."""
     out_dir = Path(out_dir)
     centres = np.asarray(centres, dtype=float).reshape(-1, scenario.n)
+    if explored is None:
+        campaign = _campaign_of(out_dir)
+        explored = explored_boxes(campaign, scenario.state_names) if campaign is not None else None
+    elif explored is False:
+        explored = None
     return [_save(fig, out_dir / name, dpi=110 if name == SURFACE_FILE else 100)
-            for name, fig in build_figures(scenario, centres, h, summary).items()]
+            for name, fig in build_figures(scenario, centres, h, summary, explored).items()]
 
 
 # -- overlay of several sets ----------------------------------------------------------------------
@@ -389,11 +551,26 @@ def _limits(lo, hi, trajectories, axis):
     return a - pad, b + pad
 
 
+def _core(scenario, centres, h, x, y, xs, ys, samples: int = HIDDEN_SAMPLES):
+    """Where on the grid (xs, ys) of the plane (x, y) every sampled value of the other
+    coordinates is safe (``samples`` in all per hidden coordinate, Sigma's ends
+    included): a state there is safe whatever its hidden coordinates."""
+    hidden = [a for a in range(scenario.n) if a not in (x, y)]
+    if not hidden:
+        return None
+    per_axis = max(2, int(round(samples ** (1 / len(hidden)))))
+    grids = {x: xs, y: ys, **{a: np.linspace(scenario.lower[a], scenario.upper[a], per_axis) for a in hidden}}
+    member = _member(centres, h, scenario.lower, scenario.upper)
+    safe = member(_points(scenario, grids, {}))
+    return safe.reshape(len(xs), len(ys), -1).all(axis=2)
+
+
 def _draw_runs(ax, trajectories, labels, x, y) -> None:
-    # up to 10 runs: tab10's distinct colours; more: a continuous map (adjacent runs differ)
-    many = len(trajectories) > 10
-    colours = plt.get_cmap("turbo")(np.linspace(0.05, 0.95, len(trajectories))) if many else \
-        [plt.get_cmap("tab10")(k) for k in range(len(trajectories))]
+    # up to 8 runs: Dark2's distinct colours; more: the warm end of turbo (adjacent runs
+    # differ); neither is the safe set's blue
+    many = len(trajectories) > 8
+    colours = plt.get_cmap("turbo")(np.linspace(0.55, 1.0, len(trajectories))) if many else \
+        [plt.get_cmap("Dark2")(k) for k in range(len(trajectories))]
     for t, colour, label in zip(trajectories, colours, labels):
         ax.plot(t[:, x], t[:, y], color=colour, linewidth=1.3, label=label)
         ax.plot(t[0, x], t[0, y], "o", color=colour, markeredgecolor="black", markersize=6)
@@ -415,7 +592,10 @@ def failures_figure(scenario, centres, h, trajectories, labels=None):
     fig, axs = plt.subplots(1, len(planes), figsize=(6 * len(planes) + 1.8, 5.2), squeeze=False, layout="constrained")
     for ax, (x, y) in zip(axs[0], planes):
         xs, ys, shadow = _projection(scenario, centres, h, x, y)
-        _paint(ax, shadow, _extent(scenario, x, y), SAFE_COLOUR, alpha=0.35)
+        _paint(ax, shadow, _extent(scenario, x, y), SAFE_COLOUR, alpha=0.25)
+        core = _core(scenario, centres, h, x, y, xs, ys)
+        if core is not None:
+            _paint(ax, core, _extent(scenario, x, y), SAFE_COLOUR, alpha=0.7)
         lo, hi = scenario.lower, scenario.upper
         ax.add_patch(Rectangle((lo[x], lo[y]), hi[x] - lo[x], hi[y] - lo[y], fill=False, linestyle="--",
                                edgecolor="0.3"))
@@ -427,13 +607,19 @@ def failures_figure(scenario, centres, h, trajectories, labels=None):
         others = [scenario.state_names[a] for a in range(scenario.n) if a not in (x, y)]
         ax.set_title(f"projection onto ({scenario.state_names[x]}, {scenario.state_names[y]})"
                      + (f" along {', '.join(others)}" if others else ""), fontsize=9)
-    handles = [Patch(facecolor=SAFE_COLOUR, alpha=0.35, label="safe set (projected)"),
+    hidden = scenario.n > 2
+    handles = [Patch(facecolor=SAFE_COLOUR, alpha=0.7, label="safe for every value\nof the other coordinates")
+               if hidden else None,
+               Patch(facecolor=SAFE_COLOUR, alpha=0.25, label="safe for some value\nof the other coordinates"
+                     if hidden else "safe set"),
                Line2D([], [], color="0.3", linestyle="--", label="Sigma"),
                Line2D([], [], marker="o", linestyle="", color="0.5", markeredgecolor="black", label="start"),
                Line2D([], [], marker="X", linestyle="", color="0.5", markeredgecolor="black", label="last state")]
+    handles = [h_ for h_ in handles if h_ is not None]
     handles += [Line2D([], [], color=line.get_color(), label=line.get_label())
                 for line in axs[0, 0].get_lines() if named and not line.get_label().startswith("_")]
-    fig.suptitle(f"{scenario.name}: {len(trajectories)} failing run{'s' * (len(trajectories) != 1)} "
+    name = " / ".join(str(p) for p in (scenario.name, getattr(scenario, "sv_policy_name", None)) if p)
+    fig.suptitle(f"{name}: {len(trajectories)} failing run{'s' * (len(trajectories) != 1)} "
                  f"over the safe set ({len(centres)} boxes, half-width {h:g})", fontsize=10)
     fig.legend(handles=handles, loc="outside right center", fontsize=9)
     return fig

@@ -93,9 +93,13 @@ class Progress:
             self.stream.flush()
 
     def close(self) -> None:
+        """The runs are over: stop the live line, and say what comes next (writing the
+        results and figures takes seconds to a minute on a large set; without a line a
+        job log would look stuck)."""
         if self._bar is not None:
             self._bar.stop()
             self._bar = None
+        self.line("all runs done; writing safe_set.parquet, summary.json and plots/")
 
 
 def _counter(s: dict) -> str:

@@ -107,7 +107,7 @@ def test_3d_axes_carry_units_a_colour_bar_and_limits_that_fit_the_surface():
     assert "mid-range" not in " ".join(texts(fig)) and "held at" not in " ".join(texts(fig))
 
 
-def test_slices_have_a_legend_units_and_two_distinct_non_white_colours():
+def test_slices_without_an_exploration_record_have_a_legend_units_and_two_distinct_non_white_colours():
     sc, centres, h = lead_follow_set()
     fig = plots.slices_figure(sc, centres, h, {})
     panels = visible_axes(fig)
@@ -123,6 +123,74 @@ def test_slices_have_a_legend_units_and_two_distinct_non_white_colours():
     row, col = lambda p10: int(p10 / 70 * image.shape[0]), lambda v0: int(v0 / 20 * image.shape[1])
     np.testing.assert_allclose(image[row(60), col(2), :3], safe)
     np.testing.assert_allclose(image[row(5), col(18), :3], outside)
+
+
+def explored_below_v0(sc, v0):
+    """Exploration record of a synthetic campaign: every box of Sigma with v0 < ``v0``
+    (centres, half-width 1): outside the safe set there, pruned; elsewhere never explored."""
+    boxes = grid_centres(sc, 1.0, lambda c: c[:, 0] < v0)
+    return boxes, np.full(len(boxes), 1.0)
+
+
+def pixel(ax, x, y):
+    """The colour shown at (x, y) of a slice panel: the top image that paints it."""
+    x0, x1, y0, y1 = ax.images[0].get_extent()
+    for image in reversed(ax.images):
+        rgba = image.get_array()  # (y, x, RGBA), origin lower
+        r = int((y - y0) / (y1 - y0) * rgba.shape[0])
+        c = int((x - x0) / (x1 - x0) * rgba.shape[1])
+        if rgba[r, c, 3] > 0:
+            return np.asarray(rgba[r, c, :3])
+    return np.ones(3)
+
+
+def test_slices_tell_safe_pruned_and_never_explored_apart():
+    sc, centres, h = lead_follow_set()
+    fig = plots.slices_figure(sc, centres, h, {}, explored=explored_below_v0(sc, 12))
+    assert legend_texts(fig) == ["safe (in the quantified set)", "unsafe: explored and pruned", "never explored"]
+    safe, pruned, never = (np.array(to_rgba(c)[:3]) for c in (plots.SAFE_COLOUR, plots.PRUNED_COLOUR,
+                                                               plots.NEVER_COLOUR))
+    for a, b in [(safe, pruned), (safe, never), (pruned, never)]:
+        assert np.abs(a - b).max() > 0.3  # told apart at a glance
+    assert np.abs(pruned - 1.0).max() > 0.5  # unsafe is nowhere near paper white
+    # the panel v1 = 0: safe above p10 = 2 (v0 - v1); unsafe below it, explored up to v0 = 12
+    ax = visible_axes(fig)[0]
+    np.testing.assert_allclose(pixel(ax, 2.0, 60.0), safe)
+    np.testing.assert_allclose(pixel(ax, 10.0, 5.0), pruned)  # explored, outside the set
+    np.testing.assert_allclose(pixel(ax, 18.0, 5.0), never)  # outside the set, never explored
+    # the never-explored cells are hatched, and only those: one hatched collection
+    hatched = [c for c in ax.collections if c.get_hatch()]
+    assert len(hatched) == 1
+    corners = np.concatenate([p.vertices for p in hatched[0].get_paths()])
+    assert corners[:, 0].min() == pytest.approx(12.0, abs=0.2) and corners[:, 1].max() < 36
+
+
+def test_draw_reads_what_the_campaign_explored_from_its_directory(tmp_path):
+    # a ledger of one segment, as the campaign writes it: starts at v0 < 12 with their delta
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    sc, centres, h = lead_follow_set()
+    boxes, widths = explored_below_v0(sc, 12)
+    (tmp_path / "ledger").mkdir()
+    pq.write_table(pa.table({"sample_index": np.arange(len(boxes)), "round": np.zeros(len(boxes), int),
+                             "delta": widths, **{name: boxes[:, i] for i, name in enumerate(sc.state_names)}}),
+                   tmp_path / "ledger" / "segment-000000.parquet")
+    points, half_widths = plots.explored_boxes(tmp_path, sc.state_names)
+    np.testing.assert_allclose(points, boxes)
+    assert plots.explored_boxes(tmp_path / "elsewhere", sc.state_names) is None
+    # the same classes as with the record passed in: pruned and never-explored pixels
+    plots.draw(tmp_path / "plots", sc, centres, h, {})
+    from matplotlib.image import imread
+
+    image = imread(tmp_path / "plots" / "safe_set_slices.png")[..., :3]
+    pruned, never = (np.array(to_rgba(c)[:3]) for c in (plots.PRUNED_COLOUR, plots.NEVER_COLOUR))
+    assert (np.abs(image - pruned).max(axis=2) < 0.02).sum() > 500
+    assert (np.abs(image - never).max(axis=2) < 0.02).sum() > 500
+    # explored=False: safe or not, as without a record
+    plots.draw(tmp_path / "plots", sc, centres, h, {}, explored=False)
+    image = imread(tmp_path / "plots" / "safe_set_slices.png")[..., :3]
+    assert (np.abs(image - pruned).max(axis=2) < 0.02).sum() == 0
 
 
 def test_a_slice_of_a_three_state_scenario_names_its_fixed_coordinate_not_mid_range():
