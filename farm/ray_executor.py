@@ -37,6 +37,9 @@ RESYNC = "resync"  # a worker's answer when its mirror cannot reach the chunk's 
 STORED_PART = 4096  # runs per replay task when a stored piece must be re-simulated
 
 
+MIN_CHUNK = 256  # runs: the smallest chunk a batch is cut into for a worker
+
+
 class WorkerError(RuntimeError):
     pass
 
@@ -264,7 +267,12 @@ class RayExecutor:
         # Ray restarted from its constructor needs nothing else
         self._actions = actions
         handles = []
-        for rows in np.array_split(np.arange(len(starts)), min(self.workers, max(len(starts), 1))):
+        # one chunk per worker, but none under MIN_CHUNK runs: a smaller chunk costs the
+        # driver a Ray call (~1-2 ms) for little simulation, and a worker its per-step
+        # overhead for few runs; more workers are kept busy by more runs in flight
+        # (farm.batch_size x farm.pipeline_depth), not by thinner chunks
+        parts = min(self.workers, max(1, len(starts) // MIN_CHUNK))
+        for rows in np.array_split(np.arange(len(starts)), parts):
             if len(rows) == 0:
                 continue
             actor = int(np.argmin(self._queued))
