@@ -84,13 +84,15 @@ def test_validate_out_into_a_campaign_directory_is_refused(config, campaign, tmp
 
 # -- 2. two writers ----------------------------------------------------------------------------
 def test_a_second_writer_is_refused_naming_the_holder(tmp_path):
-    (tmp_path / "c.toml").write_text(GOOD.replace("delta_min = 2.0", "delta_min = 0.25"))
+    # long enough (~40 s here) that three CLI calls always find it running
+    (tmp_path / "c.toml").write_text(GOOD.replace("delta_min = 2.0", "delta_min = 0.25")
+                                     .replace("epsilon = 0.01", "epsilon = 0.0005"))
     out = tmp_path / "out"
     first = subprocess.Popen([sys.executable, "-m", "farm", "quantify", str(tmp_path / "c.toml"), "--out", str(out)],
                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.time() + 60
-        while not (out / "ledger").is_dir() and time.time() < deadline:
+        while not (out / "status.json").exists() and time.time() < deadline:  # written as it starts
             time.sleep(0.05)
         for args in (["quantify", tmp_path / "c.toml", "--out", out, "--force"],
                      ["quantify", tmp_path / "c.toml", "--out", out, "--resume"], ["resume", out]):
