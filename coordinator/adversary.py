@@ -31,6 +31,13 @@ FLOOR = 0.04  # every family keeps at least this weight
 DOMINANT = 0.5  # a vertex family at or above this weight is proposed as Gamma*
 
 
+def schedule_state(arrays: dict) -> dict | None:
+    """The search policy's state (``SearchActions.load``) from checkpoint arrays."""
+    if "adv.firsts" not in arrays:
+        return None
+    return {"schedule": [[int(a), list(w)] for a, w in zip(arrays["adv.firsts"], arrays["adv.weights"])]}
+
+
 class AdversarySearch:
     def __init__(self, policy: SearchActions, seed: int):
         self.policy = policy
@@ -81,9 +88,10 @@ class AdversarySearch:
                     len(self.history), len(self.runs))}
 
     def load_state(self, arrays: dict) -> None:
-        if "adv.firsts" not in arrays:
-            return  # a checkpoint from before the first round end: the initial mixture
-        self.policy.load({"schedule": [[int(a), list(w)] for a, w in zip(arrays["adv.firsts"], arrays["adv.weights"])]})
+        schedule = schedule_state(arrays)
+        if schedule is None:
+            return  # a checkpoint from before the search mode existed
+        self.policy.load(schedule)
         for name in ("runs", "failures", "total_runs", "total_failures"):
             getattr(self, name)[:] = arrays[f"adv.{name}"]
         f = len(self.runs)

@@ -160,6 +160,11 @@ class Campaign:
                 p.handles = self.executor.submit(first, p.starts[p.done :], self.algorithm.coverage,
                                                  actions=self._actions())
 
+    def _next_mixture(self) -> None:
+        """A round ended and another follows: it samples the re-weighted search mixture."""
+        if self.adversary is not None:
+            self.adversary.end_round(self.counters.committed)
+
     def _actions(self) -> dict | None:
         return self.adversary.policy.state() if self.adversary is not None else None
 
@@ -251,10 +256,8 @@ class Campaign:
                 self._drop_in_flight()
                 c.round_ends.append(c.committed)
                 c.rounds_completed += 1
-                if self.adversary is not None and not (self.algorithm.final_round and
-                                                       (self.algorithm.certifying or not self.certify)):
-                    self.adversary.end_round(c.committed)  # the next round samples the new mixture
                 if self.algorithm.final_round and self.certify and not self.algorithm.certifying:
+                    self._next_mixture()
                     self.algorithm.begin_certification()
                     c.attempts = 1
                     c.quiet = 0
@@ -264,6 +267,7 @@ class Campaign:
                     c.converged = True
                     c.done = True
                 else:
+                    self._next_mixture()
                     self.algorithm.end_round(self.executor)
                     c.quiet = 0
                     c.escaped_in_streak = 0

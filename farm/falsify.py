@@ -21,7 +21,7 @@ import numpy as np
 
 from farm.executors import build_simulator
 from farm.files import write_json
-from scenarios.actions import ConstantActions
+from scenarios.actions import ConstantActions, check_action
 from scenarios.base import FAILURE
 from scenarios.rollout import run_scenario
 from scenarios.search import SearchActions
@@ -65,19 +65,13 @@ def falsify(directory, *, gamma_star=None, points: int = 10_000, tries: int = 4,
         raise ValueError(f"--seed: {seed} is out of range; allowed [0, 2**63)")
     simulator = build_simulator(spec_of(cfg))
     backend, scenario, horizon = simulator.backend, simulator.scenario, cfg.quantify.horizon
-    star = np.asarray(gamma_star if gamma_star is not None else proposed_gamma_star(directory)[0], dtype=float)
-    if star.shape != (scenario.m,):
-        raise ValueError(f"--gamma-star: expected {scenario.m} number(s) ({', '.join(scenario.action_names)}), "
-                         f"got {star.tolist()}")
-    for v, lo, hi, name in zip(star, scenario.action_lower, scenario.action_upper, scenario.action_names):
-        if not lo <= v <= hi:
-            raise ValueError(f"--gamma-star: {name} = {v:g} outside Gamma; allowed range [{lo:g}, {hi:g}]")
+    star = np.asarray(check_action(gamma_star if gamma_star is not None else proposed_gamma_star(directory)[0],
+                                   scenario, "--gamma-star"))
     say = progress.line if progress is not None else (lambda text: None)
 
-    index = np.arange(points, dtype=np.uint64)
-    span = scenario.upper - scenario.lower
-    starts = scenario.lower + span * RunStreams.of(seed, index).uniform(0, PURPOSE_START, scenario.n)
-    held = run_scenario(backend, starts, horizon, ConstantActions(tuple(star)), RunStreams.of(seed, index))
+    streams = RunStreams.of(seed, np.arange(points, dtype=np.uint64))
+    starts = scenario.lower + (scenario.upper - scenario.lower) * streams.uniform(0, PURPOSE_START, scenario.n)
+    held = run_scenario(backend, starts, horizon, ConstantActions(tuple(star)), streams)
     safe = held.outcomes != FAILURE
     safe_starts, safe_rows = starts[safe], np.nonzero(safe)[0]
     say(f"falsify: {int(safe.sum()):,} of {points:,} uniform start states survive {horizon} steps holding "
@@ -91,9 +85,10 @@ def falsify(directory, *, gamma_star=None, points: int = 10_000, tries: int = 4,
     runs = 0
     for k in range(tries):
         keys = ((k + 1) * points + safe_rows).astype(np.uint64)
-        batch = run_scenario(backend, safe_starts, horizon, policy, RunStreams.of(seed, keys))
+        tried = RunStreams.of(seed, keys)
+        batch = run_scenario(backend, safe_starts, horizon, policy, tried)
         runs += len(keys)
-        families = policy.family_of(RunStreams.of(seed, keys))
+        families = policy.family_of(tried)
         for r in np.nonzero(batch.outcomes == FAILURE)[0]:
             found.append({"key": {"seed": int(seed), "index": int(keys[r])}, "start": safe_starts[r].tolist(),
                           "family": policy.families[int(families[r])].label(), "steps": int(batch.lengths[r] - 1),

@@ -57,12 +57,13 @@ def _load_adaptive_actions(directory: Path, simulator) -> None:
     and the campaign's weight schedule, which the last checkpoint holds."""
     if simulator.policy.state() is None:
         return
+    from coordinator.adversary import schedule_state
     from farm.journal import Journal
 
     arrays, _ = Journal(directory).load()
-    if "adv.firsts" in arrays:
-        simulator.policy.load({"schedule": [[int(a), list(w)] for a, w in zip(arrays["adv.firsts"],
-                                                                               arrays["adv.weights"])]})
+    schedule = schedule_state(arrays)
+    if schedule is not None:
+        simulator.policy.load(schedule)
 
 
 def replay(directory: Path, index: int) -> tuple[bool, str]:

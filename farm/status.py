@@ -47,7 +47,7 @@ def snapshot(algorithm, campaign, n_eps: int) -> dict:
 
 def _search(campaign) -> dict:
     """actions.mode = "search": the mixture the current round samples."""
-    if getattr(campaign, "adversary", None) is None:
+    if campaign.adversary is None:
         return {}
     policy = campaign.adversary.policy
     return {"search_weights": {f.label(): round(w, 4) for f, w in zip(policy.families, policy.weights)}}

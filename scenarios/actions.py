@@ -130,6 +130,21 @@ class FeedbackActions(ActionPolicy):
         return np.clip(u.reshape(len(states), scenario.m), scenario.action_lower, scenario.action_upper)
 
 
+def check_action(values, scenario: Scenario, field: str) -> tuple[float, ...]:
+    """One action vector in Gamma: ``scenario.m`` numbers inside the bounds, or a one-line
+    error naming ``field`` and the allowed range."""
+    names = ", ".join(scenario.action_names)
+    if not all(isinstance(v, (int, float, np.floating, np.integer)) and not isinstance(v, bool) for v in values):
+        raise ValueError(f"{field}: expected {scenario.m} number(s) ({names}), got {list(values)!r}")
+    vals = tuple(float(v) for v in values)
+    if len(vals) != scenario.m:
+        raise ValueError(f"{field}: expected {scenario.m} number(s) ({names}), got {list(vals)}")
+    for v, lo, hi, name in zip(vals, scenario.action_lower, scenario.action_upper, scenario.action_names):
+        if not lo <= v <= hi:
+            raise ValueError(f"{field}: {name} = {v:g} outside Gamma; allowed range [{lo:g}, {hi:g}]")
+    return vals
+
+
 def load_callable(target: str, field: str, signature: str):
     """A plugin function: import it and check it is a callable taking one argument."""
     fn = load_object(target, field)
@@ -153,15 +168,7 @@ def make_action_policy(mode: str, scenario: Scenario, value=None, policy: str | 
         if value is None:
             raise ValueError("actions.value: required for mode = 'constant'")
         values = value if isinstance(value, list) else [value]
-        if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
-            raise ValueError(f"actions.value: expected {scenario.m} number(s) ({', '.join(scenario.action_names)}), "
-                             f"got {value!r}")
-        vals = tuple(float(v) for v in values)
-        if len(vals) != scenario.m:
-            raise ValueError(f"actions.value: expected {scenario.m} numbers ({', '.join(scenario.action_names)})")
-        for v, lo, hi, name in zip(vals, scenario.action_lower, scenario.action_upper, scenario.action_names):
-            if not lo <= v <= hi:
-                raise ValueError(f"actions.value: {name} = {v} outside Gamma; allowed range [{lo:g}, {hi:g}]")
+        vals = check_action(values, scenario, "actions.value")
         return ConstantActions(vals)
     if mode == "search":
         from scenarios.search import SearchActions  # it builds on this module

@@ -33,7 +33,8 @@ from scenarios.streams import PURPOSE_ACTION, RunStreams
 
 MAX_VERTEX_FAMILIES = 16  # Gamma's vertices get a family each up to this many (m <= 4)
 MAX_DWELL = 40  # steps: the longest bang-bang segment (log-uniform from 1)
-_FAMILY_CACHE = "search.family"  # per-run cache key in RunStreams (carried by subset())
+_FAMILY_CACHE = "search.family"  # per-run cache keys in RunStreams (carried by subset())
+_SWITCH_CACHE = "search.switching"
 
 
 @dataclass(frozen=True)
@@ -121,28 +122,34 @@ class SearchActions(ActionPolicy):
         return fam
 
     def __call__(self, scenario, states, t, streams):
-        fam = self.family_of(streams).astype(np.intp)
-        lower, span = scenario.action_lower, scenario.action_span
-        u = streams.uniform(t, PURPOSE_ACTION, scenario.m)
-        out = lower + span * u  # the uniform family's draw; other families overwrite rows
+        fam = self.family_of(streams).astype(np.intp)  # also caches the action stream's base
+        out = np.empty((len(fam), scenario.m))
         for k, family in enumerate(self.families):
-            rows = fam == k
-            if family.kind == "uniform" or not rows.any():
+            rows = np.flatnonzero(fam == k)
+            if len(rows) == 0:
                 continue
             if family.kind == "vertex":
                 out[rows] = family.vertex
+            elif family.kind == "uniform":  # only these runs draw: late rounds hold few of them
+                u = streams.subset(rows).uniform(t, PURPOSE_ACTION, scenario.m)
+                out[rows] = scenario.action_lower + scenario.action_span * u
             else:
-                out[rows] = self._bang_bang(scenario, streams, t)[rows]
+                out[rows] = self._bang_bang(scenario, streams, rows, t)
         return out
 
-    def _bang_bang(self, scenario, streams, t) -> np.ndarray:
-        head = streams.uniform(0, PURPOSE_ACTION, 3)
-        dwell = np.maximum(np.floor(np.exp(head[:, 1] * np.log(MAX_DWELL + 1))), 1.0)
-        phase = np.floor(head[:, 2] * dwell)
-        segment = ((t - 1 + phase) // dwell).astype(np.uint64)
-        out = np.empty((len(segment), scenario.m))
+    def _bang_bang(self, scenario, streams, rows, t) -> np.ndarray:
+        switching = streams._bases.get(_SWITCH_CACHE)
+        if switching is None:  # per run: dwell (steps) and phase, drawn once
+            head = streams.uniform(0, PURPOSE_ACTION, 3)
+            dwell = np.maximum(np.floor(np.exp(head[:, 1] * np.log(MAX_DWELL + 1))), 1.0)
+            switching = np.column_stack([dwell, np.floor(head[:, 2] * dwell)])
+            streams._bases[_SWITCH_CACHE] = switching  # (B, 2): subset() carries it with the rows
+        dwell, phase = switching[rows, 0], switching[rows, 1]
+        segment = ((t - 1 + phase) // dwell).astype(np.uint64) + np.uint64(1)
+        sub = streams.subset(rows)
+        out = np.empty((len(rows), scenario.m))
         for lane in range(scenario.m):
-            upper = streams.uniform_at(segment + np.uint64(1), PURPOSE_ACTION, lane) >= 0.5
+            upper = sub.uniform_at(segment, PURPOSE_ACTION, lane) >= 0.5
             out[:, lane] = np.where(upper, scenario.action_upper[lane], scenario.action_lower[lane])
         return out
 
