@@ -22,15 +22,16 @@ sys.path.insert(0, HERE)
 import numpy as np  # noqa: E402
 
 
-def campaign_config(workers: int, batch: int | None = None, depth: int | None = None, **quantify):
+def campaign_config(workers: int, batch: int | None = None, depth: int | None = None,
+                    backend: str = "slow_backend:SlowBackend", delta_min: float = 1.0):
     from farm import config as config_mod
 
     farm = {"executor": "ray", "workers": workers, "seed": 0}
     farm.update({k: v for k, v in (("batch_size", batch), ("pipeline_depth", depth)) if v})
     return config_mod.normalize({
-        "scenario": {"name": "lead-follow", "sv_policy": "idm", "backend": "slow_backend:SlowBackend"},
+        "scenario": {"name": "lead-follow", "sv_policy": "idm", "backend": backend},
         "actions": {"mode": "uniform"},
-        "quantify": {"delta0": 2.0, "delta_min": 1.0, "epsilon": 0.001, "beta": 0.1, "horizon": 50, **quantify},
+        "quantify": {"delta0": 2.0, "delta_min": delta_min, "epsilon": 0.001, "beta": 0.1, "horizon": 50},
         "farm": farm})
 
 
@@ -55,12 +56,14 @@ def run_campaign(cfg) -> dict:
     cpu0, t0 = time.process_time(), time.perf_counter()
     c = campaign.run()
     wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
-    busy = np.array([s["busy_s"] for s in ex.worker_stats()])
+    stats = ex.worker_stats()
+    busy = np.array([s["busy_s"] for s in stats])
     ex.close()
     from coordinator.results import result_hash
 
     return {"workers": farm.workers, "committed": c.committed, "wall_s": wall, "cpu_s": cpu, "startup_s": startup,
-            "rate": c.committed / wall, "idle": 1 - busy.mean() / wall, "hash": result_hash(*algo.result())}
+            "rate": c.committed / wall, "idle": 1 - busy.mean() / wall,
+            "worker_busy_s": float(busy.sum()), "hash": result_hash(*algo.result())}
 
 
 def main() -> None:

@@ -8,16 +8,17 @@ import subprocess
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-BENCHMARKS = ["bench_numpy.py", "bench_coordinator.py", "bench_campaign.py", "bench_ray.py", "bench_scaling.py",
-              "bench_sumo.py", "bench_sumo_ray.py"]
+BENCHMARKS = [["bench_numpy.py"], ["bench_coordinator.py"], ["bench_campaign.py"],
+              ["bench_campaign.py", "--delta-min", "0.125", "--no-certify"], ["bench_ray.py"],
+              ["bench_coordinator_cpu.py"], ["bench_scaling.py"], ["bench_sumo.py"], ["bench_sumo_ray.py"]]
 
 if __name__ == "__main__":
     failed = []
-    for name in BENCHMARKS:
+    for name, *args in BENCHMARKS:
         path = os.path.join(HERE, name)
         if not os.path.exists(path):
             continue
-        print(f"== {name}", flush=True)
-        if subprocess.run([sys.executable, path]).returncode != 0:
+        print(f"== {' '.join([name, *args])}", flush=True)
+        if subprocess.run([sys.executable, path, *args]).returncode != 0:
             failed.append(name)
     sys.exit(1 if failed else 0)

@@ -20,12 +20,16 @@ RESORT_SHARE = 0.1  # re-sort when the unsorted tail exceeds this share of the v
 
 
 class FailureDistances:
-    def __init__(self, lower: np.ndarray, upper: np.ndarray):
+    def __init__(self, lower: np.ndarray, upper: np.ndarray, track_lowered: bool = False):
+        """``track_lowered``: keep the ids whose distance fell (``take_lowered``)."""
+        self.track_lowered = track_lowered
         self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
         n = len(self.lower)
         self.per_axis = BUCKETS_PER_AXIS.get(n, 4)
-        self.dist = np.empty(0)
+        self._buffer = np.empty(0)  # distances of vertex ids, with room to grow
+        self.dist = self._buffer[:0]
         self.seen_vertices = 0
+        self.lowered: list[np.ndarray] = []  # ids whose distance fell, until taken (``take_lowered``)
         self.seen_failures = 0
         self._sorted = 0  # vertices [0, _sorted) are in the bucket structure
         self._order = np.empty(0, dtype=np.int64)
@@ -39,13 +43,18 @@ class FailureDistances:
             return np.full(vertex_count, np.inf)
         if self.seen_failures == 0:  # nothing known yet: every vertex is new
             self.seen_vertices = self._sorted = 0
-            self.dist = np.empty(0)
+            self.dist = self._buffer[:0]
         if failure_count > self.seen_failures and self.seen_vertices:
             for f in failures[self.seen_failures : failure_count]:
                 self._lower_by(points, f)
         if vertex_count > self.seen_vertices:
             d_new, _ = cKDTree(failures[:failure_count]).query(points[self.seen_vertices : vertex_count], p=np.inf)
-            self.dist = np.concatenate([self.dist[: self.seen_vertices], d_new])
+            if vertex_count > len(self._buffer):  # doubling: a copy per append cost O(vertices)
+                grown = np.empty(max(vertex_count, 2 * len(self._buffer)))
+                grown[: self.seen_vertices] = self.dist[: self.seen_vertices]
+                self._buffer = grown
+            self._buffer[self.seen_vertices : vertex_count] = d_new
+            self.dist = self._buffer[:vertex_count]
         self.seen_vertices, self.seen_failures = vertex_count, failure_count
         if vertex_count - self._sorted > max(RESORT_SHARE * vertex_count, 4096):
             self._sort(points)
@@ -72,7 +81,17 @@ class FailureDistances:
         gap = np.abs(points[ids, 0] - f[0])
         for axis in range(1, points.shape[1]):
             np.maximum(gap, np.abs(points[ids, axis] - f[axis]), out=gap)
-        self.dist[ids] = np.minimum(self.dist[ids], gap)
+        before = self.dist[ids]
+        fell = gap < before
+        self.dist[ids[fell]] = gap[fell]
+        if self.track_lowered:
+            self.lowered.append(ids[fell])
+
+    def take_lowered(self) -> np.ndarray:
+        """The ids whose distance fell since the last call (a sampler's dirty centres)."""
+        out = np.concatenate(self.lowered) if self.lowered else np.empty(0, dtype=np.int64)
+        self.lowered = []
+        return out
 
     def _sort(self, points: np.ndarray) -> None:
         count = self.seen_vertices

@@ -32,11 +32,32 @@ from coordinator.covering import Lattice
 from coordinator.graph import ExplorationForest
 from coordinator.priorities import FailureDistances
 from coordinator.replay import ReplayBuffer
+from coordinator.sampler import PrioritySampler
 from scenarios.base import Scenario
 from scenarios.streams import PURPOSE_START, RunStreams
 
 ALPHAS = {"identity": lambda x: x, "square": np.square, "sqrt": np.sqrt}
 REPLAY_CHUNK = 4096  # stored states per greedy pass in experience replay
+
+
+class _UniformPick:
+    """Uniform over ``ids``."""
+
+    def __init__(self, ids: np.ndarray):
+        self.ids = ids
+
+    def __call__(self, u: np.ndarray) -> np.ndarray:
+        return self.ids[np.minimum((u * len(self.ids)).astype(np.int64), len(self.ids) - 1)]
+
+
+class _CumulativePick:
+    """Over ``ids`` with the running sums ``cdf`` of their weights."""
+
+    def __init__(self, ids: np.ndarray, cdf: np.ndarray):
+        self.ids, self.cdf = ids, cdf
+
+    def __call__(self, u: np.ndarray) -> np.ndarray:
+        return self.ids[np.minimum(np.searchsorted(self.cdf, u * self.cdf[-1], side="right"), len(self.ids) - 1)]
 
 
 @dataclass(frozen=True)
@@ -75,7 +96,8 @@ class SPE(Algorithm):
         self.round = 0
         self._add_roots(self.lattice.box_centres(self.delta))
         self.replay = ReplayBuffer(settings.replay_capacity if settings.replay else 0, deterministic, scenario.n)
-        self._dist = FailureDistances(scenario.lower, scenario.upper)
+        self._dist = FailureDistances(scenario.lower, scenario.upper, track_lowered=settings.prioritized)
+        self._sampler = PrioritySampler(ALPHAS[settings.alpha])
         self._draw_cache: tuple | None = None
         self.certifying = False
         # deterministic certification: centres drawn in the current pass (not drawn again
@@ -100,7 +122,8 @@ class SPE(Algorithm):
         return self.delta <= self.settings.delta_min * (1 + 1e-12)
 
     def _weights(self, ids: np.ndarray) -> np.ndarray | None:
-        """Prioritized sampling: rho_i ~ alpha(d* - d_i), d_i = d(sigma_i, PhiBar)."""
+        """Prioritized sampling: rho_i ~ alpha(d* - d_i), d_i = d(sigma_i, PhiBar), over
+        ``ids`` in one array (the sampler's fallback, see ``_distribution``)."""
         if not self.settings.prioritized or self.failures.count == 0:
             return None
         dist = self._failure_distances()[ids]
@@ -118,6 +141,10 @@ class SPE(Algorithm):
         sigma-bar of the set's boundary toward failure. SPE's covering starts as all of
         Sigma, so that boundary is made of pruned regions (within delta of PhiBar) and
         of Sigma's failure facets; truncating facets are not of concern."""
+        near = self._near_boundary(ids)
+        return ids[near] if near.any() else ids
+
+    def _near_boundary(self, ids: np.ndarray) -> np.ndarray:
         reach = self.scenario.step_bound() + self.delta
         pts = self.vertices.points[ids]
         near = np.zeros(len(ids), dtype=bool)
@@ -126,7 +153,15 @@ class SPE(Algorithm):
                 near |= np.abs(pts[:, facet.axis] - facet.bound) <= reach
         if self.failures.count:
             near |= self._failure_distances()[ids] <= reach + self.delta
-        return ids[near] if near.any() else ids
+        return near
+
+    def _candidate(self, ids: np.ndarray) -> np.ndarray:
+        """May centre ``ids`` be drawn (prioritized sampling): alive, and in the band
+        near the boundary when ``boundary`` is on."""
+        ok = self.vertices.alive[ids]
+        if self.settings.boundary:
+            ok[ok] = self._near_boundary(ids[ok])
+        return ok
 
     def sampling_description(self) -> str:
         if self.certifying:
@@ -141,32 +176,38 @@ class SPE(Algorithm):
         return f"start states uniform over {where}"
 
     # -- ask ----------------------------------------------------------------------------
-    def _distribution(self) -> tuple[np.ndarray, np.ndarray | None]:
-        """The sampling distribution of the state as it is now: candidate vertex ids and
-        their cumulative weights (None: uniform). Cached per state version: in the long
-        quiet stretches that end a round, many batches are drawn from one version."""
+    def _distribution(self):
+        """The sampling distribution of the state as it is now: ``pick(u) -> vertex ids``
+        for uniform numbers u. Cached per state version: in the long quiet stretches
+        that end a round, many batches are drawn from one version.
+
+        Prioritized sampling keeps its weights up to date where the state changed
+        (coordinator/sampler.py); when they are all zero (every candidate at d*, or no
+        centre in the boundary band) rho is as ``_weights`` says over all candidates."""
         if self._draw_cache is not None and self._draw_cache[0] == self.version:
-            return self._draw_cache[1], self._draw_cache[2]
-        ids = self.vertices.alive_ids()
-        if len(ids) == 0:
+            return self._draw_cache[1]
+        if self.vertices.alive_count == 0:
             raise EmptySetError("the safe set is empty: every centre was pruned")
-        if self.settings.boundary:
-            ids = self._band(ids)
-        weights = self._weights(ids)
-        cdf = None if weights is None else np.cumsum(weights)
-        self._draw_cache = (self.version, ids, cdf)
-        return ids, cdf
+        pick = None
+        if self.settings.prioritized and self.failures.count:
+            dist = self._failure_distances()
+            self._sampler.touch(self._dist.take_lowered())
+            if self._sampler.refresh(dist, self.vertices.count, self._candidate) > 0:
+                pick = self._sampler.draw
+        if pick is None:
+            ids = self.vertices.alive_ids()
+            if self.settings.boundary:
+                ids = self._band(ids)
+            weights = self._weights(ids)
+            pick = _UniformPick(ids) if weights is None else _CumulativePick(ids, np.cumsum(weights))
+        self._draw_cache = (self.version, pick)
+        return pick
 
     def draw(self, streams: RunStreams) -> tuple[np.ndarray, np.ndarray]:
         if self.certifying:
             return self._draw_certification(streams)
-        ids, cdf = self._distribution()
-        u = streams.uniform(0, PURPOSE_START, 1)[:, 0]
-        if cdf is None:
-            pick = np.minimum((u * len(ids)).astype(np.int64), len(ids) - 1)
-        else:
-            pick = np.minimum(np.searchsorted(cdf, u * cdf[-1], side="right"), len(ids) - 1)
-        chosen = ids[pick]
+        pick = self._distribution()
+        chosen = pick(streams.uniform(0, PURPOSE_START, 1)[:, 0])
         return self.vertices.points[chosen].copy(), chosen
 
     def _draw_certification(self, streams: RunStreams) -> tuple[np.ndarray, np.ndarray]:
@@ -258,10 +299,16 @@ class SPE(Algorithm):
 
     def _prune(self, ids: np.ndarray) -> None:
         self.coverage.apply(Kill(ids), self.version)
+        self._sampler.touch(ids)
         self.certificates.invalidate(ids)
 
     def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray, starts: np.ndarray) -> None:
-        """Keep committed, non-failing runs for experience replay (coordinator/replay.py)."""
+        """Keep committed, non-failing runs for experience replay (coordinator/replay.py).
+        Runs of the final round (and of certification) are not kept: no round end
+        follows to replay them, and they are most of a campaign's runs (at delta_min
+        0.125 on lead-follow, 1.46 M of 1.81 M, whose trajectories took ~0.5 GB)."""
+        if self.final_round:
+            return
         self.replay.add(chunk, rows, start_ids, starts, self.vertices.count)
 
     # -- round end ---------------------------------------------------------------------
@@ -275,12 +322,15 @@ class SPE(Algorithm):
         children = self.lattice.children(centres, self.delta, new_delta)
         self.version += 1
         self.coverage.apply(Recell(new_delta), self.version)
+        self._sampler.invalidate()  # the boundary band's reach moves with delta
         if len(children):
             children = children[~self.failures.any_within(children, new_delta)]
         self._add_roots(children)
         self.round += 1
         if self.settings.replay and executor is not None:
             self._replay(executor)
+        if self.final_round:
+            self.replay.release()  # no round end follows: the stored states are not needed
         return True
 
     def _replay(self, executor) -> int:
@@ -330,5 +380,7 @@ class SPE(Algorithm):
         self._drawn[state["certification.drawn"]] = True
         self.certificates = Certificates.from_state(state)
         self.replay.load_state(state)
-        self._dist = FailureDistances(self.scenario.lower, self.scenario.upper)
+        self._dist = FailureDistances(self.scenario.lower, self.scenario.upper,
+                                      track_lowered=self.settings.prioritized)
+        self._sampler = PrioritySampler(ALPHAS[self.settings.alpha])
         self._draw_cache = None

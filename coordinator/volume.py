@@ -23,9 +23,12 @@ def _origin(centres: np.ndarray, h: float) -> np.ndarray:
     residue = np.round(np.mod(centres - h, 2 * h) / (2 * h) * 1e6).astype(np.int64)
     origin = np.empty(centres.shape[1])
     for axis in range(centres.shape[1]):
-        values, counts = np.unique(residue[:, axis], return_counts=True)
-        origin[axis] = values[np.argmax(counts)] / 1e6 * 2 * h
+        # the smallest most common residue (residues lie in [0, 1e6])
+        origin[axis] = np.argmax(np.bincount(residue[:, axis])) / 1e6 * 2 * h
     return origin
+
+
+CHUNK = 1 << 18  # boxes per pass: temporaries stay ~50 MB however large the set
 
 
 def union_volume(centres: np.ndarray, h: float, origin=None, bounds=None) -> float:
@@ -37,33 +40,66 @@ def union_volume(centres: np.ndarray, h: float, origin=None, bounds=None) -> flo
     n = centres.shape[1]
     side = 2 * h
     origin = _origin(centres, h) if origin is None else np.asarray(origin, dtype=float)
-    lo, hi = centres - h, centres + h
-    rel = (lo - origin) / side
-    base = np.floor(rel + 1e-9).astype(np.int64)
-    aligned = (np.abs(rel - np.round(rel)) < 1e-9).all(axis=1)
+    blo, bhi = (None, None) if bounds is None else (np.asarray(b, dtype=float) for b in bounds)
+    keys = _CellKeys(np.floor((centres.min(axis=0) - h - origin) / side).astype(np.int64) - 1,
+                     np.floor((centres.max(axis=0) - h - origin) / side).astype(np.int64) + 2)
+    # an aligned, unclipped box is exactly its cell: the cell is full, and it reaches
+    # into no other cell with positive volume; the other ("ragged") boxes are cut into
+    # pieces, one per cell they reach into
+    full_keys, ragged = [], []
+    for first in range(0, len(centres), CHUNK):
+        lo = centres[first : first + CHUNK] - h
+        rel = (lo - origin) / side
+        aligned = (np.abs(rel - np.round(rel)) < 1e-9).all(axis=1)
+        if bounds is not None:  # only unclipped boxes fill a cell
+            aligned &= ((lo >= blo - 1e-12) & (lo + side <= bhi + 1e-12)).all(axis=1)
+        full_keys.append(keys(np.round(rel[aligned]).astype(np.int64)))
+        ragged.append(first + np.flatnonzero(~aligned))
+    full_keys = np.sort(np.concatenate(full_keys))
+    full_keys = full_keys[np.r_[True, full_keys[1:] != full_keys[:-1]]] if len(full_keys) else full_keys
+    ragged = np.concatenate(ragged)
+    lo, hi = centres[ragged] - h, centres[ragged] + h
+    base = np.floor((lo - origin) / side + 1e-9).astype(np.int64)
     if bounds is not None:
-        blo, bhi = (np.asarray(b, dtype=float) for b in bounds)
-        aligned &= ((lo >= blo - 1e-12) & (hi <= bhi + 1e-12)).all(axis=1)  # only unclipped boxes fill a cell
         lo, hi = np.maximum(lo, blo), np.minimum(hi, bhi)
         keep = (hi - lo > 1e-12).all(axis=1)
-        lo, hi, base, aligned, rel = lo[keep], hi[keep], base[keep], aligned[keep], rel[keep]
-    full_cells = {tuple(c) for c in np.round(rel[aligned]).astype(np.int64)}
-    # every (box, cell) piece with the cell not full
-    pieces: dict[tuple, list[int]] = {}
-    for offset in itertools.product((0, 1), repeat=n):
-        cells = base + np.array(offset)
+        lo, hi, base = lo[keep], hi[keep], base[keep]
+    # every (box, cell) piece of a ragged box in a cell that is not full
+    piece_box, piece_key, piece_cell = [], [], []
+    for shift in itertools.product((0, 1), repeat=n):
+        cells = base + np.array(shift)
         cell_lo = origin + cells * side
         inter = (np.minimum(hi, cell_lo + side) - np.maximum(lo, cell_lo) > 1e-12).all(axis=1)
-        for box, cell in zip(np.nonzero(inter)[0], map(tuple, cells[inter])):
-            if cell not in full_cells:
-                pieces.setdefault(cell, []).append(box)
-    total = len(full_cells) * side**n
-    for cell, boxes in pieces.items():
-        cell_lo = origin + np.array(cell) * side
-        plo = np.maximum(lo[boxes], cell_lo)
-        phi = np.minimum(hi[boxes], cell_lo + side)
-        total += _compressed_union(plo, phi)
+        k = keys(cells[inter])
+        pos = np.minimum(np.searchsorted(full_keys, k), max(len(full_keys) - 1, 0))
+        open_ = ~(full_keys[pos] == k) if len(full_keys) else np.ones(len(k), dtype=bool)
+        piece_box.append(np.flatnonzero(inter)[open_])
+        piece_key.append(k[open_])
+        piece_cell.append(cells[inter][open_])
+    piece_box, piece_key, piece_cell = (np.concatenate(a) for a in (piece_box, piece_key, piece_cell))
+    order = np.argsort(piece_key, kind="stable")
+    piece_box, piece_key, piece_cell = piece_box[order], piece_key[order], piece_cell[order]
+    starts = np.flatnonzero(np.r_[True, piece_key[1:] != piece_key[:-1]]) if len(piece_key) else np.empty(0, int)
+    total = len(full_keys) * side**n
+    for first, end in zip(starts, np.r_[starts[1:], len(piece_key)]):
+        boxes = piece_box[first:end]
+        cell_lo = origin + piece_cell[first] * side
+        total += _compressed_union(np.maximum(lo[boxes], cell_lo), np.minimum(hi[boxes], cell_lo + side))
     return float(total)
+
+
+class _CellKeys:
+    """Integer cell coordinates (k, n) in [lowest, highest] -> one int64 key each."""
+
+    def __init__(self, lowest: np.ndarray, highest: np.ndarray):
+        self.lowest = lowest
+        span = highest - lowest + 1
+        if np.prod([float(s) for s in span]) >= 2.0**62:
+            raise ValueError("union_volume: more cells than int64 keys can name")
+        self.stride = np.cumprod(np.r_[1, span[:0:-1]])[::-1].astype(np.int64)
+
+    def __call__(self, cells: np.ndarray) -> np.ndarray:
+        return (cells - self.lowest) @ self.stride
 
 
 def _compressed_union(lo: np.ndarray, hi: np.ndarray) -> float:

@@ -38,7 +38,7 @@ from matplotlib.colors import to_rgba  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Patch, Rectangle  # noqa: E402
 
-from coordinator.spatial import PointIndex  # noqa: E402
+from coordinator.spatial import TOLERANCE, PointIndex  # noqa: E402
 
 RESOLUTION = 120  # grid points per axis of a slice
 HIDDEN_SAMPLES = 27  # failure figures: samples of the coordinates a plane hides (in all)
@@ -65,10 +65,48 @@ def _member(centres: np.ndarray, h: float, lower, upper=None) -> callable:
     centres = np.asarray(centres, dtype=float).reshape(-1, len(lower))
     if not len(centres) or h <= 0:  # an empty set (a zero cell would break the index)
         return lambda pts: np.zeros(len(pts), dtype=bool)
-    bounds = None if upper is None else (np.asarray(lower, float), np.asarray(upper, float))
-    index = PointIndex(centres.shape[1], 2 * h, lower, capacity=len(centres), bounds=bounds)
-    index.insert(centres)
-    return lambda pts: index.any_within(pts, h)
+    return _Membership(centres, h, lower, upper)
+
+
+class _Membership:
+    """Membership in a union of equal boxes, indexing only the boxes a query can meet.
+
+    A figure's query holds some coordinates at one value (a slice holds all but two):
+    only boxes within h of those values can contain its points, often a few percent of
+    a large set. The index over them is built on first use and kept per held values;
+    a full index (one over every box, ~130 bytes per box) is built only for a query that
+    holds nothing. The answers are those of one index over all boxes."""
+
+    def __init__(self, centres: np.ndarray, h: float, lower, upper=None, distinct: bool = False):
+        self.centres, self.h, self.distinct = centres, float(h), distinct
+        self.lower = np.asarray(lower, float)
+        self.bounds = None if upper is None else (self.lower, np.asarray(upper, float))
+        self._indexes: dict[tuple, PointIndex | None] = {}
+
+    def __call__(self, pts: np.ndarray) -> np.ndarray:
+        pts = np.atleast_2d(np.asarray(pts, dtype=float))
+        if not len(pts):
+            return np.zeros(0, dtype=bool)
+        first = pts[0]
+        held = tuple((a, float(first[a])) for a in range(pts.shape[1])
+                     if np.isfinite(first[a]) and (pts[:, a] == first[a]).all())
+        if held not in self._indexes:
+            self._indexes[held] = self._index(held)
+        index = self._indexes[held]
+        return index.any_within(pts, self.h) if index is not None else np.zeros(len(pts), dtype=bool)
+
+    def _index(self, held: tuple) -> PointIndex | None:
+        near = np.ones(len(self.centres), dtype=bool)
+        for axis, value in held:
+            near &= np.abs(self.centres[:, axis] - value) <= self.h + TOLERANCE
+        group = self.centres if near.all() else self.centres[near]
+        if self.distinct:
+            group = _distinct_rows(group)
+        if not len(group):
+            return None
+        index = PointIndex(group.shape[1], 2 * self.h, self.lower, capacity=len(group), bounds=self.bounds)
+        index.insert(group)
+        return index
 
 
 def _points(scenario, grids: dict[int, np.ndarray], fixed: dict[int, float]) -> np.ndarray:
@@ -186,14 +224,15 @@ def _distinct_rows(points: np.ndarray) -> np.ndarray:
 
 
 def _explored_member(explored, n: int) -> callable:
-    """Membership in the union of boxes of varying half-width (one index per width)."""
+    """Membership in the union of boxes of varying half-width (one index per width).
+    A campaign's starts repeat its vertices: duplicates are dropped before indexing."""
     points, widths = explored
     points = np.asarray(points, dtype=float).reshape(-1, n)
     widths = np.broadcast_to(np.asarray(widths, dtype=float), (len(points),))
     members = []
     for w in np.unique(widths[widths > 0]):
-        group = _distinct_rows(points[widths == w])
-        members.append(_member(group, float(w), group.min(axis=0)))
+        group = points[widths == w]
+        members.append(_Membership(group, float(w), group.min(axis=0), distinct=True))
     return lambda pts: np.logical_or.reduce([m(pts) for m in members] + [np.zeros(len(pts), dtype=bool)])
 
 
@@ -424,16 +463,6 @@ def slices_figure(scenario, centres, h, summary: dict, slices=None, explored=Non
 
 
 # -- campaign figures --------------------------------------------------------------------------
-def build_figures(scenario, centres: np.ndarray, h: float, summary: dict, explored=None) -> dict:
-    """File name -> Figure: the slices, and the 3-D surfaces if the scenario has views."""
-    figures = {}
-    surfaces = surface_figure(scenario, centres, h, summary)
-    if surfaces is not None:
-        figures[SURFACE_FILE] = surfaces
-    figures[SLICES_FILE] = slices_figure(scenario, centres, h, summary, explored=explored)
-    return figures
-
-
 def _save(fig, path: Path, dpi=100) -> Path:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -455,13 +484,20 @@ def draw(out_dir: Path, scenario, centres: np.ndarray, h: float, summary: dict, 
     False: draw safe / not safe only."""
     out_dir = Path(out_dir)
     centres = np.asarray(centres, dtype=float).reshape(-1, scenario.n)
+    written = []
+    # one figure at a time, the exploration record read only for the slices: at 1.8 M
+    # boxes each holds a few hundred MB that need not be held together
+    surfaces = surface_figure(scenario, centres, h, summary)
+    if surfaces is not None:
+        written.append(_save(surfaces, out_dir / SURFACE_FILE, dpi=110))
+    del surfaces
     if explored is None:
         campaign = _campaign_of(out_dir)
         explored = explored_boxes(campaign, scenario.state_names) if campaign is not None else None
     elif explored is False:
         explored = None
-    return [_save(fig, out_dir / name, dpi=110 if name == SURFACE_FILE else 100)
-            for name, fig in build_figures(scenario, centres, h, summary, explored).items()]
+    written.append(_save(slices_figure(scenario, centres, h, summary, explored=explored), out_dir / SLICES_FILE))
+    return written
 
 
 # -- overlay of several sets ----------------------------------------------------------------------

@@ -32,3 +32,19 @@ def test_distances_equal_the_brute_force_minimum_bit_for_bit_through_interleaved
             assert np.isinf(got).all()
             continue
         assert np.array_equal(got[: len(points)], brute(points, failures))
+
+
+def test_take_lowered_names_exactly_the_ids_whose_distance_fell():
+    rng = np.random.default_rng(11)
+    points = rng.uniform(0, 10, (5000, 2))
+    fd = FailureDistances(np.zeros(2), np.full(2, 10.0), track_lowered=True)
+    fd.update(points, len(points), rng.uniform(0, 10, (1, 2)), 1)
+    fd.take_lowered()
+    failures = rng.uniform(0, 10, (6, 2))
+    for k in range(2, 7):
+        before = fd.dist.copy()
+        after = fd.update(points, len(points), failures, k)
+        fell = np.flatnonzero(after < before)
+        assert len(fell) > 0
+        assert np.array_equal(np.unique(fd.take_lowered()), fell)
+    assert len(fd.take_lowered()) == 0

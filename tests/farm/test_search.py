@@ -125,7 +125,9 @@ def test_ray_gives_the_in_process_search_result(ray_local, in_process, tmp_path,
 
 
 def test_kill_9_mid_campaign_then_resume_gives_the_same_search(tmp_path):
-    (tmp_path / "c.toml").write_text(SEARCH_TOML)
+    # one round finer than SEARCH_TOML: ~6 s of campaign, so that it is still running
+    # when the kill comes (at delta_min 1 it can end within one status write)
+    (tmp_path / "c.toml").write_text(SEARCH_TOML.replace("delta_min = 1.0", "delta_min = 0.5"))
     whole = cli("quantify", str(tmp_path / "c.toml"), "--out", str(tmp_path / "whole"), "--quiet")
     assert whole.returncode == 0, whole.stderr
     out = tmp_path / "cut"
