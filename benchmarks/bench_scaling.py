@@ -53,15 +53,15 @@ def run_campaign(cfg) -> dict:
     startup = time.perf_counter() - t0
     campaign = Campaign(algo, ex, n_eps=n_eps(q.epsilon, q.beta), budget=q.budget, batch_size=farm.batch_size,
                         pipeline_depth=farm.pipeline_depth, seed=farm.seed)
-    cpu0, t0 = time.process_time(), time.perf_counter()
+    cpu0, main0, t0 = time.process_time(), time.thread_time(), time.perf_counter()
     c = campaign.run()
-    wall, cpu = time.perf_counter() - t0, time.process_time() - cpu0
+    wall, cpu, main_cpu = time.perf_counter() - t0, time.process_time() - cpu0, time.thread_time() - main0
     stats = ex.worker_stats()
     busy = np.array([s["busy_s"] for s in stats])
     ex.close()
     from coordinator.results import result_hash
 
-    return {"workers": farm.workers, "committed": c.committed, "wall_s": wall, "cpu_s": cpu, "startup_s": startup,
+    return {"workers": farm.workers, "committed": c.committed, "wall_s": wall, "cpu_s": cpu, "main_cpu_s": main_cpu, "startup_s": startup,
             "rate": c.committed / wall, "idle": 1 - busy.mean() / wall,
             "worker_busy_s": float(busy.sum()), "hash": result_hash(*algo.result())}
 

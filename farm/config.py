@@ -116,7 +116,11 @@ class QuantifyConfig(Section):
     prioritized: bool = _SPE.prioritized
     alpha: Literal["identity", "square", "sqrt"] = _SPE.alpha
     replay: bool = _SPE.replay
-    replay_capacity: Annotated[int, Field(ge=0, le=10**10)] = _SPE.replay_capacity
+    replay_capacity: Annotated[int, Field(ge=0, le=10**10, description=(
+        "visited states kept for experience replay, duplicates included: the bound on the replay buffer's "
+        "memory, n * 8 bytes per state where the states are held (the workers, or the process with the local "
+        "executor) and ~50 bytes per kept run on the coordinator; runs of the final round are not kept"))] = \
+        _SPE.replay_capacity
     boundary: bool = _SPE.boundary
     reachable: Literal["undirected", "ancestors"] = _SPE.reachable
     sides: bool | None = None

@@ -287,3 +287,23 @@ def test_failures_of_fleet3_get_one_panel_per_plane(tmp_path):
     assert [(ax.get_xlabel(), ax.get_ylabel()) for ax in visible_axes(fig)] == [("v0 [m/s]", "p10 [m]"),
                                                                                ("v0 [m/s]", "p20 [m]")]
     assert_png(plots.draw_failures(tmp_path / "f.png", sc, centres, h, [run]))
+
+
+def test_membership_indexing_only_boxes_a_query_can_meet_answers_as_one_full_index():
+    """Slices hold coordinates at one value, so only boxes near it are indexed; the
+    answers must be those of an index over every box, held or not, NaN or not."""
+    from coordinator.spatial import PointIndex
+
+    rng = np.random.default_rng(5)
+    lower, upper, h = np.zeros(3), np.full(3, 10.0), 0.25
+    centres = np.round(rng.uniform(0, 10, (20_000, 3)) / 0.5) * 0.5 + rng.choice([0, 0.1], (20_000, 1))
+    full = PointIndex(3, 2 * h, lower, bounds=(lower, upper))
+    full.insert(centres)
+    member = plots._member(centres, h, lower, upper)
+    xs = np.linspace(0, 10, 60)
+    for held in ({2: 5.0}, {2: 5.25}, {1: 3.1, 2: 7.0}, {}):
+        grid = {a: xs for a in range(3) if a not in held}
+        pts = plots._points(type("S", (), {"n": 3})(), grid, held)
+        pts[::97, 0] = np.nan  # a coordinate left unset is in no box
+        assert np.array_equal(member(pts), full.any_within(pts, h))
+    assert len(member._indexes) == 4 and 0 < member._indexes[((2, 5.0),)].count < len(centres) / 5

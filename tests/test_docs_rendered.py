@@ -1,0 +1,30 @@
+"""The docs whose tables come from an experiment's JSON are exactly what their renderer
+makes of it: an edit by hand, or a JSON re-run without re-rendering, fails here."""
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+RENDERED = {  # renderer -> the docs it writes
+    "convergence.py": ["convergence.md", "convergence_table.md"],
+    "figures.py": ["figures.md"],
+    "adversary.py": ["adversary.md"],
+    "reproduce.py": ["reproduction.md"],
+}
+
+
+@pytest.mark.parametrize("script", sorted(RENDERED))
+def test_rendered_docs_match_their_json(tmp_path, script):
+    # a copy of experiments/ and docs/: the renderers write next to themselves
+    shutil.copytree(ROOT / "experiments", tmp_path / "experiments")
+    shutil.copytree(ROOT / "docs", tmp_path / "docs")
+    r = subprocess.run([sys.executable, str(tmp_path / "experiments" / script), "--render"], capture_output=True,
+                       text=True, cwd=tmp_path, timeout=120)
+    assert r.returncode == 0, r.stderr
+    for doc in RENDERED[script]:
+        assert (tmp_path / "docs" / doc).read_text() == (ROOT / "docs" / doc).read_text(), (
+            f"docs/{doc} differs from `python experiments/{script} --render`")
