@@ -26,13 +26,17 @@ def main() -> None:
 
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--batch", type=int, help="farm.batch_size (default: the config default)")
+    ap.add_argument("--depth", type=int, help="farm.pipeline_depth (default: the config default)")
     args = ap.parse_args()
     ray.init(num_cpus=os.cpu_count(), include_dashboard=False, log_to_driver=False, configure_logging=False)
+    farm = campaign_config(2, args.batch, args.depth).farm
     print(f"machine: {os.cpu_count()} cores; Ray {ray.__version__}, local; lead-follow idm, uniform Gamma, "
-          f"delta 2 -> 0.5, numpy back end, 2 workers")
+          f"delta 2 -> 0.5, numpy back end, 2 workers, batch_size {farm.batch_size}, pipeline_depth "
+          f"{farm.pipeline_depth}")
     rates = []
     for _ in range(args.repeat):
-        r = run_campaign(campaign_config(2, backend="numpy", delta_min=0.5))
+        r = run_campaign(campaign_config(2, args.batch, args.depth, backend="numpy", delta_min=0.5))
         rates.append(r["committed"] / r["cpu_s"])
         print(f"{r['committed']:,} committed runs in {r['wall_s']:.1f} s wall, coordinator {r['cpu_s']:.2f} CPU-s "
               f"({r['main_cpu_s']:.2f} in its main thread, the rest Ray's own threads), workers busy "

@@ -49,13 +49,15 @@ def run_campaign(cfg) -> dict:
     algo = make_algorithm("spe", sim.scenario, q.settings(), farm.seed, sim.deterministic)
     t0 = time.perf_counter()
     ex = RayExecutor(spec, farm.workers, "local")
-    ex.pids()  # the actors are up
+    pids = ex.pids()  # the actors are up
     startup = time.perf_counter() - t0
+    workers_cpu0 = _cpu_seconds(pids)
     campaign = Campaign(algo, ex, n_eps=n_eps(q.epsilon, q.beta), budget=q.budget, batch_size=farm.batch_size,
                         pipeline_depth=farm.pipeline_depth, seed=farm.seed)
     cpu0, main0, t0 = time.process_time(), time.thread_time(), time.perf_counter()
     c = campaign.run()
     wall, cpu, main_cpu = time.perf_counter() - t0, time.process_time() - cpu0, time.thread_time() - main0
+    workers_cpu = _cpu_seconds(pids) - workers_cpu0
     stats = ex.worker_stats()
     busy = np.array([s["busy_s"] for s in stats])
     ex.close()
@@ -63,7 +65,19 @@ def run_campaign(cfg) -> dict:
 
     return {"workers": farm.workers, "committed": c.committed, "wall_s": wall, "cpu_s": cpu, "main_cpu_s": main_cpu, "startup_s": startup,
             "rate": c.committed / wall, "idle": 1 - busy.mean() / wall,
-            "worker_busy_s": float(busy.sum()), "hash": result_hash(*algo.result())}
+            "worker_busy_s": float(busy.sum()), "workers_cpu_s": workers_cpu, "hash": result_hash(*algo.result())}
+
+
+def _cpu_seconds(pids: list[int]) -> float:
+    """User + system CPU seconds of local processes so far (Linux /proc; NaN elsewhere)."""
+    total = 0.0
+    try:
+        for pid in pids:
+            fields = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()
+            total += (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return float("nan")
+    return total
 
 
 def main() -> None:
@@ -87,7 +101,8 @@ def main() -> None:
         hashes.add(r["hash"])
         print(f"{w:3d} workers: {r['rate']:9,.0f} committed runs/s  speed-up {r['rate'] / base:5.2f}x  "
               f"({r['committed']} runs in {r['wall_s']:.1f} s; worker idle {r['idle']:.2f}; coordinator "
-              f"{r['committed'] / max(r['cpu_s'], 1e-9):,.0f} runs per CPU-s; actors up in {r['startup_s']:.1f} s)",
+              f"{r['committed'] / max(r['cpu_s'], 1e-9):,.0f} runs per CPU-s; workers' CPU "
+              f"{r['workers_cpu_s'] / r['wall_s']:.2f} cores; actors up in {r['startup_s']:.1f} s)",
               flush=True)
     print(f"same result for every worker count: {len(hashes) == 1}")
     ray.shutdown()
