@@ -48,7 +48,7 @@ def run_campaign(cfg) -> dict:
     q, farm = cfg.quantify, cfg.farm
     algo = make_algorithm("spe", sim.scenario, q.settings(), farm.seed, sim.deterministic)
     t0 = time.perf_counter()
-    ex = RayExecutor(spec, farm.workers, "local")
+    ex = RayExecutor(spec, farm.workers, "local", pipeline_depth=farm.pipeline_depth)
     pids = ex.pids()  # the actors are up
     startup = time.perf_counter() - t0
     workers_cpu0 = _cpu_seconds(pids)

@@ -264,7 +264,7 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
         if (Path(out) / "certificate.json").exists() and not force:
             raise CampaignError(f"{out}/certificate.json exists; pass --force to replace it")
     executor = make_executor(farm.executor, spec, farm.workers, farm.address, farm.max_retries,
-                             check_step_bound=v.boundary)
+                             check_step_bound=v.boundary, pipeline_depth=farm.pipeline_depth)
     try:
         result = run_validation(domain, p, executor, seed=farm.seed, delta=v.delta, batch_size=farm.batch_size,
                                 pipeline_depth=farm.pipeline_depth, progress=progress)

@@ -189,7 +189,7 @@ class Part:
         with stop_on_signals(self.campaign):
             t0 = time.monotonic()
             executor = make_executor(farm.executor, self.spec, farm.workers, farm.address, farm.max_retries,
-                                     check_step_bound=self.cfg.quantify.boundary)
+                                     check_step_bound=self.cfg.quantify.boundary, pipeline_depth=farm.pipeline_depth)
             self.startup_s = time.monotonic() - t0
             if farm.executor == "ray":
                 self.progress.line(f"Ray ({farm.address}) up with {farm.workers} workers in {self.startup_s:.1f} s")

@@ -193,7 +193,9 @@ class RayExecutor:
     name = "ray"
 
     def __init__(self, spec: SimSpec, workers: int, address: str = "local", max_retries: int = 3,
-                 check_step_bound: bool = False):
+                 check_step_bound: bool = False, pipeline_depth: int = 1):
+        """``pipeline_depth``: batches the caller keeps in flight (farm.pipeline_depth);
+        it decides only how batches are cut into chunks, never a result."""
         import ray
 
         connect(address, workers)
@@ -201,6 +203,7 @@ class RayExecutor:
         self.spec = spec
         self.workers = workers
         self.max_retries = max_retries
+        self.pipeline_depth = max(1, int(pipeline_depth))
         # More workers than CPUs (a test asking for 4 on a 2-core Ray) share the CPUs
         # instead of waiting forever for a free one.
         cpus = float(ray.cluster_resources().get("CPU", workers))
@@ -271,7 +274,10 @@ class RayExecutor:
         # driver a Ray call (~1-2 ms) for little simulation, and a worker its per-step
         # overhead for few runs; more workers are kept busy by more runs in flight
         # (farm.batch_size x farm.pipeline_depth), not by thinner chunks
-        parts = min(self.workers, max(1, len(starts) // MIN_CHUNK))
+        # ``pipeline_depth`` batches are in flight: cutting each into workers / depth
+        # chunks keeps every worker busy with the fewest Ray calls (2 workers at depth 2:
+        # one chunk per batch, half the calls per run of one chunk per worker)
+        parts = min(self.workers, -(-self.workers // self.pipeline_depth), max(1, len(starts) // MIN_CHUNK))
         for rows in np.array_split(np.arange(len(starts)), parts):
             if len(rows) == 0:
                 continue
@@ -391,9 +397,9 @@ class RayExecutor:
 
 
 def make_executor(kind: str, spec: SimSpec, workers: int, address: str, max_retries: int,
-                  check_step_bound: bool = False):
+                  check_step_bound: bool = False, pipeline_depth: int = 1):
     if kind == "ray":
-        return RayExecutor(spec, workers, address, max_retries, check_step_bound)
+        return RayExecutor(spec, workers, address, max_retries, check_step_bound, pipeline_depth)
     from farm.executors import LocalExecutor
 
     return LocalExecutor(spec, check_step_bound)

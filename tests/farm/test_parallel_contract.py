@@ -21,9 +21,10 @@ def contract_config(executor="local", workers=2, **quantify):
 
 @pytest.fixture(autouse=True)
 def chunk_per_worker(monkeypatch):
-    """Cut every batch into one chunk per worker, however small (MIN_CHUNK keeps real
-    chunks >= 256 runs): these campaigns' 128-run batches then arrive in several chunks,
-    out of order, which is what the index-order commit must get right."""
+    """Cut batches into chunks however small (MIN_CHUNK keeps real chunks >= 256 runs):
+    with 4 workers and 3 batches in flight these campaigns' 128-run batches then arrive
+    in 2 chunks each, 6 chunks over 4 workers, out of order, which is what the
+    index-order commit must get right."""
     from farm import ray_executor
 
     monkeypatch.setattr(ray_executor, "MIN_CHUNK", 1)
@@ -127,8 +128,9 @@ def test_an_exception_in_a_scenario_names_the_sample_and_does_not_hang(ray_local
 
 def test_batches_are_cut_into_chunks_of_at_least_min_chunk_runs(ray_local, monkeypatch):
     """More workers than a batch has MIN_CHUNK-run slices: the batch is cut into fewer,
-    larger chunks (a Ray call per 20 runs cost more than it simulated); results are the
-    same either way (the test above)."""
+    larger chunks (a Ray call per 20 runs cost more than it simulated), and into workers /
+    pipeline_depth chunks when that many batches are in flight; results are the same
+    either way (the test above)."""
     from farm import ray_executor
     from farm.quantification import spec_of
 
@@ -142,5 +144,9 @@ def test_batches_are_cut_into_chunks_of_at_least_min_chunk_runs(ray_local, monke
         assert [len(c) for c in chunks] == [334, 333, 333]  # 1000 // 256 = 3 chunks, not 4
         assert [c.first_index for c in chunks] == [0, 334, 667]
         assert len(ex.submit(0, starts[:100])) == 1  # a short batch is one chunk
+        # with 2 batches in flight, 4 workers are kept busy by 2 chunks per batch
+        ex.pipeline_depth = 2
+        chunks = [ex.result(h) for h in ex.submit(0, starts)]
+        assert [len(c) for c in chunks] == [500, 500] and [c.first_index for c in chunks] == [0, 500]
     finally:
         ex.close()
