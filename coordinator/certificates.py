@@ -12,16 +12,16 @@ without re-running what a change did not touch.
 Cost: a campaign at delta_min = 0.125 certifies ~1.8 M centres with ~20 M witnesses and
 prunes thousands of times, so nothing here is proportional to all entries per call:
 entries append into growing buffers, and a prune finds the entries that named a killed
-centre through a reverse index (witness -> entries) rebuilt when the entries appended
-since its last build outnumber those it covers (amortized O(log) per witness).
+centre through a reverse index (witness -> entries) kept as a few sorted runs of
+doubling size (the logarithmic method: a new run merges with the last while that is
+no larger, so a witness is merged O(log W) times; a lookup is a binary search per run). It replaced one index rebuilt only when the entries appended since outnumbered
+those it covered, with a linear scan of those for every prune: 120 s of a 190 s
+campaign at delta_min 0.125.
 """
 
 from __future__ import annotations
 
 import numpy as np
-
-
-REBUILD_MIN = 65536  # witnesses: below this a linear scan of the tail is as cheap
 
 
 class _Buffer:
@@ -54,9 +54,7 @@ class Certificates:
         self._witness = _Buffer(np.int64)  # (W,)
         self._valid = _Buffer(bool)  # (E,) every witness alive since the entry was made
         self._count = np.zeros(0, dtype=np.int64)  # vertex -> valid entries certifying it
-        self._rev_start = np.zeros(1, dtype=np.int64)  # reverse index over witnesses [0, _rev_w)
-        self._rev_entry = np.zeros(0, dtype=np.int64)
-        self._rev_w = 0
+        self._reverse = _SortedRuns()  # witness -> entries naming it
 
     @property
     def vertex(self) -> np.ndarray:
@@ -76,7 +74,10 @@ class Certificates:
         self._vertex.extend(vertices)
         self._offsets.extend(self._offsets.view[-1] + witness_offsets[1:])
         self._witness.extend(witnesses)
+        first_entry = self._valid.size
         self._valid.extend(np.ones(len(vertices), dtype=bool))
+        entry = first_entry + np.repeat(np.arange(len(vertices)), np.diff(witness_offsets))
+        self._reverse.add(np.asarray(witnesses, dtype=np.int64), entry)
         top = int(vertices.max()) + 1
         if len(self._count) < top:
             self._count = np.concatenate([self._count, np.zeros(max(top, 2 * len(self._count)) - len(self._count),
@@ -90,40 +91,10 @@ class Certificates:
         killed = np.asarray(killed, dtype=np.int64)
         if len(killed) == 0 or self._witness.size == 0:
             return
-        self._refresh_reverse()
-        hit = [self._entries_naming(killed)]
-        recent = self._witness.view[self._rev_w :]
-        if len(recent):
-            mark = np.zeros(max(int(recent.max()), int(killed.max())) + 1, dtype=bool)
-            mark[killed] = True
-            pos = self._rev_w + np.flatnonzero(mark[recent])
-            hit.append(np.searchsorted(self._offsets.view, pos, side="right") - 1)
-        entries = np.unique(np.concatenate(hit))
+        entries = np.unique(self._reverse.find(np.unique(killed)))
         entries = entries[self._valid.view[entries]]
         self._valid.view[entries] = False
         np.subtract.at(self._count, self._vertex.view[entries], 1)
-
-    def _entries_naming(self, killed: np.ndarray) -> np.ndarray:
-        killed = killed[killed < len(self._rev_start) - 1]
-        lo, hi = self._rev_start[killed], self._rev_start[killed + 1]
-        counts = hi - lo
-        if counts.sum() == 0:
-            return np.zeros(0, dtype=np.int64)
-        starts = np.repeat(lo - np.cumsum(counts) + counts, counts)
-        return self._rev_entry[starts + np.arange(int(counts.sum()))]
-
-    def _refresh_reverse(self) -> None:
-        """Rebuild witness -> entries once the uncovered tail outgrows the covered part."""
-        w = self._witness.size
-        if w - self._rev_w <= max(self._rev_w, REBUILD_MIN):
-            return
-        witness = self._witness.view
-        entry = np.repeat(np.arange(self._vertex.size), np.diff(self._offsets.view))
-        order = np.argsort(witness, kind="stable")
-        self._rev_entry = entry[order]
-        self._rev_start = np.zeros(int(witness.max()) + 2, dtype=np.int64)
-        np.cumsum(np.bincount(witness, minlength=len(self._rev_start) - 1), out=self._rev_start[1:])
-        self._rev_w = w
 
     # -- persistence ----------------------------------------------------------------------
     def state(self) -> dict[str, np.ndarray]:
@@ -138,6 +109,56 @@ class Certificates:
             out._offsets = _Buffer(np.int64, state["cert.offsets"])
             out._witness = _Buffer(np.int64, state["cert.witness"])
             out._valid = _Buffer(bool, state["cert.valid"].astype(bool))
+            entry = np.repeat(np.arange(out._vertex.size), np.diff(out._offsets.view))
+            out._reverse.add(out._witness.view, entry)
             valid_vertices = out._vertex.view[out._valid.view]
             out._count = np.bincount(valid_vertices, minlength=int(out._vertex.view.max()) + 1).astype(np.int64)
         return out
+
+
+class _SortedRuns:
+    """A multimap key -> values as sorted runs of doubling size. Keys (vertex ids) and
+    values (entry ids) are stored as int32: half the memory of ~20 M pairs."""
+
+    def __init__(self):
+        self.runs: list[tuple[np.ndarray, np.ndarray]] = []  # (sorted keys, their values)
+
+    def add(self, keys: np.ndarray, values: np.ndarray) -> None:
+        if len(keys) == 0:
+            return
+        if max(int(keys.max()), int(values.max())) >= 2**31:
+            raise OverflowError("certificates: more than 2^31 centres or entries")
+        keys, values = keys.astype(np.int32), values.astype(np.int32)
+        order = np.argsort(keys, kind="stable")
+        self.runs.append((keys[order], values[order]))
+        while len(self.runs) > 1 and len(self.runs[-2][0]) <= len(self.runs[-1][0]):  # a binary counter
+            (k1, v1), (k2, v2) = self.runs.pop(), self.runs.pop()
+            self.runs.append(_merge(k2, v2, k1, v1))
+
+    def find(self, keys: np.ndarray) -> np.ndarray:
+        """Every value stored under one of ``keys`` (sorted, unique)."""
+        found = []
+        keys = keys[keys < 2**31].astype(np.int32)  # searching int32 runs by int64 would copy them
+        for run_keys, run_values in self.runs:
+            lo = np.searchsorted(run_keys, keys, side="left")
+            hi = np.searchsorted(run_keys, keys, side="right")
+            counts = hi - lo
+            total = int(counts.sum())
+            if total:
+                starts = np.repeat(lo - np.cumsum(counts) + counts, counts)
+                found.append(run_values[starts + np.arange(total)])
+        return np.concatenate(found).astype(np.int64) if found else np.zeros(0, dtype=np.int64)
+
+
+def _merge(k_old, v_old, k_new, v_new) -> tuple[np.ndarray, np.ndarray]:
+    """Two sorted runs as one, older pairs first among equal keys. Placing the newer
+    run by binary search needs ~14 bytes per pair at the peak; an argsort of the two
+    concatenated needed ~24 (its int64 order alone 8), ~0.5 GB more at 20 M pairs."""
+    n = len(k_old) + len(k_new)
+    at_new = np.searchsorted(k_old, k_new, side="right") + np.arange(len(k_new))
+    old = np.ones(n, dtype=bool)
+    old[at_new] = False
+    keys, values = np.empty(n, dtype=k_old.dtype), np.empty(n, dtype=v_old.dtype)
+    keys[at_new], values[at_new] = k_new, v_new
+    keys[old], values[old] = k_old, v_old
+    return keys, values
