@@ -299,7 +299,8 @@ class SPE(Algorithm):
 
     def _prune(self, ids: np.ndarray) -> None:
         self.coverage.apply(Kill(ids), self.version)
-        self._sampler.touch(ids)
+        if self.settings.prioritized:  # the sampler's blocks holding them are summed again
+            self._sampler.touch(ids)
         self.certificates.invalidate(ids)
 
     def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray, starts: np.ndarray) -> None:
