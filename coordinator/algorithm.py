@@ -132,7 +132,11 @@ def uniform_pick(ids: np.ndarray, streams: RunStreams) -> np.ndarray:
     """One of ``ids`` per stream, uniformly, from each run's start stream."""
     if len(ids) == 0:
         raise EmptySetError("the safe set is empty: every centre was pruned")
-    u = streams.uniform(0, PURPOSE_START, 1)[:, 0]
+    return uniform_index(ids, streams.uniform(0, PURPOSE_START, 1)[:, 0])
+
+
+def uniform_index(ids: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """One of ``ids`` per uniform number u in [0, 1), uniformly."""
     return ids[np.minimum((u * len(ids)).astype(np.int64), len(ids) - 1)]
 
 

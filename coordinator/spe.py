@@ -22,10 +22,11 @@ Certification then starts again, so the set exported is the one the last one pas
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
-from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered, uniform_pick
+from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered, uniform_index, uniform_pick
 from coordinator.certificates import Certificates
 from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell, Strict
 from coordinator.covering import Lattice
@@ -40,24 +41,9 @@ ALPHAS = {"identity": lambda x: x, "square": np.square, "sqrt": np.sqrt}
 REPLAY_CHUNK = 4096  # stored states per greedy pass in experience replay
 
 
-class _UniformPick:
-    """Uniform over ``ids``."""
-
-    def __init__(self, ids: np.ndarray):
-        self.ids = ids
-
-    def __call__(self, u: np.ndarray) -> np.ndarray:
-        return self.ids[np.minimum((u * len(self.ids)).astype(np.int64), len(self.ids) - 1)]
-
-
-class _CumulativePick:
-    """Over ``ids`` with the running sums ``cdf`` of their weights."""
-
-    def __init__(self, ids: np.ndarray, cdf: np.ndarray):
-        self.ids, self.cdf = ids, cdf
-
-    def __call__(self, u: np.ndarray) -> np.ndarray:
-        return self.ids[np.minimum(np.searchsorted(self.cdf, u * self.cdf[-1], side="right"), len(self.ids) - 1)]
+def _cumulative_index(ids: np.ndarray, cdf: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """One of ``ids`` per uniform number u, by the running sums ``cdf`` of their weights."""
+    return ids[np.minimum(np.searchsorted(cdf, u * cdf[-1], side="right"), len(ids) - 1)]
 
 
 @dataclass(frozen=True)
@@ -186,9 +172,7 @@ class SPE(Algorithm):
         centre in the boundary band) rho is as ``_weights`` says over all candidates."""
         if self._draw_cache is not None and self._draw_cache[0] == self.version:
             return self._draw_cache[1]
-        if self.vertices.alive_count == 0:
-            raise EmptySetError("the safe set is empty: every centre was pruned")
-        pick = None
+        pick = None  # a positive total weight implies an alive centre
         if self.settings.prioritized and self.failures.count:
             dist = self._failure_distances()
             self._sampler.touch(self._dist.take_lowered())
@@ -196,10 +180,13 @@ class SPE(Algorithm):
                 pick = self._sampler.draw
         if pick is None:
             ids = self.vertices.alive_ids()
+            if len(ids) == 0:
+                raise EmptySetError("the safe set is empty: every centre was pruned")
             if self.settings.boundary:
                 ids = self._band(ids)
             weights = self._weights(ids)
-            pick = _UniformPick(ids) if weights is None else _CumulativePick(ids, np.cumsum(weights))
+            pick = partial(uniform_index, ids) if weights is None else partial(_cumulative_index, ids,
+                                                                                 np.cumsum(weights))
         self._draw_cache = (self.version, pick)
         return pick
 

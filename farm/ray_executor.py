@@ -270,14 +270,13 @@ class RayExecutor:
         # Ray restarted from its constructor needs nothing else
         self._actions = actions
         handles = []
-        # one chunk per worker, but none under MIN_CHUNK runs: a smaller chunk costs the
-        # driver a Ray call (~1-2 ms) for little simulation, and a worker its per-step
-        # overhead for few runs; more workers are kept busy by more runs in flight
-        # (farm.batch_size x farm.pipeline_depth), not by thinner chunks
-        # ``pipeline_depth`` batches are in flight: cutting each into workers / depth
-        # chunks keeps every worker busy with the fewest Ray calls (2 workers at depth 2:
-        # one chunk per batch, half the calls per run of one chunk per worker)
-        parts = min(self.workers, -(-self.workers // self.pipeline_depth), max(1, len(starts) // MIN_CHUNK))
+        # ``pipeline_depth`` batches are in flight: workers / depth chunks per batch keep
+        # every worker busy with the fewest Ray calls (2 workers at depth 2: one chunk per
+        # batch). None under MIN_CHUNK runs: a smaller chunk costs the driver a Ray call
+        # (~1-2 ms) for little simulation, and a worker its per-step overhead for few
+        # runs; more workers are kept busy by more runs in flight (farm.batch_size x
+        # farm.pipeline_depth), not by thinner chunks
+        parts = min(-(-self.workers // self.pipeline_depth), max(1, len(starts) // MIN_CHUNK))
         for rows in np.array_split(np.arange(len(starts)), parts):
             if len(rows) == 0:
                 continue
