@@ -41,6 +41,11 @@ class Event:
     start_id: int  # the vertex it was drawn from
     failed: bool
     states: np.ndarray  # (s, n) its visited states that can be new now, in time order
+    # what the screening already knows of ``states`` at the current state (None: ask the
+    # coverage): (s,) not within delta of an alive centre, and (s,) uncovered but within
+    # delta of a failure (None in strict mode, where the screening does not excuse them)
+    uncovered: np.ndarray | None = None
+    near_failure: np.ndarray | None = None
 
 
 class Algorithm(ABC):

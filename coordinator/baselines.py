@@ -94,7 +94,10 @@ class AdaptiveExploration(_CoverageOnly):
             fresh.apply(Insert(self._sigma0(RunStreams.of(self.seed, [event.index]))), 0)
             self._replace(fresh)
             return "restarted"
-        states = event.states[~self.vertices.any_within(event.states, self.delta)]
+        uncovered = event.uncovered
+        if uncovered is None:
+            uncovered = ~self.vertices.any_within(event.states, self.delta)
+        states = event.states[uncovered]
         self.coverage.apply(Insert(states[greedy_uncovered(states, self.delta)]), self.version)
         return "explored"
 

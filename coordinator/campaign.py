@@ -200,7 +200,7 @@ class Campaign:
             if ended or pos == k:
                 break
             event = Event(chunk.first_index + pos, starts[pos], int(ids[pos]), bool(chunk.outcomes[pos] == FAILURE),
-                          rescreen.candidates(pos))
+                          rescreen.candidates(pos), *rescreen.classification(pos))
             algo.apply(event)
             self._maybe_record(chunk, pos, starts[pos])
             changed[pos] = True

@@ -224,6 +224,8 @@ class Rescreen:
         self.visited = visited  # () -> (states, offsets): the chunk's visited states, fetched on demand
         self._full = np.zeros(len(screening), dtype=bool)  # rows to re-screen from all their states
         self._checked_kills = -2  # kill seq up to which the witnesses were checked
+        self._known: tuple | None = None  # (row, epoch, seq, uncovered, near) of the last event found
+        self._block: tuple | None = None  # the last classification (uncovered, near, offsets)
 
     def next_event(self, lo: int, allowed: np.ndarray | None = None) -> int:
         """The first run at or after ``lo`` that changes the state now (the chunk's
@@ -249,7 +251,7 @@ class Rescreen:
             rows = candidates[at : at + block]
             changes = self._changes(rows)
             if changes.any():
-                return int(rows[np.argmax(changes)])
+                return self._found(rows, int(np.argmax(changes)))
             at, block = at + block, min(4 * block, 256)
         return k
 
@@ -269,6 +271,21 @@ class Rescreen:
         sc = self.screening
         return sc.explore_states[sc.explore_offsets[row] : sc.explore_offsets[row + 1]]
 
+    def classification(self, row: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """(uncovered, near_failure) of ``candidates(row)`` now, as ``Event`` takes them,
+        when the screening already knows them: the event was just found by classifying
+        them, or the chunk was screened at the current state (its explore states are
+        uncovered and not near a failure there). (None, None) otherwise; near_failure is
+        None in strict mode (the screening does not excuse a state near a failure)."""
+        cov, sc = self.coverage, self.screening
+        strict = cov.strict
+        if self._known is not None and self._known[:3] == (row, cov.epoch, cov.seq):
+            return self._known[3], None if strict else self._known[4]
+        if sc.epoch == cov.epoch and sc.seq == cov.seq and not self._full[row]:
+            m = int(sc.explore_offsets[row + 1] - sc.explore_offsets[row])
+            return np.ones(m, dtype=bool), None if strict else np.zeros(m, dtype=bool)
+        return None, None
+
     def _mark_dead_witnesses(self, lo: int) -> None:
         sc = self.screening
         offsets = sc.witness_offsets[lo:]
@@ -280,14 +297,28 @@ class Rescreen:
         self._checked_kills = self.coverage.kill_seq
 
     def _changes(self, rows: np.ndarray) -> np.ndarray:
-        """(len(rows),) bool: these runs change the state now (one classification)."""
+        """(len(rows),) bool: these runs change the state now (one classification, kept
+        for ``classification``)."""
         failed = self.outcomes[rows] == FAILURE
         parts = [self.candidates(int(r)) if not f else np.empty((0, self.coverage.n))
                  for r, f in zip(rows, failed)]
         states = np.concatenate(parts)
         if len(states) == 0:
+            self._block = None
             return failed
         witness, near = self.coverage.classify_states(states)
         new = (witness < 0) & ~near
-        run = np.repeat(np.arange(len(rows)), [len(p) for p in parts])
+        lengths = [len(p) for p in parts]
+        run = np.repeat(np.arange(len(rows)), lengths)
+        self._block = (witness < 0, near, np.concatenate([[0], np.cumsum(lengths)]))
         return failed | (np.bincount(run[new], minlength=len(rows)) > 0)
+
+    def _found(self, rows: np.ndarray, at: int) -> int:
+        """Run ``rows[at]`` changes the state: keep what its classification found."""
+        row, cov = int(rows[at]), self.coverage
+        self._known = None
+        if self._block is not None and self.outcomes[row] != FAILURE:  # a failure's states were not classified
+            uncovered, near, offsets = self._block
+            sl = slice(offsets[at], offsets[at + 1])
+            self._known = (row, cov.epoch, cov.seq, uncovered[sl], near[sl])
+        return row

@@ -272,8 +272,11 @@ class SPE(Algorithm):
             self._prune(self.graph.reachable(event.start_id, self.settings.reachable))
             return "pruned"
         states = event.states
-        new = ~self.vertices.any_within(states, self.delta)
-        new[new] = ~self.failures.any_within(states[new], self.delta)
+        new = event.uncovered.copy() if event.uncovered is not None else ~self.vertices.any_within(states, self.delta)
+        if event.near_failure is not None:
+            new &= ~event.near_failure
+        else:
+            new[new] = ~self.failures.any_within(states[new], self.delta)
         candidates = states[new]
         if self.certifying and len(candidates) == 0:
             # it left the set only toward known failures: its start's box is not invariant

@@ -2,13 +2,14 @@
 libsumo simulation per actor process) and a mirror of the coverage its runs are
 screened against.
 
-A batch is cut into one chunk per worker, so that even a pipeline depth of 1 keeps
-every worker busy; chunks go to the actor with the fewest chunks queued. With each chunk
-goes what its actor's mirror lacks: the coverage changes since the version the actor
-was last sent (put in the object store once, shared by every actor that needs the same
-range), or a whole snapshot for a new or restarted actor. A chunk returns two objects:
-a small per-run summary (outcome, length, screening), which comes back to the driver,
-and the visited states, which stay in the worker node's object store until the driver
+A batch is cut into workers / pipeline_depth chunks (of MIN_CHUNK runs at least), so
+that the batches in flight keep every worker busy; chunks go to the actor with the fewest
+chunks queued. With each chunk goes what its actor's mirror lacks: the coverage changes
+since the version the actor was last sent (small blocks inside the call, large ones put
+in the object store once and shared by every actor that needs the same range), or a whole
+snapshot for a new or restarted actor. A chunk returns two objects: a small per-run
+summary (outcome, length, screening), which comes back to the driver, and the visited
+states, which stay in the worker node's object store until the driver
 asks for them (re-screening, experience replay, recordings) or drops them.
 
 An actor whose process dies is restarted by Ray and its chunk retried on another actor
@@ -28,7 +29,7 @@ import time
 
 import numpy as np
 
-from coordinator.coverage import Coverage
+from coordinator.coverage import Coverage, Reset
 from coordinator.executor import Chunk, chunk_of, screen_piece, summarize
 from farm.executors import build_simulator
 from scenarios.simulator import SimSpec
@@ -38,6 +39,17 @@ STORED_PART = 4096  # runs per replay task when a stored piece must be re-simula
 
 
 MIN_CHUNK = 256  # runs: the smallest chunk a batch is cut into for a worker
+INLINE_BYTES = 1 << 16  # change blocks up to this size travel inside the task call
+
+
+def _nbytes(changes) -> int:
+    """Array bytes of logged coverage changes (a whole-coverage Reset counts as large)."""
+    total = 0
+    for _, _, change in changes:
+        if isinstance(change, Reset):
+            return INLINE_BYTES + 1
+        total += sum(v.nbytes for v in vars(change).values() if isinstance(v, np.ndarray))
+    return total
 
 
 class WorkerError(RuntimeError):
@@ -82,13 +94,13 @@ def _actor_class():
             if kind == "snapshot":  # a whole coverage, as plain arrays
                 self.mirror = Coverage.from_state(ray.get(payload))
                 return self.mirror
-            # "changes": refs of change blocks holding every change after number ``base``
+            # "changes": change blocks (inline, or refs) holding every change after number ``base``
             # (a mirror ahead of base skips what it has: the chunk that took it there may
             # have been cancelled, or not)
             if self.mirror is None or self.mirror.seq < base:
                 return RESYNC
-            for block in ray.get(payload):
-                self.mirror.sync(block)
+            for block in payload:
+                self.mirror.sync(ray.get(block) if isinstance(block, ray.ObjectRef) else block)
             return self.mirror
 
         def replay_screen(self, piece, source_refs, message, actions=None):
@@ -255,7 +267,10 @@ class RayExecutor:
         key = (id(screen), sent[2], now[2])
         if key not in self._blocks:
             self._blocks = {k: v for k, v in self._blocks.items() if k[2] == now[2]}  # older ranges are done
-            self._blocks[key] = self.ray.put(screen.changes_since(sent[2]))
+            changes = screen.changes_since(sent[2])
+            # a small block goes inside the call (Ray inlines it; a put costs the driver
+            # ~1 ms), a large one once into the object store for every actor that needs it
+            self._blocks[key] = changes if _nbytes(changes) <= INLINE_BYTES else self.ray.put(changes)
         self._trim(screen)
         return ("changes", [self._blocks[key]], sent[2])
 

@@ -43,6 +43,28 @@ def test_ray_gives_the_in_process_result_bit_for_bit(ray_local, reference, tmp_p
     assert summary["runs_simulated"] >= summary["runs_committed"]
 
 
+def test_change_blocks_put_in_the_object_store_give_the_same_result(ray_local, reference, tmp_path, monkeypatch):
+    """Small change blocks travel inside the task call; large ones are put in the object
+    store once. Every block put there: the same result."""
+    from farm import ray_executor
+
+    monkeypatch.setattr(ray_executor, "INLINE_BYTES", -1)
+    puts = []
+    original = ray_executor.RayExecutor._message
+
+    def counting(self, actor, screen, fresh=False):
+        message = original(self, actor, screen, fresh)
+        kind, blocks, _ = message
+        if kind == "changes":
+            puts.extend(b for b in blocks if not isinstance(b, list))
+        return message
+
+    monkeypatch.setattr(ray_executor.RayExecutor, "_message", counting)
+    summary = run(contract_config("ray", 2), tmp_path / "c", resume=False)
+    assert puts  # the object-store path was taken
+    assert summary["result_hash"] == reference["result_hash"]
+
+
 def test_n_eps_rule_is_exact_in_the_committed_record(reference, tmp_path):
     out = tmp_path / "c"
     summary = run(contract_config(), out, resume=False)

@@ -1,0 +1,75 @@
+"""Re-deciding a screened chunk after later changes (coordinator/coverage.py ``Rescreen``)
+against a brute-force model: every run's visited states classified afresh at the
+coverage as it is now."""
+
+import numpy as np
+import pytest
+
+from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Rescreen, Strict
+from scenarios.base import FAILURE
+
+DELTA = 0.5
+LOWER, UPPER = np.zeros(2), np.full(2, 8.0)
+
+
+def _lattice(rng, k):
+    """k distinct cell centres of the delta lattice (as SPE's centres are)."""
+    cells = rng.choice(16 * 16, size=k, replace=False)
+    return np.stack([cells // 16, cells % 16], axis=1) * 2 * DELTA + DELTA
+
+
+def _chunk(rng, runs=120, steps=6):
+    states = rng.uniform(0, 8, size=(runs * steps, 2))
+    offsets = np.arange(0, runs * steps + 1, steps)
+    outcomes = np.where(rng.random(runs) < 0.05, FAILURE, 0).astype(np.int8)
+    return states, offsets, outcomes
+
+
+def _brute(cov, states, offsets, outcomes, row):
+    """Does run ``row`` change the coverage now, and its new states' mask."""
+    s = states[offsets[row] : offsets[row + 1]]
+    witness, near = cov.classify_states(s)
+    return bool(outcomes[row] == FAILURE or ((witness < 0) & ~near).any())
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("strict", [False, True])
+def test_rescreen_matches_a_fresh_classification(seed, strict):
+    rng = np.random.default_rng(seed)
+    cov = Coverage(2, DELTA, LOWER, bounds=(LOWER, UPPER))
+    cov.apply(Insert(_lattice(rng, 150)), 1)
+    cov.apply(AddFailures(rng.uniform(0, 8, size=(5, 2))), 2)
+    if strict:
+        cov.apply(Strict(True), 3)
+    states, offsets, outcomes = _chunk(rng)
+    screening = cov.screen(states, offsets, outcomes)
+    rescreen = Rescreen(cov, screening, outcomes, lambda: (states, offsets))
+    version, pos, checked = 10, 0, 0
+    while pos < len(outcomes):
+        row = rescreen.next_event(pos)
+        expected = next((r for r in range(pos, len(outcomes)) if _brute(cov, states, offsets, outcomes, r)),
+                        len(outcomes))
+        assert row == expected
+        if row == len(outcomes):
+            break
+        uncovered, near = rescreen.classification(row)
+        candidates = rescreen.candidates(row)
+        if uncovered is not None:  # what it claims to know is what a fresh query says
+            witness = cov.vertices.cover(candidates, DELTA)
+            assert np.array_equal(uncovered, witness < 0)
+            if strict:
+                assert near is None
+            else:
+                fresh_near = (witness < 0) & cov.failures.any_within(candidates, DELTA)
+                assert np.array_equal(near, fresh_near)
+            checked += 1
+        # a change as SPE would make: a failure kills centres, an explore inserts
+        version += 1
+        if outcomes[row] == FAILURE:
+            cov.apply(AddFailures(states[offsets[row]][None]), version)
+            alive = cov.vertices.alive_ids()
+            cov.apply(Kill(rng.choice(alive, size=min(4, len(alive)), replace=False)), version)
+        else:
+            cov.apply(Insert(_lattice(rng, 3) + rng.choice([0.0, 0.1], size=(3, 2))), version)
+        pos = row + 1
+    assert checked > 3  # the classification was known (and checked) for several events
