@@ -40,6 +40,9 @@ from coordinator.spatial import PointIndex
 from scenarios.base import FAILURE
 
 QUIET, FAIL, EXPLORE = 0, 1, 2
+# states x points compared at once when re-deciding states against the points added since
+# their screening (below it, cheaper than the index's ~30 array operations per query batch)
+BRUTE_FORCE_LIMIT = 1 << 15
 
 
 # -- changes --------------------------------------------------------------------------------
@@ -105,6 +108,7 @@ class Coverage:
         self.kill_seq = -1  # seq of the last Kill (witness checks needed after it)
         self.strict = False  # certification: near a failure does not excuse leaving the covering
         self._log: list[tuple[int, object]] | None = None
+        self._forget_history()
 
     # -- changes ---------------------------------------------------------------------------
     def apply(self, change, version: int) -> None:
@@ -130,6 +134,10 @@ class Coverage:
             raise TypeError(f"not a coverage change: {change!r}")
         self.seq += 1
         self.version = version
+        if isinstance(change, (Recell, Strict, Reset)):
+            self._forget_history()
+        else:
+            self._counts.append((self.vertices.count, self.failures.count if self.failures is not None else 0))
         if self._log is not None:
             self._log.append((self.seq, version, change))
 
@@ -151,6 +159,19 @@ class Coverage:
         for seq, version, change in changes:
             if seq > self.seq:
                 self.apply(change, version)
+
+    # -- history: the points added since a seq ----------------------------------------------
+    def _forget_history(self) -> None:
+        """Start counting points anew at this seq: what changed the rules (delta, strict
+        mode, a whole new coverage) ends what can be re-decided by the points added."""
+        self._history_base = getattr(self, "seq", 0)
+        self._counts = [(self.vertices.count, self.failures.count if self.failures is not None else 0)]
+
+    def counts_at(self, seq: int) -> tuple[int, int] | None:
+        """(vertex count, failure count) after change ``seq``, if no change of the rules
+        came after it (None: re-decide from the whole coverage)."""
+        at = seq - self._history_base
+        return self._counts[at] if 0 <= at < len(self._counts) else None
 
     # -- snapshot -------------------------------------------------------------------------
     def state(self) -> dict:
@@ -178,6 +199,7 @@ class Coverage:
         cov._load(state)
         _, version, epoch, _, seq, _ = state["coverage"]
         cov.version, cov.epoch, cov.seq = int(version), int(epoch), int(seq)
+        cov._forget_history()
         return cov
 
     # -- screening -------------------------------------------------------------------------
@@ -190,6 +212,26 @@ class Coverage:
             uncovered = np.flatnonzero(witness < 0)
             near[uncovered] = self.failures.any_within(states[uncovered], self.delta)
         return witness, near
+
+    def classify_since(self, states: np.ndarray, seq: int):
+        """``classify_states`` for states that were new at change ``seq`` (uncovered and
+        not near a failure then; in strict mode, uncovered), decided by the points added
+        since: centres alive then did not cover them and failures only grow, so only a
+        centre inserted since can cover one and only a failure added since can be near
+        it. Returns (uncovered, near) as bool arrays, or None when the rules changed since
+        ``seq`` or the brute-force comparison would be large (ask ``classify_states``)."""
+        counts = self.counts_at(seq)
+        if counts is None:
+            return None
+        v0, f0 = counts
+        f_count = self.failures.count if self.failures is not None else 0
+        if len(states) * (self.vertices.count - v0 + f_count - f0) > BRUTE_FORCE_LIMIT:
+            return None
+        uncovered = ~self.vertices.covered_by_since(states, self.delta, v0)
+        near = np.zeros(len(states), dtype=bool)
+        if f_count and not self.strict:
+            near[uncovered] = self.failures.covered_by_since(states[uncovered], self.delta, f0)
+        return uncovered, near
 
     def screen(self, states: np.ndarray, offsets: np.ndarray, outcomes: np.ndarray) -> Screening:
         """Screen k runs (visited states in CSR form, see RunBatch.visited) now."""
@@ -306,11 +348,18 @@ class Rescreen:
         if len(states) == 0:
             self._block = None
             return failed
-        witness, near = self.coverage.classify_states(states)
-        new = (witness < 0) & ~near
+        known = None
+        if not self._full[rows].any() and self.screening.epoch == self.coverage.epoch:
+            known = self.coverage.classify_since(states, self.screening.seq)  # states new at screening
+        if known is None:
+            witness, near = self.coverage.classify_states(states)
+            uncovered = witness < 0
+        else:
+            uncovered, near = known
+        new = uncovered & ~near
         lengths = [len(p) for p in parts]
         run = np.repeat(np.arange(len(rows)), lengths)
-        self._block = (witness < 0, near, np.concatenate([[0], np.cumsum(lengths)]))
+        self._block = (uncovered, near, np.concatenate([[0], np.cumsum(lengths)]))
         return failed | (np.bincount(run[new], minlength=len(rows)) > 0)
 
     def _found(self, rows: np.ndarray, at: int) -> int:

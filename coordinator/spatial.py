@@ -286,6 +286,27 @@ class PointIndex:
                 self._scan(q, home_t[rows] + off, todo[rows], r, found)
         return found
 
+    def covered_by_since(self, queries: np.ndarray, radius: float, first: int) -> np.ndarray:
+        """(B, n) -> (B,) bool: is an alive point with id >= ``first`` within ``radius`` of
+        each query, by the rule ``cover`` applies (true distance with the tolerance, or,
+        on the dense grid, a centre point of the query's home cell)? By brute force over
+        those points: for re-deciding a few states against the points inserted since."""
+        q = np.atleast_2d(np.asarray(queries, dtype=float))
+        ids = np.flatnonzero(self.alive[first : self.count]) + first
+        if len(ids) == 0 or len(q) == 0:
+            return np.zeros(len(q), dtype=bool)
+        r = radius + TOLERANCE
+        near = np.ones((len(q), len(ids)), dtype=bool)
+        for axis in range(self.n):  # the same per-axis comparison as ``_walk``
+            near &= np.abs(self.points[ids, axis][None, :] - q[:, axis, None]) <= r
+        if self._dense is not None and (abs(radius - self.cell / 2) <= 1e-12 or radius > self.cell / 2):
+            rel = q - self.origin
+            rel *= 1.0 / self.cell
+            home = self._flat(np.floor(rel).astype(np.int64))
+            centred = self._centre_cell[ids]
+            near |= (centred[None, :] == home[:, None]) & (centred >= 0)[None, :]
+        return near.any(axis=1)
+
     def _cover_cells(self, q, rel, r, found) -> None:
         """Queries at radius = cell/2 whose home cell has no centre point: check the centre
         point of every cell each ball touches by its true distance, and walk the

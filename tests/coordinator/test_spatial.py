@@ -107,3 +107,38 @@ def test_dense_paths_match_brute_force_near_faces_and_tolerances(seed):
     ])
     brute = (np.abs(q[:, None, :] - pts[None, :, :]).max(axis=2) <= 0.5 + 1e-9).any(axis=1)
     np.testing.assert_array_equal(dense.any_within(q, 0.5), brute)
+
+
+@pytest.mark.parametrize("dense", [True, False])
+def test_covered_by_since_answers_as_an_index_of_those_points(dense):
+    """Re-deciding states against the points added since a screening (brute force) gives
+    what ``cover`` gives on an index holding only those alive points: true distance with
+    the tolerance, and on the dense grid a centre point covers its whole home cell even
+    where it sits up to the centring tolerance off the exact centre (as below)."""
+    rng = np.random.default_rng(7)
+    delta, n = 1.0, 2
+    lower, upper = np.zeros(n), np.full(n, 12.0)
+    bounds = (lower, upper) if dense else None
+    cells = rng.choice(36, size=40)
+    centres = np.stack([cells // 6, cells % 6], axis=1) * 2 * delta + delta
+    pts = np.concatenate([centres, rng.uniform(-1, 13, size=(40, n))])  # some beyond the bounds
+    idx = PointIndex(n, 2 * delta, lower, bounds=bounds)
+    idx.insert(pts[:30])
+    first = idx.count
+    idx.insert(pts[30:])
+    dead = rng.choice(len(pts), size=15, replace=False)
+    idx.kill(dead)
+    alone = PointIndex(n, 2 * delta, lower, bounds=bounds)
+    alone.insert(pts[first:])
+    alone.kill(dead[dead >= first] - first)
+    q = np.concatenate([rng.uniform(-2, 14, size=(3000, n)), pts + delta, pts - delta,
+                        rng.integers(-1, 8, size=(500, n)) * 2 * delta])
+    got = idx.covered_by_since(q, delta, first)
+    np.testing.assert_array_equal(got, alone.cover(q, delta) >= 0)
+    assert got.any() and not got.all()
+    # a centre 1.8e-9 off its cell's exact centre, alone: its far corner is beyond the
+    # true-distance tolerance (1e-9), covered on the dense grid only (by the home cell)
+    lone = PointIndex(n, 2 * delta, lower, bounds=bounds)
+    lone.insert(np.array([[9.0, 9.0], [3.0 + 1.8e-9, 3.0 + 1.8e-9]]))
+    corner = np.array([[2.0, 2.0]])
+    assert lone.covered_by_since(corner, delta, 1)[0] == dense == (lone.cover(corner, delta)[0] == 1)
