@@ -93,8 +93,21 @@ class PrioritySampler:
         # and is never picked; the clamps catch u * total rounding up to a block's end
         block = np.minimum(np.searchsorted(self.top, target, side="right"), self._last_block)
         rest = target - np.where(block > 0, self.top[block - 1], 0.0)
-        pos = np.minimum((self.cum[block] <= rest[:, None]).sum(axis=1), self.last[block])
-        return block * BLOCK + pos
+        return block * BLOCK + np.minimum(self._count_at_most(block, rest), self.last[block])
+
+    def _count_at_most(self, block: np.ndarray, rest: np.ndarray) -> np.ndarray:
+        """Per draw, how many of its block's running sums are <= its rest: a binary search
+        per row, vectorized over the draws (the running sums never decrease: weights are
+        >= 0), instead of comparing all BLOCK sums of each row."""
+        pos = np.zeros(len(block), dtype=np.int64)
+        step = BLOCK
+        while step:
+            cand = pos + step
+            ok = cand <= BLOCK
+            ok[ok] = self.cum[block[ok], cand[ok] - 1] <= rest[ok]
+            pos[ok] = cand[ok]
+            step //= 2
+        return pos
 
     # -- internals --------------------------------------------------------------------------
     def _distances(self, blocks: np.ndarray, dist: np.ndarray, candidate) -> np.ndarray:

@@ -114,3 +114,17 @@ def test_a_prioritized_campaign_keeps_its_sampler_equal_to_a_fresh_one(tmp_path,
                "farm": {"executor": "local", "batch_size": 256, "seed": 3}}
         run(config_mod.normalize(raw), tmp_path / f"b{boundary}", resume=False)
     assert checked["refreshes"] > 50 and checked["partial"] > 40
+
+
+def test_the_in_block_search_counts_the_running_sums_at_most_the_rest():
+    """The per-row binary search equals counting every running sum <= the rest,
+    zero weights (equal sums, ties with the rest) included."""
+    rng = np.random.default_rng(3)
+    s = PrioritySampler(ALPHAS["identity"])
+    weights = rng.random((40, BLOCK)) * (rng.random((40, BLOCK)) < 0.6)  # many zero weights
+    s.cum = np.cumsum(weights, axis=1)
+    block = rng.integers(0, 40, size=20000)
+    rest = rng.random(20000) * s.cum[block, -1] * 1.1  # some beyond the block's total
+    rest[:2000] = s.cum[block[:2000], rng.integers(0, BLOCK, size=2000)]  # exactly a running sum
+    rest[2000:2100] = 0.0
+    np.testing.assert_array_equal(s._count_at_most(block, rest), (s.cum[block] <= rest[:, None]).sum(axis=1))
