@@ -164,7 +164,7 @@ class Coverage:
     def _forget_history(self) -> None:
         """Start counting points anew at this seq: what changed the rules (delta, strict
         mode, a whole new coverage) ends what can be re-decided by the points added."""
-        self._history_base = getattr(self, "seq", 0)
+        self._history_base = self.seq
         self._counts = [(self.vertices.count, self.failures.count if self.failures is not None else 0)]
 
     def counts_at(self, seq: int) -> tuple[int, int] | None:
