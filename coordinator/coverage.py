@@ -20,7 +20,9 @@ re-decide a run at a later seq c without its trajectory (``Rescreen``):
 - a quiet run stays quiet as long as all its witnesses are alive (failures only grow,
   so a state near one stays near; a state whose witness lives stays covered);
 - an explore run stays one iff one of its explore states is still uncovered and not
-  near a failure; its other states cannot have become new (same two reasons);
+  near a failure; its other states cannot have become new (same two reasons); and only
+  the centres inserted and failures added since v can have changed that, so those few
+  points decide it (``classify_since``) unless delta or the strict mode changed;
 - only runs with a killed witness need their visited states again.
 
 delta is fixed within a round and every run drawn in a round is committed or dropped
