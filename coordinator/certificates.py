@@ -62,9 +62,21 @@ class Certificates:
 
     def certified(self, count: int) -> np.ndarray:
         """(count,) bool: vertex ids with a valid certificate."""
-        out = np.zeros(count, dtype=bool)
-        n = min(count, len(self._count))
-        out[:n] = self._count[:n] > 0
+        return self.certified_range(0, count)
+
+    def certified_range(self, lo: int, hi: int) -> np.ndarray:
+        """(hi - lo,) bool: vertex ids lo..hi-1 with a valid certificate."""
+        out = np.zeros(hi - lo, dtype=bool)
+        n = max(0, min(hi, len(self._count)) - lo)
+        out[:n] = self._count[lo : lo + n] > 0
+        return out
+
+    def certified_at(self, ids: np.ndarray) -> np.ndarray:
+        """(len(ids),) bool: these vertex ids have a valid certificate."""
+        ids = np.asarray(ids, dtype=np.int64)
+        known = ids < len(self._count)
+        out = np.zeros(len(ids), dtype=bool)
+        out[known] = self._count[ids[known]] > 0
         return out
 
     def add(self, vertices: np.ndarray, witness_offsets: np.ndarray, witnesses: np.ndarray) -> None:
@@ -84,17 +96,21 @@ class Certificates:
                                                                 np.int64)])
         np.add.at(self._count, vertices, 1)
 
-    def invalidate(self, killed: np.ndarray) -> None:
+    def invalidate(self, killed: np.ndarray) -> np.ndarray:
         """After a prune of vertex ids ``killed``: entries naming one of them as a
         witness no longer hold (an entry for a killed centre itself does not matter:
-        only alive centres are asked about)."""
+        only alive centres are asked about). Returns the vertices that lost their last
+        certificate."""
         killed = np.asarray(killed, dtype=np.int64)
         if len(killed) == 0 or self._witness.size == 0:
-            return
+            return np.zeros(0, dtype=np.int64)
         entries = np.unique(self._reverse.find(np.unique(killed)))
         entries = entries[self._valid.view[entries]]
         self._valid.view[entries] = False
-        np.subtract.at(self._count, self._vertex.view[entries], 1)
+        vertices = self._vertex.view[entries]
+        np.subtract.at(self._count, vertices, 1)
+        vertices = np.unique(vertices)
+        return vertices[self._count[vertices] == 0]
 
     # -- persistence ----------------------------------------------------------------------
     def state(self) -> dict[str, np.ndarray]:

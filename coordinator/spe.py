@@ -28,6 +28,7 @@ import numpy as np
 
 from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered, uniform_index, uniform_pick
 from coordinator.certificates import Certificates
+from coordinator.enumeration import Enumeration
 from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell, Strict
 from coordinator.covering import Lattice
 from coordinator.graph import ExplorationForest
@@ -86,9 +87,7 @@ class SPE(Algorithm):
         self._sampler = PrioritySampler(ALPHAS[settings.alpha])
         self._draw_cache: tuple | None = None
         self.certifying = False
-        # deterministic certification: centres drawn in the current pass (not drawn again
-        # until every uncertified centre was)
-        self._drawn = np.zeros(0, dtype=bool)
+        self.enumeration = Enumeration()  # deterministic certification: the passes over the centres
         self.certificates = Certificates()  # deterministic certification: centres checked
 
     @property
@@ -198,30 +197,14 @@ class SPE(Algorithm):
         return self.vertices.points[chosen].copy(), chosen
 
     def _draw_certification(self, streams: RunStreams) -> tuple[np.ndarray, np.ndarray]:
-        ids = self.vertices.alive_ids()
-        if len(ids) == 0:
-            raise EmptySetError("the safe set is empty: every centre was pruned")
-        if not self.deterministic:
-            chosen = uniform_pick(ids, streams)
+        if self.deterministic:
+            chosen = self.enumeration.next(self.vertices, self.certificates, len(streams))
         else:
-            chosen = self._next_uncertified(ids, len(streams))
+            ids = self.vertices.alive_ids()
+            if len(ids) == 0:
+                raise EmptySetError("the safe set is empty: every centre was pruned")
+            chosen = uniform_pick(ids, streams)
         return self.vertices.points[chosen].copy(), chosen
-
-    def _next_uncertified(self, alive: np.ndarray, k: int) -> np.ndarray:
-        """Up to ``k`` uncertified centres not drawn in this pass, in id order; fewer left
-        means a short batch, not repeats: a deterministic centre run twice in one batch
-        only wastes the second run (with repeats the lead-follow idm example cost 21,759
-        runs, without 10,295; drawing those nearest PhiBar first did not help: 10,417)."""
-        if len(self._drawn) < self.vertices.count:
-            self._drawn = np.concatenate([self._drawn, np.zeros(self.vertices.count - len(self._drawn), bool)])
-        open_ = ~self.certificates.certified(self.vertices.count)[alive]
-        pending = alive[open_ & ~self._drawn[alive]]
-        if len(pending) == 0:  # a new pass: in-flight or invalidated centres are drawn again
-            self._drawn[:] = False
-            pending = alive[open_] if open_.any() else alive
-        chosen = pending[:k]  # alive ids are sorted
-        self._drawn[chosen] = True
-        return chosen
 
     @property
     def enumerates(self) -> bool:
@@ -242,17 +225,9 @@ class SPE(Algorithm):
             witnesses = sc.witnesses[sc.witness_offsets[sel][run] + within]
             offsets = np.zeros(len(sel) + 1, dtype=np.int64)
             np.cumsum(counts, out=offsets[1:])
-            before = self.certificates.certified(self.vertices.count)
-            self.certificates.add(start_ids[keep], offsets, witnesses)
-            # the row at which the last uncertified centre got its certificate
-            missing = int((self.vertices.alive[: self.vertices.count] & ~before).sum())
-            fresh = np.zeros(len(sel), dtype=bool)
-            vertices = start_ids[keep]
-            first = np.unique(vertices, return_index=True)[1]
-            fresh[first] = ~before[vertices[first]]
-            reached = np.flatnonzero(np.cumsum(fresh) >= missing) if missing else np.array([0])
-            if len(reached):
-                return int(sel[reached[0]])
+            reached = self.enumeration.record(self.vertices, self.certificates, start_ids[keep], offsets, witnesses)
+            if reached >= 0:  # the row at which the last uncertified centre got its certificate
+                return int(sel[reached])
         return -1
 
     def begin_certification(self) -> None:
@@ -288,10 +263,11 @@ class SPE(Algorithm):
         return "explored"
 
     def _prune(self, ids: np.ndarray) -> None:
+        self.enumeration.before_prune(self.vertices, self.certificates, ids)
         self.coverage.apply(Kill(ids), self.version)
         if self.settings.prioritized:  # the sampler's blocks holding them are summed again
             self._sampler.touch(ids)
-        self.certificates.invalidate(ids)
+        self.enumeration.reopened(self.certificates.invalidate(ids))
 
     def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray, starts: np.ndarray) -> None:
         """Keep committed, non-failing runs for experience replay (coordinator/replay.py).
@@ -356,7 +332,7 @@ class SPE(Algorithm):
         out["graph.parent"] = self.graph.parent.copy()
         out["scalars"] = np.array([self.delta, self.round, self.version], dtype=float)
         out["certification"] = np.array([self.certifying], dtype=np.int64)
-        out["certification.drawn"] = np.flatnonzero(self._drawn)
+        out["certification.drawn"] = np.flatnonzero(self.enumeration.drawn)
         out.update(self.certificates.state())
         out.update(self.replay.state())
         return out
@@ -367,8 +343,9 @@ class SPE(Algorithm):
         _, rnd, version = state["scalars"]
         self.round, self.version = int(rnd), int(version)
         self.certifying = bool(state["certification"][0])
-        self._drawn = np.zeros(self.vertices.count, dtype=bool)
-        self._drawn[state["certification.drawn"]] = True
+        drawn = np.zeros(self.vertices.count, dtype=bool)
+        drawn[state["certification.drawn"]] = True
+        self.enumeration = Enumeration(drawn)
         self.certificates = Certificates.from_state(state)
         self.replay.load_state(state)
         self._dist = FailureDistances(self.scenario.lower, self.scenario.upper,
