@@ -49,9 +49,11 @@ class _Buffer:
 
 class Certificates:
     def __init__(self):
-        self._vertex = _Buffer(np.int64)  # (E,) the centre each entry certifies
+        # vertex ids as int32 (the reverse index refuses ids >= 2^31): ~50 M witnesses at
+        # delta_min 0.125, 0.2 GB less than int64
+        self._vertex = _Buffer(np.int32)  # (E,) the centre each entry certifies
         self._offsets = _Buffer(np.int64, [0])  # (E + 1,) its witnesses: witness[off[e]:off[e+1]]
-        self._witness = _Buffer(np.int64)  # (W,)
+        self._witness = _Buffer(np.int32)  # (W,)
         self._valid = _Buffer(bool)  # (E,) every witness alive since the entry was made
         self._count = np.zeros(0, dtype=np.int64)  # vertex -> valid entries certifying it
         self._reverse = _SortedRuns()  # witness -> entries naming it
@@ -83,6 +85,8 @@ class Certificates:
         """Entries for ``vertices`` (their runs' witnesses in CSR form)."""
         if len(vertices) == 0:
             return
+        if int(vertices.max()) >= 2**31 or (len(witnesses) and int(witnesses.max()) >= 2**31):
+            raise OverflowError("certificates: more than 2^31 centres")
         self._vertex.extend(vertices)
         self._offsets.extend(self._offsets.view[-1] + witness_offsets[1:])
         self._witness.extend(witnesses)
@@ -121,9 +125,9 @@ class Certificates:
     def from_state(cls, state: dict) -> "Certificates":
         out = cls()
         if "cert.vertex" in state and len(state["cert.vertex"]):
-            out._vertex = _Buffer(np.int64, state["cert.vertex"])
+            out._vertex = _Buffer(np.int32, state["cert.vertex"])
             out._offsets = _Buffer(np.int64, state["cert.offsets"])
-            out._witness = _Buffer(np.int64, state["cert.witness"])
+            out._witness = _Buffer(np.int32, state["cert.witness"])
             out._valid = _Buffer(bool, state["cert.valid"].astype(bool))
             entry = np.repeat(np.arange(out._vertex.size), np.diff(out._offsets.view))
             out._reverse.add(out._witness.view, entry)
