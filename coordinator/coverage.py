@@ -87,7 +87,7 @@ class Screening:
     event: np.ndarray  # (k,) int8 QUIET / FAIL / EXPLORE
     escaped: np.ndarray  # (k,) bool
     witness_offsets: np.ndarray  # (k + 1,) run r's witnesses: witnesses[off[r]:off[r + 1]]
-    witnesses: np.ndarray  # (W,) int64 vertex ids
+    witnesses: np.ndarray  # (W,) int32 vertex ids
     explore_offsets: np.ndarray  # (k + 1,)
     explore_states: np.ndarray  # (E, n)
 
@@ -255,7 +255,10 @@ class Coverage:
         np.cumsum(np.bincount(run[w_keep], minlength=k), out=w_off[1:])
         e_off = np.zeros(k + 1, dtype=np.int64)
         np.cumsum(np.bincount(run[explore], minlength=k), out=e_off[1:])
-        return Screening(self.seq, self.epoch, event, escaped, w_off, witness[w_keep], e_off, states[explore])
+        # int32 ids (Certificates refuses more than 2^31 centres): a chunk's summary is
+        # mostly witnesses, ~26 per run, and goes back through Ray
+        return Screening(self.seq, self.epoch, event, escaped, w_off, witness[w_keep].astype(np.int32), e_off,
+                         states[explore])
 
 
 class Rescreen:
