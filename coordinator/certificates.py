@@ -9,7 +9,7 @@ change if its witnesses survived, and only centres whose witnesses were pruned (
 centres) need a run again. That is VAL^delta (every centre once) on the final set,
 without re-running what a change did not touch.
 
-Cost: a campaign at delta_min = 0.125 certifies ~1.8 M centres with ~20 M witnesses and
+Cost: a campaign at delta_min = 0.125 certifies ~1.8 M centres with ~83 M witnesses and
 prunes thousands of times, so nothing here is proportional to all entries per call:
 entries append into growing buffers, and a prune finds the entries that named a killed
 centre through a reverse index (witness -> entries) kept as a few sorted runs merged in
@@ -49,8 +49,8 @@ class _Buffer:
 
 class Certificates:
     def __init__(self):
-        # vertex ids as int32 (the reverse index refuses ids >= 2^31): ~50 M witnesses at
-        # delta_min 0.125, 0.2 GB less than int64
+        # vertex ids as int32 (``add`` refuses ids >= 2^31): ~83 M witnesses at delta_min
+        # 0.125, 0.33 GB less than int64
         self._vertex = _Buffer(np.int32)  # (E,) the centre each entry certifies
         self._offsets = _Buffer(np.int64, [0])  # (E + 1,) its witnesses: witness[off[e]:off[e+1]]
         self._witness = _Buffer(np.int32)  # (W,)

@@ -179,7 +179,7 @@ def render() -> Path:
         "",
         "Reading it:",
         "",
-        f"- **SPE** converges to the exact set up to the delta-boundary layer with every option",
+        "- **SPE** converges to the exact set up to the delta-boundary layer with every option",
         f"  (IoU {rng(spe, 'iou')}). With **Gamma\\*** it needs {runs(star)} runs against {runs(uni)} "
         f"for uniform Gamma,",
         f"  and ends within {err(star):.1f}% of the true volume (uniform: {err(uni):.1f}%): uniform lead",
