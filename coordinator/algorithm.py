@@ -105,6 +105,10 @@ class Algorithm(ABC):
     def end_round(self, executor=None) -> bool:
         """Decay delta (the round ended by the N_eps rule); False after the last round."""
 
+    def release(self) -> None:
+        """The campaign is done (and checkpointed): drop what only a running campaign
+        needs, before the result files and plots are made."""
+
     def result(self) -> tuple[np.ndarray, float]:
         """The quantified set: (M, n) alive centres and the half-width."""
         return self.vertices.alive_points(), self.delta

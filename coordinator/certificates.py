@@ -56,7 +56,7 @@ class Certificates:
         self._witness = _Buffer(np.int32)  # (W,)
         self._valid = _Buffer(bool)  # (E,) every witness alive since the entry was made
         self._count = np.zeros(0, dtype=np.int64)  # vertex -> valid entries certifying it
-        self._reverse = _SortedRuns()  # witness -> entries naming it
+        self._reverse: _SortedRuns | None = _SortedRuns()  # witness -> entries naming it
 
     @property
     def vertex(self) -> np.ndarray:
@@ -93,7 +93,8 @@ class Certificates:
         first_entry = self._valid.size
         self._valid.extend(np.ones(len(vertices), dtype=bool))
         entry = first_entry + np.repeat(np.arange(len(vertices)), np.diff(witness_offsets))
-        self._reverse.add(np.asarray(witnesses, dtype=np.int64), entry)
+        if self._reverse is not None:  # else built from every entry when first needed
+            self._reverse.add(np.asarray(witnesses, dtype=np.int64), entry)
         top = int(vertices.max()) + 1
         if len(self._count) < top:
             self._count = np.concatenate([self._count, np.zeros(max(top, 2 * len(self._count)) - len(self._count),
@@ -108,13 +109,25 @@ class Certificates:
         killed = np.asarray(killed, dtype=np.int64)
         if len(killed) == 0 or self._witness.size == 0:
             return np.zeros(0, dtype=np.int64)
-        entries = np.unique(self._reverse.find(np.unique(killed)))
+        entries = np.unique(self._index().find(np.unique(killed)))
         entries = entries[self._valid.view[entries]]
         self._valid.view[entries] = False
         vertices = self._vertex.view[entries]
         np.subtract.at(self._count, vertices, 1)
         vertices = np.unique(vertices)
         return vertices[self._count[vertices] == 0]
+
+    def _index(self) -> "_SortedRuns":
+        if self._reverse is None:  # released, or loaded from a checkpoint: from the entries
+            self._reverse = _SortedRuns()
+            entry = np.repeat(np.arange(self._vertex.size), np.diff(self._offsets.view))
+            self._reverse.add(self._witness.view, entry)
+        return self._reverse
+
+    def release_index(self) -> None:
+        """Drop the reverse index (a finished campaign prunes nothing more); a later
+        ``invalidate`` builds it again."""
+        self._reverse = None
 
     # -- persistence ----------------------------------------------------------------------
     def state(self) -> dict[str, np.ndarray]:
@@ -129,8 +142,7 @@ class Certificates:
             out._offsets = _Buffer(np.int64, state["cert.offsets"])
             out._witness = _Buffer(np.int32, state["cert.witness"])
             out._valid = _Buffer(bool, state["cert.valid"].astype(bool))
-            entry = np.repeat(np.arange(out._vertex.size), np.diff(out._offsets.view))
-            out._reverse.add(out._witness.view, entry)
+            out._reverse = None  # built at the first prune
             valid_vertices = out._vertex.view[out._valid.view]
             out._count = np.bincount(valid_vertices, minlength=int(out._vertex.view.max()) + 1).astype(np.int64)
         return out

@@ -317,6 +317,9 @@ class SPE(Algorithm):
             added += len(kept)
         return added
 
+    def release(self) -> None:
+        self.certificates.release_index()  # 0.66 GB at delta_min 0.125, certified
+
     # -- output ---------------------------------------------------------------------------
     def counts(self) -> dict:
         out = {"boxes": self.vertices.alive_count, "vertices": self.vertices.count,

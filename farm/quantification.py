@@ -202,6 +202,7 @@ class Part:
         if not self.campaign.counters.done:
             status.update(self.label, self.algorithm, self.campaign, self.n_eps, state="stopped", force=True)
             raise Stopped(f"stopped at {self.campaign.counters.committed} committed runs")
+        self.algorithm.release()
         return self.campaign
 
 
