@@ -28,9 +28,9 @@ import numpy as np
 
 from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered, uniform_index, uniform_pick
 from coordinator.certificates import Certificates
-from coordinator.enumeration import Enumeration
 from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell, Strict
 from coordinator.covering import Lattice
+from coordinator.enumeration import Enumeration
 from coordinator.graph import ExplorationForest
 from coordinator.priorities import FailureDistances
 from coordinator.replay import ReplayBuffer
