@@ -158,26 +158,24 @@ def greedy_uncovered(points: np.ndarray, delta: float) -> np.ndarray:
     kept: list[int] = []
     covered = np.zeros(len(points), dtype=bool)
     r = delta + 1e-9
-    if len(points) <= GREEDY_WINDOWED:
-        for i in range(len(points)):
-            if covered[i]:
-                continue
-            kept.append(i)
-            covered[i:] |= np.abs(points[i:] - points[i]).max(axis=1) <= r
-        return np.asarray(kept, dtype=np.int64)
-    # many points (experience replay): a kept point is compared only with the points whose
-    # first coordinate lies near its own (sorted; the window is wider than r, so it holds
-    # every point within r, and each is decided by the same comparison as above)
-    order = np.argsort(points[:, 0], kind="stable")
-    xs = points[order, 0]
-    margin = r + 1e-6 * (1.0 + np.abs(points[:, 0]))
-    lo = np.searchsorted(xs, points[:, 0] - margin, side="left")
-    hi = np.searchsorted(xs, points[:, 0] + margin, side="right")
+    windowed = len(points) > GREEDY_WINDOWED
+    if windowed:
+        # many points (experience replay): a kept point is compared only with the points
+        # whose first coordinate lies near its own (sorted; the window is wider than r,
+        # so it holds every point within r, each decided by the same comparison)
+        order = np.argsort(points[:, 0], kind="stable")
+        xs = points[order, 0]
+        margin = r + 1e-6 * (1.0 + np.abs(points[:, 0]))
+        lo = np.searchsorted(xs, points[:, 0] - margin, side="left")
+        hi = np.searchsorted(xs, points[:, 0] + margin, side="right")
     for i in range(len(points)):
         if covered[i]:
             continue
         kept.append(i)
-        near = order[lo[i] : hi[i]]
-        near = near[near > i]
-        covered[near] |= np.abs(points[near] - points[i]).max(axis=1) <= r
+        if windowed:
+            later = order[lo[i] : hi[i]]
+            later = later[later > i]
+        else:
+            later = slice(i, None)
+        covered[later] |= np.abs(points[later] - points[i]).max(axis=1) <= r
     return np.asarray(kept, dtype=np.int64)

@@ -272,7 +272,6 @@ class Rescreen:
         self._full = np.zeros(len(screening), dtype=bool)  # rows to re-screen from all their states
         self._checked_kills = -2  # kill seq up to which the witnesses were checked
         self._known: tuple | None = None  # (row, epoch, seq, uncovered, near) of the last event found
-        self._block: tuple | None = None  # the last classification (uncovered, near, offsets)
 
     def next_event(self, lo: int, allowed: np.ndarray | None = None) -> int:
         """The first run at or after ``lo`` that changes the state now (the chunk's
@@ -296,9 +295,9 @@ class Rescreen:
         at, block = 0, 1
         while at < len(candidates):  # in growing blocks: the first candidate usually is one
             rows = candidates[at : at + block]
-            changes = self._changes(rows)
+            changes, classified = self._changes(rows)
             if changes.any():
-                return self._found(rows, int(np.argmax(changes)))
+                return self._found(rows, int(np.argmax(changes)), classified)
             at, block = at + block, min(4 * block, 256)
         return k
 
@@ -343,16 +342,15 @@ class Rescreen:
         self._full[lo:] |= dead_before[rel[1:]] > dead_before[rel[:-1]]
         self._checked_kills = self.coverage.kill_seq
 
-    def _changes(self, rows: np.ndarray) -> np.ndarray:
-        """(len(rows),) bool: these runs change the state now (one classification, kept
-        for ``classification``)."""
+    def _changes(self, rows: np.ndarray) -> tuple[np.ndarray, tuple | None]:
+        """(len(rows),) bool: these runs change the state now (one classification), and
+        that classification: (uncovered, near, offsets of each row's states), or None."""
         failed = self.outcomes[rows] == FAILURE
         parts = [self.candidates(int(r)) if not f else np.empty((0, self.coverage.n))
                  for r, f in zip(rows, failed)]
         states = np.concatenate(parts)
         if len(states) == 0:
-            self._block = None
-            return failed
+            return failed, None
         known = None
         if not self._full[rows].any() and self.screening.epoch == self.coverage.epoch:
             known = self.coverage.classify_since(states, self.screening.seq)  # states new at screening
@@ -364,15 +362,15 @@ class Rescreen:
         new = uncovered & ~near
         lengths = [len(p) for p in parts]
         run = np.repeat(np.arange(len(rows)), lengths)
-        self._block = (uncovered, near, np.concatenate([[0], np.cumsum(lengths)]))
-        return failed | (np.bincount(run[new], minlength=len(rows)) > 0)
+        changes = failed | (np.bincount(run[new], minlength=len(rows)) > 0)
+        return changes, (uncovered, near, np.concatenate([[0], np.cumsum(lengths)]))
 
-    def _found(self, rows: np.ndarray, at: int) -> int:
+    def _found(self, rows: np.ndarray, at: int, classified: tuple | None) -> int:
         """Run ``rows[at]`` changes the state: keep what its classification found."""
         row, cov = int(rows[at]), self.coverage
         self._known = None
-        if self._block is not None and self.outcomes[row] != FAILURE:  # a failure's states were not classified
-            uncovered, near, offsets = self._block
+        if classified is not None and self.outcomes[row] != FAILURE:  # a failure's states were not classified
+            uncovered, near, offsets = classified
             sl = slice(offsets[at], offsets[at + 1])
             self._known = (row, cov.epoch, cov.seq, uncovered[sl], near[sl])
         return row
