@@ -157,10 +157,51 @@ class Coverage:
             self._log = [entry for entry in self._log if entry[0] > seq]
 
     def sync(self, changes) -> None:
-        """Apply the logged changes this mirror has not applied yet, in order."""
-        for seq, version, change in changes:
-            if seq > self.seq:
-                self.apply(change, version)
+        """Apply the logged changes this mirror has not applied yet, in order. A stretch
+        of inserts, kills and failures is applied as one insert, one failure insert and
+        one kill: the index ends the same (a dense cell names its newest alive centre
+        point, a chain lists alive points newest first, kills only take away what was
+        there), with a few dozen array operations per stretch instead of per change; every
+        worker applies every change, so 32 workers paid 27x the one-worker cost."""
+        pending = [entry for entry in changes if entry[0] > self.seq]
+        at = 0
+        while at < len(pending):
+            end = at
+            while end < len(pending) and isinstance(pending[end][2], (Insert, Kill, AddFailures)):
+                end += 1
+            if end - at >= 2:
+                self._apply_stretch(pending[at:end])
+                at = end
+            else:
+                self.apply(pending[at][2], pending[at][1])
+                at += 1
+
+    def _apply_stretch(self, entries) -> None:
+        inserts, kills, failures = [], [], []
+        v_count = self.vertices.count
+        f_count = self.failures.count if self.failures is not None else 0
+        for offset, (_, _, change) in enumerate(entries, start=1):
+            if isinstance(change, Insert):
+                inserts.append(change.points)
+                v_count += len(change.points)
+            elif isinstance(change, Kill):
+                kills.append(change.ids)
+                self.kill_seq = self.seq + offset
+            else:
+                failures.append(change.points)
+                f_count += len(change.points)
+            self._counts.append((v_count, f_count))
+        if v_count > self.vertices.count:
+            self.vertices.insert(np.concatenate([p for p in inserts if len(p)]))
+        if failures:
+            self.failures.insert(np.concatenate(failures))
+        if kills:
+            self.vertices.kill(np.concatenate(kills))
+        self.seq += len(entries)
+        self.version = entries[-1][1]
+        if self._log is not None:
+            self._log.extend((self.seq - len(entries) + i + 1, version, change)
+                             for i, (_, version, change) in enumerate(entries))
 
     # -- history: the points added since a seq ----------------------------------------------
     def _forget_history(self) -> None:

@@ -66,8 +66,10 @@ class SPESettings:
 class SPE(Algorithm):
     name = "spe"
     decays = True
+    # certificates' entries too: ~350 MB at delta_min 0.125, written whole at every
+    # checkpoint before
     append_only = ("vertices.points", "failures.points", "graph.parent", "replay.index", "replay.take",
-                   "replay.parent", "replay.start")
+                   "replay.parent", "replay.start", "cert.vertex", "cert.offsets", "cert.witness")
 
     def __init__(self, scenario: Scenario, settings: SPESettings, deterministic: bool = False):
         """``deterministic``: a run is a function of its start state (one adversarial

@@ -3,12 +3,17 @@ until one of its witnesses is killed; a centre is certified while it has a valid
 a checkpoint round trip and a released reverse index keep all of it."""
 
 import numpy as np
+import pytest
 
-from coordinator.certificates import Certificates
+from coordinator.certificates import Certificates, _SortedRuns
 
 
-def test_certificates_match_a_brute_force_model_through_adds_kills_and_a_round_trip():
+@pytest.mark.parametrize("merge_limit", [_SortedRuns.MERGE_LIMIT, 2000])
+def test_certificates_match_a_brute_force_model_through_adds_kills_and_a_round_trip(merge_limit, monkeypatch):
+    # a small merge limit leaves runs unmerged (as 83 M witnesses do at the default)
+    monkeypatch.setattr(_SortedRuns, "MERGE_LIMIT", merge_limit)
     rng = np.random.default_rng(4)
+    frozen = 0
     cert = Certificates()
     model: list[tuple[int, set[int], bool]] = []  # (vertex, witnesses, valid)
     vertices = 3000
@@ -29,6 +34,8 @@ def test_certificates_match_a_brute_force_model_through_adds_kills_and_a_round_t
             model = [(v, w, ok and not (w & dead)) for v, w, ok in model]
         if step % 50 == 49:  # a checkpoint and resume (the reverse index is built when first needed)
             cert = Certificates.from_state({k: v.copy() for k, v in cert.state().items()})
+        if cert._reverse is not None:
+            frozen = max(frozen, cert._reverse.tiers.count(_SortedRuns.FINAL))
         if step % 70 == 69:  # a finished campaign drops the reverse index; it comes back if needed
             cert.release_index()
         expected = np.zeros(vertices, dtype=bool)
@@ -38,3 +45,4 @@ def test_certificates_match_a_brute_force_model_through_adds_kills_and_a_round_t
     valid = np.array([ok for _, _, ok in model])
     assert np.array_equal(cert.state()["cert.valid"], valid)
     assert 0.1 < valid.mean() < 0.9  # both kinds of entries were exercised
+    assert (frozen >= 8) == (merge_limit < 10_000)  # the limit was reached (only when small)
