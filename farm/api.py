@@ -120,7 +120,7 @@ class QuantifyResult:
 
         from farm.journal import Journal
 
-        state, _ = Journal(self.directory).load()
+        state, _ = Journal(self.directory).read(["algo.graph.parent", "algo.vertices.points", "algo.vertices.alive"])
         if "algo.graph.parent" not in state:
             raise CampaignError(f"{self.directory}: algorithm {self.summary.get('algorithm')!r} keeps no "
                                 f"exploration graph (only spe does)")

@@ -95,9 +95,24 @@ class Journal:
         return self.main.exists()
 
     def load(self) -> tuple[dict[str, np.ndarray], dict]:
-        """The saved arrays (append-only ones reassembled) and the metadata; checks every
-        segment's sha256 and removes segments the checkpoint does not list."""
-        arrays = _read_npz(self.main)
+        """The saved arrays (append-only ones reassembled) and the metadata, for the
+        campaign that owns the checkpoint and goes on writing it: checks every segment's
+        sha256 and removes segments the checkpoint does not list."""
+        arrays, meta = self.read()
+        self.segments = list(meta["journal"])
+        self.saved_rows = {name: len(arrays[name]) for name in meta["append_only"]}
+        self.epoch = meta["epoch"]
+        self._remove_unlisted()
+        return arrays, meta
+
+    def read(self, names=None) -> tuple[dict[str, np.ndarray], dict]:
+        """The saved arrays (only ``names``, those saved, if given) and the metadata,
+        changing nothing on disk: for readers (plots, exports, replay), which must not
+        remove a segment a running campaign has just written and not listed yet, and
+        need not load a certified campaign's ~350 MB of certificates to draw its boxes.
+        Checks the sha256 of every segment it reads."""
+        wanted = None if names is None else set(names)
+        arrays = _read_npz(self.main, None if wanted is None else wanted | {"__meta__"})
         try:
             meta = json.loads(arrays.pop("__meta__").tobytes().decode())
         except (KeyError, ValueError) as exc:
@@ -106,26 +121,26 @@ class Journal:
         if not isinstance(meta, dict) or meta.get("format") != CHECKPOINT_FORMAT:
             raise CampaignError(f"{self.main}: checkpoint format {meta.get('format') if isinstance(meta, dict) else '?'}"
                                 f" is not {CHECKPOINT_FORMAT}; nothing was changed")
-        parts: dict[str, list[np.ndarray]] = {name: [] for name in meta["append_only"]}
+        journalled = [n for n in meta["append_only"] if wanted is None or n in wanted]
+        parts: dict[str, list[np.ndarray]] = {name: [] for name in journalled}
         for segment in meta["journal"]:
+            rows = {n: r for n, r in segment["rows"].items() if n in parts}
+            if not rows:
+                continue
             path = self.segment_dir / segment["name"]
             if not path.exists():
                 raise CampaignError(f"{path}: checkpoint segment missing; nothing was changed")
             if sha256_file(path) != segment["sha256"]:
                 raise CampaignError(f"{path}: checkpoint segment differs from the one written (sha256 mismatch); "
                                     f"nothing was changed")
-            data = _read_npz(path)
-            for name, (start, stop) in segment["rows"].items():
+            data = _read_npz(path, set(rows))
+            for name, (start, stop) in rows.items():
                 if name not in data or len(data[name]) != stop - start:
                     raise CampaignError(f"{path}: checkpoint segment lacks rows {start}..{stop} of {name}")
                 parts[name].append(data[name])
-        for name in meta["append_only"]:
+        for name in journalled:
             shape, dtype = meta["shapes"][name], np.dtype(meta["dtypes"][name])
             arrays[name] = np.concatenate(parts[name]) if parts[name] else np.empty((0, *shape), dtype=dtype)
-        self.segments = list(meta["journal"])
-        self.saved_rows = {name: len(arrays[name]) for name in meta["append_only"]}
-        self.epoch = meta["epoch"]
-        self._remove_unlisted()
         return arrays, meta
 
     def _remove_unlisted(self) -> None:
@@ -136,10 +151,12 @@ class Journal:
                     path.unlink()
 
 
-def _read_npz(path: Path) -> dict[str, np.ndarray]:
+def _read_npz(path: Path, names=None) -> dict[str, np.ndarray]:
+    """The arrays of an .npz (only ``names``, those present, if given: the others are
+    not read)."""
     try:
         with np.load(path, allow_pickle=False) as data:
-            return {k: data[k] for k in data.files}
+            return {k: data[k] for k in data.files if names is None or k in names}
     except FileNotFoundError:
         raise CampaignError(f"{path}: no checkpoint") from None
     except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:

@@ -168,7 +168,8 @@ def explored_boxes(directory, state_names) -> tuple[np.ndarray, np.ndarray] | No
     if (directory / "checkpoint.npz").exists():
         from farm.journal import Journal
 
-        state, _ = Journal(directory).load()
+        state, _ = Journal(directory).read(["algo.scalars", "algo.vertices.points", "algo.graph.parent",
+                                            "algo.failures.points"])
         delta = float(state["algo.scalars"][0]) if "algo.scalars" in state else 0.0
         vertices = state.get("algo.vertices.points", np.zeros((0, len(names))))
         if delta > 0 and len(vertices):

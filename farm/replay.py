@@ -60,7 +60,7 @@ def _load_adaptive_actions(directory: Path, simulator) -> None:
     from coordinator.adversary import schedule_state
     from farm.journal import Journal
 
-    arrays, _ = Journal(directory).load()
+    arrays, _ = Journal(directory).read(["adv.firsts", "adv.weights"])
     schedule = schedule_state(arrays)
     if schedule is not None:
         simulator.policy.load(schedule)
