@@ -149,27 +149,31 @@ class Certificates:
 
 
 class _SortedRuns:
-    """A multimap key -> values as sorted runs, merged in tiers. A pair is one int64,
-    key << 32 | value (keys are vertex ids, values entry ids, both < 2^31): sorting the
-    pairs sorts by key and, among equal keys, by entry, i.e. oldest first; a run is 8
-    bytes per pair, as two int32 arrays would be.
+    """A multimap key -> values as sorted runs, merged in tiers. Keys are vertex ids and
+    values entry ids, both < 2^31.
 
-    A new run starts at tier 0; ``TIER`` runs of one tier merge into one of the next (a
-    stable sort of their concatenation, which numpy does as a merge of the sorted runs
-    it finds: timsort). A pair is merged log_TIER(adds) times and a lookup searches at
-    most (TIER - 1) runs per tier. Merging two runs at a time (a binary counter, with a
-    binary-search merge) spent ~18 s of the certified delta_min 0.125 campaign."""
+    A run is int64 pairs key << 32 | value, sorted (by key, then value). A new run starts
+    at tier 0; ``TIER`` runs of one tier merge into one of the next (a stable sort of
+    their concatenation, which numpy does as a merge of the sorted runs it finds:
+    timsort), so a pair is merged log_TIER(adds) times and a lookup searches at most
+    (TIER - 1) runs per tier. Merging two runs at a time (a binary counter, with a
+    binary-search merge) spent ~18 s of the certified delta_min 0.125 campaign.
+
+    A run of ``FINAL_SIZE`` pairs or more is merged no more and kept as compressed
+    sparse rows: its distinct keys (int32), where each key's values start, and the
+    values (int32). A key recurs ~20 times in such a run (witnesses of neighbouring
+    centres, drawn close together), so it costs ~4.4 bytes per pair instead of 8: the
+    83 M pairs of the certified delta_min 0.125 campaign take ~0.4 GB, not 0.66. Merges
+    stay below TIER x FINAL_SIZE pairs: a merge holds its inputs, their concatenation
+    and the sort's buffer at once, and the last merges, 4 x 12 M pairs into 48 M, made
+    that campaign's peak memory; a lookup pays a binary search in each of a few more runs."""
 
     TIER = 4
-    # a merge that would make a run of more pairs leaves its runs as they are: a merge
-    # holds its inputs, their concatenation and the sort's buffer at once, and merging
-    # 4 x 12 M pairs into 48 M made the certified delta_min 0.125 campaign's peak memory;
-    # a lookup pays a binary search in each of a few more runs instead
-    MERGE_LIMIT = 1 << 24
-    FINAL = -1  # the tier of a run that is merged no more
+    FINAL_SIZE = 1 << 22
+    FINAL = -1  # the tier of a compressed run
 
     def __init__(self):
-        self.runs: list[np.ndarray] = []  # sorted pairs, oldest run first
+        self.runs: list = []  # sorted pairs, or (keys, starts, values) once final; oldest first
         self.tiers: list[int] = []
 
     def add(self, keys: np.ndarray, values: np.ndarray) -> None:
@@ -179,31 +183,47 @@ class _SortedRuns:
             raise OverflowError("certificates: more than 2^31 centres or entries")
         pairs = (np.asarray(keys, dtype=np.int64) << 32) | np.asarray(values, dtype=np.int64)
         pairs.sort(kind="stable")
-        self.runs.append(pairs)
-        self.tiers.append(0)
+        self._append(pairs, 0)
         while (len(self.tiers) >= self.TIER and len(set(self.tiers[-self.TIER :])) == 1
                and self.tiers[-1] != self.FINAL):
-            if sum(len(run) for run in self.runs[-self.TIER :]) > self.MERGE_LIMIT:
-                self.tiers[-self.TIER :] = [self.FINAL] * self.TIER
-                break
+            tier = self.tiers[-1] + 1
             merged = np.concatenate(self.runs[-self.TIER :])
-            del self.runs[-self.TIER :]
+            del self.runs[-self.TIER :], self.tiers[-self.TIER :]
             merged.sort(kind="stable")
-            self.runs.append(merged)
-            self.tiers[-self.TIER :] = [self.tiers[-1] + 1]
+            self._append(merged, tier)
+
+    def _append(self, pairs: np.ndarray, tier: int) -> None:
+        if len(pairs) >= self.FINAL_SIZE:
+            pairs, tier = _compress(pairs), self.FINAL
+        self.runs.append(pairs)
+        self.tiers.append(tier)
 
     def find(self, keys: np.ndarray) -> np.ndarray:
         """Every value stored under one of ``keys`` (sorted, unique)."""
         found = []
         keys = np.asarray(keys, dtype=np.int64)
         keys = keys[(keys >= 0) & (keys < 2**31)]
-        lo_pairs, hi_pairs = keys << 32, (keys + 1) << 32
+        lo_pairs, hi_pairs, keys32 = keys << 32, (keys + 1) << 32, keys.astype(np.int32)
         for run in self.runs:
-            lo = np.searchsorted(run, lo_pairs, side="left")
-            hi = np.searchsorted(run, hi_pairs, side="left")
+            if isinstance(run, tuple):
+                run_keys, starts, values = run
+                at = np.searchsorted(run_keys, keys32)  # int32 both: no cast of the run
+                hit = at < len(run_keys)
+                hit[hit] = run_keys[at[hit]] == keys32[hit]
+                lo, hi = starts[at[hit]], starts[at[hit] + 1]
+            else:
+                lo = np.searchsorted(run, lo_pairs, side="left")
+                hi = np.searchsorted(run, hi_pairs, side="left")
             counts = hi - lo
             total = int(counts.sum())
             if total:
-                starts = np.repeat(lo - np.cumsum(counts) + counts, counts)
-                found.append(run[starts + np.arange(total)] & 0xFFFFFFFF)
+                rows = np.repeat(lo - np.cumsum(counts) + counts, counts) + np.arange(total)
+                found.append(run[2][rows].astype(np.int64) if isinstance(run, tuple) else run[rows] & 0xFFFFFFFF)
         return np.concatenate(found) if found else np.zeros(0, dtype=np.int64)
+
+
+def _compress(pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sorted pairs key << 32 | value -> (distinct keys, starts of their values, values)."""
+    keys = (pairs >> 32).astype(np.int32)
+    first = np.flatnonzero(np.concatenate([[True], keys[1:] != keys[:-1]]))
+    return keys[first], np.append(first, len(pairs)), (pairs & 0xFFFFFFFF).astype(np.int32)

@@ -8,10 +8,10 @@ import pytest
 from coordinator.certificates import Certificates, _SortedRuns
 
 
-@pytest.mark.parametrize("merge_limit", [_SortedRuns.MERGE_LIMIT, 2000])
-def test_certificates_match_a_brute_force_model_through_adds_kills_and_a_round_trip(merge_limit, monkeypatch):
-    # a small merge limit leaves runs unmerged (as 83 M witnesses do at the default)
-    monkeypatch.setattr(_SortedRuns, "MERGE_LIMIT", merge_limit)
+@pytest.mark.parametrize("final_size", [_SortedRuns.FINAL_SIZE, 500])
+def test_certificates_match_a_brute_force_model_through_adds_kills_and_a_round_trip(final_size, monkeypatch):
+    # a small FINAL_SIZE compresses runs early (as 83 M witnesses do at the default)
+    monkeypatch.setattr(_SortedRuns, "FINAL_SIZE", final_size)
     rng = np.random.default_rng(4)
     frozen = 0
     cert = Certificates()
@@ -45,4 +45,27 @@ def test_certificates_match_a_brute_force_model_through_adds_kills_and_a_round_t
     valid = np.array([ok for _, _, ok in model])
     assert np.array_equal(cert.state()["cert.valid"], valid)
     assert 0.1 < valid.mean() < 0.9  # both kinds of entries were exercised
-    assert (frozen >= 8) == (merge_limit < 10_000)  # the limit was reached (only when small)
+    assert (frozen >= 8) == (final_size < 10_000)  # compressed runs were exercised (only when small)
+
+
+@pytest.mark.parametrize("final_size", [_SortedRuns.FINAL_SIZE, 300])
+def test_reverse_index_finds_every_value_of_every_key(final_size, monkeypatch):
+    # every key that starts or ends a run, and keys absent from some runs, are asked
+    monkeypatch.setattr(_SortedRuns, "FINAL_SIZE", final_size)
+    rng = np.random.default_rng(7)
+    index, keys_all, values_all = _SortedRuns(), [], []
+    next_value = 0
+    for _ in range(150):
+        k = int(rng.integers(1, 60))
+        keys = rng.integers(0, 2000, k)
+        values = np.arange(next_value, next_value + k)
+        next_value += k
+        index.add(keys, values)
+        keys_all.append(keys)
+        values_all.append(values)
+        stored_keys, stored_values = np.concatenate(keys_all), np.concatenate(values_all)
+        ends = [run[0][[0, -1]] if isinstance(run, tuple) else (run[[0, -1]] >> 32) for run in index.runs]
+        asked = np.unique(np.concatenate([rng.integers(0, 2100, 40), *ends]))
+        found = np.sort(index.find(asked))
+        assert np.array_equal(found, np.sort(stored_values[np.isin(stored_keys, asked)]))
+    assert (index.tiers.count(_SortedRuns.FINAL) >= 3) == (final_size < 10_000)
