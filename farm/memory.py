@@ -36,3 +36,21 @@ def keep_freed_memory() -> bool:
             mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
             _done = bool(mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)) and bool(mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD))
     return _done
+
+
+def release_freed_memory() -> bool:
+    """Give the free heap back to the kernel (glibc ``malloc_trim``), at the boundaries
+    of a campaign's phases (a checkpoint, the end), where no step's temporaries are
+    about to be allocated again. The thresholds above keep up to TRIM_THRESHOLD free at
+    the top of the heap and every freed block below MMAP_THRESHOLD inside it: at the end
+    of the certified delta_min 0.125 campaign ~0.5 GB of its RSS was such free memory.
+    True if this libc has it."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        trim = ctypes.CDLL(None).malloc_trim
+    except (OSError, AttributeError):
+        return False
+    trim.argtypes = (ctypes.c_size_t,)
+    trim(0)
+    return True

@@ -29,6 +29,7 @@ from farm.config import Config
 from farm.executors import build_simulator
 from farm.files import write_json, write_safe_set
 from farm.journal import Journal
+from farm.memory import release_freed_memory
 from farm.progress import Progress
 from farm.ray_executor import make_executor
 from farm.status import StatusWriter
@@ -103,6 +104,7 @@ class Part:
 
     # -- checkpoints -----------------------------------------------------------------------
     def checkpoint(self) -> None:
+        release_freed_memory()  # before the state's arrays are gathered and written
         campaign = self.campaign
         self.ledger.append(campaign.log.take())
         if campaign.recordings:
@@ -203,6 +205,7 @@ class Part:
             status.update(self.label, self.algorithm, self.campaign, self.n_eps, state="stopped", force=True)
             raise Stopped(f"stopped at {self.campaign.counters.committed} committed runs")
         self.algorithm.release()
+        release_freed_memory()
         return self.campaign
 
 
