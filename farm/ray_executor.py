@@ -275,9 +275,14 @@ class RayExecutor:
         return ("changes", [self._blocks[key]], sent[2])
 
     def _trim(self, screen: Coverage) -> None:
-        confirmed = [s[2] for s in self._confirmed if s is not None and s[:2] == (id(screen), screen.epoch)]
-        if len(confirmed) == self.workers:
-            screen.trim_log(min(confirmed))
+        """Forget the changes every actor that was sent this coverage has applied. An
+        actor never sent it gets a snapshot, not changes, so it holds nothing back: with
+        fewer chunks in flight than workers (8 at the defaults) the actors past the
+        eighth are never used, and waiting for them kept every change of the campaign."""
+        now = (id(screen), screen.epoch)
+        holding = [c for s, c in zip(self._synced, self._confirmed) if s is not None and s[:2] == now]
+        if holding and all(c is not None and c[:2] == now for c in holding):
+            screen.trim_log(min(c[2] for c in holding))
 
     # -- the contract -------------------------------------------------------------------
     def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None) -> list[int]:

@@ -172,3 +172,32 @@ def test_batches_are_cut_into_chunks_of_at_least_min_chunk_runs(ray_local, monke
         assert [len(c) for c in chunks] == [500, 500] and [c.first_index for c in chunks] == [0, 500]
     finally:
         ex.close()
+
+
+def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkeypatch):
+    """One chunk in flight on 4 workers: only the first actor is ever used. The
+    coordinator still forgets the changes it has applied (the unused actors would get a
+    snapshot), and each screening is made at the coverage as it was submitted."""
+    from coordinator.coverage import Coverage, Insert
+    from farm import ray_executor
+    from farm.quantification import spec_of
+    from farm.ray_executor import RayExecutor
+
+    monkeypatch.setattr(ray_executor, "MIN_CHUNK", 256)  # 20 runs: one chunk
+
+    cfg = contract_config("ray", 4)
+    lower, upper = np.array([0.0, 0.0, 0.0]), np.array([100.0, 30.0, 30.0])
+    cov = Coverage(3, 2.0, lower, bounds=(lower, upper))
+    rng = np.random.default_rng(0)
+    ex = RayExecutor(spec_of(cfg), 4)
+    try:
+        for step in range(8):
+            for _ in range(3):  # a few changes between chunks
+                cov.apply(Insert(rng.uniform(lower, upper, size=(5, 3))), cov.version + 1)
+            (handle,) = ex.submit(100 * step, np.tile([10.0, 10.0, 40.0], (20, 1)), screen=cov)
+            chunk = ex.result(handle)
+            assert chunk.screening.seq == cov.seq  # screened at the coverage as submitted
+        assert [s["tasks"] for s in ex.worker_stats()] == [8, 0, 0, 0]
+        assert len(cov.changes_since(-1)) <= 3  # not all 24 changes are kept
+    finally:
+        ex.close()
