@@ -1,4 +1,5 @@
-"""Keep freed memory in the process: glibc malloc tuning for batch numerics.
+"""Keep freed memory in the process while numerics run, and give it back between a
+campaign's phases: glibc malloc tuning for batch numerics.
 
 A step on a 1e5-run batch allocates and frees a few dozen 0.8 MB temporaries. glibc's
 defaults hand such blocks back to the kernel as soon as the top of the heap holds a
