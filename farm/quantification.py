@@ -195,6 +195,12 @@ class Part:
             self.startup_s = time.monotonic() - t0
             if farm.executor == "ray":
                 self.progress.line(f"Ray ({farm.address}) up with {farm.workers} workers in {self.startup_s:.1f} s")
+                busy = executor.busy_at_most(farm.batch_size)
+                if busy < farm.workers:  # the cut is fixed by result-relevant settings: say so, do not change it
+                    self.progress.line(f"note: {farm.batch_size} x {farm.pipeline_depth} runs in flight "
+                                       f"(farm.batch_size x farm.pipeline_depth) keep at most {busy} of the "
+                                       f"{farm.workers} workers busy; raise them for more (README, 'Many workers': "
+                                       f"it costs runs)")
             self.campaign.executor = executor
             try:
                 self.campaign.run()

@@ -296,8 +296,7 @@ class RayExecutor:
         # (~1-2 ms) for little simulation, and a worker its per-step overhead for few
         # runs; more workers are kept busy by more runs in flight (farm.batch_size x
         # farm.pipeline_depth), not by thinner chunks
-        parts = min(-(-self.workers // self.pipeline_depth), max(1, len(starts) // MIN_CHUNK))
-        for rows in np.array_split(np.arange(len(starts)), parts):
+        for rows in np.array_split(np.arange(len(starts)), self.chunks_per_batch(len(starts))):
             if len(rows) == 0:
                 continue
             actor = int(np.argmin(self._queued))
@@ -308,6 +307,15 @@ class RayExecutor:
             handles.append(self._next)
             self._next += 1
         return handles
+
+    def chunks_per_batch(self, batch_size: int) -> int:
+        """The chunks a batch of ``batch_size`` runs is cut into (``submit``)."""
+        return min(-(-self.workers // self.pipeline_depth), max(1, batch_size // MIN_CHUNK))
+
+    def busy_at_most(self, batch_size: int) -> int:
+        """Workers that batches of ``batch_size`` runs, ``pipeline_depth`` in flight, can
+        keep busy: the others are never sent a chunk."""
+        return min(self.workers, self.pipeline_depth * self.chunks_per_batch(batch_size))
 
     def _launch(self, part: _Part, fresh: bool = False) -> None:
         self._queued[part.actor] += 1

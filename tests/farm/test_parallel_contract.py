@@ -164,12 +164,14 @@ def test_batches_are_cut_into_chunks_of_at_least_min_chunk_runs(ray_local, monke
         handles = ex.submit(0, starts)
         chunks = [ex.result(h) for h in handles]
         assert [len(c) for c in chunks] == [334, 333, 333]  # 1000 // 256 = 3 chunks, not 4
+        assert ex.busy_at_most(1000) == 3 and ex.busy_at_most(2048) == 4
         assert [c.first_index for c in chunks] == [0, 334, 667]
         assert len(ex.submit(0, starts[:100])) == 1  # a short batch is one chunk
         # with 2 batches in flight, 4 workers are kept busy by 2 chunks per batch
         ex.pipeline_depth = 2
         chunks = [ex.result(h) for h in ex.submit(0, starts)]
         assert [len(c) for c in chunks] == [500, 500] and [c.first_index for c in chunks] == [0, 500]
+        assert ex.busy_at_most(1000) == 4 and ex.busy_at_most(300) == 2
     finally:
         ex.close()
 
@@ -201,3 +203,22 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
         assert len(cov.changes_since(-1)) <= 3  # not all 24 changes are kept
     finally:
         ex.close()
+
+
+def test_workers_that_cannot_be_kept_busy_are_announced(ray_local, reference, tmp_path, monkeypatch):
+    """128-run batches, 3 in flight, chunks of at least 256 runs: 3 of 4 workers can be
+    busy. The campaign says so (the cut is result-relevant, so it is not changed), and
+    its result is the in-process one."""
+    import io
+
+    from farm import ray_executor
+    from farm.progress import Progress
+
+    monkeypatch.setattr(ray_executor, "MIN_CHUNK", 256)
+    log = io.StringIO()
+    summary = run(contract_config("ray", 4), tmp_path / "c", resume=False, progress=Progress(stream=log))
+    assert "keep at most 3 of the 4 workers busy" in log.getvalue()
+    assert summary["result_hash"] == reference["result_hash"]
+    log = io.StringIO()
+    run(contract_config("ray", 3), tmp_path / "d", resume=False, progress=Progress(stream=log))
+    assert "Ray (local) up with 3 workers" in log.getvalue() and "workers busy" not in log.getvalue()
