@@ -205,7 +205,8 @@ class _SortedRuns:
         keys = keys[(keys >= 0) & (keys < 2**31)]
         lo_pairs, hi_pairs, keys32 = keys << 32, (keys + 1) << 32, keys.astype(np.int32)
         for run in self.runs:
-            if isinstance(run, tuple):
+            compressed = isinstance(run, tuple)
+            if compressed:
                 run_keys, starts, values = run
                 at = np.searchsorted(run_keys, keys32)  # int32 both: no cast of the run
                 hit = at < len(run_keys)
@@ -218,7 +219,7 @@ class _SortedRuns:
             total = int(counts.sum())
             if total:
                 rows = np.repeat(lo - np.cumsum(counts) + counts, counts) + np.arange(total)
-                found.append(run[2][rows].astype(np.int64) if isinstance(run, tuple) else run[rows] & 0xFFFFFFFF)
+                found.append(values[rows].astype(np.int64) if compressed else run[rows] & 0xFFFFFFFF)
         return np.concatenate(found) if found else np.zeros(0, dtype=np.int64)
 
 

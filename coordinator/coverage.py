@@ -169,12 +169,12 @@ class Coverage:
             end = at
             while end < len(pending) and isinstance(pending[end][2], (Insert, Kill, AddFailures)):
                 end += 1
-            if end - at >= 2:
+            if end > at:
                 self._apply_stretch(pending[at:end])
-                at = end
-            else:
+            else:  # a change of the rules (Recell, Strict, Reset)
                 self.apply(pending[at][2], pending[at][1])
-                at += 1
+                end = at + 1
+            at = end
 
     def _apply_stretch(self, entries) -> None:
         inserts, kills, failures = [], [], []

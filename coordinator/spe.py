@@ -320,7 +320,7 @@ class SPE(Algorithm):
         return added
 
     def release(self) -> None:
-        self.certificates.release_index()  # 0.66 GB at delta_min 0.125, certified
+        self.certificates.release_index()  # ~0.37 GB at delta_min 0.125, certified
 
     # -- output ---------------------------------------------------------------------------
     def counts(self) -> dict:

@@ -29,12 +29,8 @@ def keep_freed_memory() -> bool:
     global _done
     if _done is None:
         _done = False
-        if sys.platform.startswith("linux"):
-            try:
-                mallopt = ctypes.CDLL(None).mallopt
-            except (OSError, AttributeError):  # not glibc (e.g. musl): leave it
-                return False
-            mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
+        mallopt = _glibc("mallopt", ctypes.c_int, ctypes.c_int)
+        if mallopt is not None:
             _done = bool(mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)) and bool(mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD))
     return _done
 
@@ -46,12 +42,21 @@ def release_freed_memory() -> bool:
     the top of the heap and every freed block below MMAP_THRESHOLD inside it: at the end
     of the certified delta_min 0.125 campaign ~0.5 GB of its RSS was such free memory.
     True if this libc has it."""
-    if not sys.platform.startswith("linux"):
+    trim = _glibc("malloc_trim", ctypes.c_size_t)
+    if trim is None:
         return False
-    try:
-        trim = ctypes.CDLL(None).malloc_trim
-    except (OSError, AttributeError):
-        return False
-    trim.argtypes = (ctypes.c_size_t,)
     trim(0)
     return True
+
+
+def _glibc(name: str, *argtypes):
+    """The C library's function ``name`` on Linux, or None (other platforms, or a libc
+    without it, e.g. musl: they run correctly, only with more memory or slower)."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        function = getattr(ctypes.CDLL(None), name)
+    except (OSError, AttributeError):
+        return None
+    function.argtypes = argtypes
+    return function

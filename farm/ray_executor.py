@@ -290,12 +290,6 @@ class RayExecutor:
         # Ray restarted from its constructor needs nothing else
         self._actions = actions
         handles = []
-        # ``pipeline_depth`` batches are in flight: workers / depth chunks per batch keep
-        # every worker busy with the fewest Ray calls (2 workers at depth 2: one chunk per
-        # batch). None under MIN_CHUNK runs: a smaller chunk costs the driver a Ray call
-        # (~1-2 ms) for little simulation, and a worker its per-step overhead for few
-        # runs; more workers are kept busy by more runs in flight (farm.batch_size x
-        # farm.pipeline_depth), not by thinner chunks
         for rows in np.array_split(np.arange(len(starts)), self.chunks_per_batch(len(starts))):
             if len(rows) == 0:
                 continue
@@ -309,7 +303,14 @@ class RayExecutor:
         return handles
 
     def chunks_per_batch(self, batch_size: int) -> int:
-        """The chunks a batch of ``batch_size`` runs is cut into (``submit``)."""
+        """The chunks a batch of ``batch_size`` runs is cut into (``submit``).
+
+        ``pipeline_depth`` batches are in flight: workers / depth chunks per batch keep
+        every worker busy with the fewest Ray calls (2 workers at depth 2: one chunk per
+        batch). None under MIN_CHUNK runs: a smaller chunk costs the driver a Ray call
+        (~1-2 ms) for little simulation, and a worker its per-step overhead for few runs;
+        more workers are kept busy by more runs in flight (farm.batch_size x
+        farm.pipeline_depth), not by thinner chunks."""
         return min(-(-self.workers // self.pipeline_depth), max(1, batch_size // MIN_CHUNK))
 
     def busy_at_most(self, batch_size: int) -> int:
