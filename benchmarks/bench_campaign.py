@@ -40,7 +40,8 @@ def main() -> None:
         t0 = time.perf_counter()
         s = run(cfg, Path(tmp) / "c", resume=False)
         wall = time.perf_counter() - t0
-    peak_gb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # KiB on Linux
+    peak_bytes = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # KiB on Linux
+    peak_gb = peak_bytes / 1e9  # the target's unit: decimal GB (1 GiB = 1.074 GB)
     target_s, target_gb = TARGETS.get(args.delta_min, (None, None))
     verdict = []
     if target_s:
@@ -48,7 +49,8 @@ def main() -> None:
     if target_gb:
         verdict.append(f"target <= {target_gb} GB: {'met' if peak_gb <= target_gb else 'not met'}")
     print(f"lead-follow idm SPE campaign, delta 2 -> {args.delta_min:g}, certify {not args.no_certify}: "
-          f"{wall:.1f} s wall including result files and plots, peak memory {peak_gb:.2f} GB "
+          f"{wall:.1f} s wall including result files and plots, peak memory {peak_gb:.2f} GB = "
+          f"{peak_bytes / 2**30:.2f} GiB "
           f"({'; '.join(verdict) or 'no target'}); {s['runs_committed']:,} committed runs, {s['boxes']:,} boxes, "
           f"volume {s['volume_union']:.0f}, result {s['result_hash']}")
 

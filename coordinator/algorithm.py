@@ -105,9 +105,15 @@ class Algorithm(ABC):
     def end_round(self, executor=None) -> bool:
         """Decay delta (the round ended by the N_eps rule); False after the last round."""
 
+    def stop_committing(self) -> None:
+        """The campaign is done: no run will be committed any more. Drop what serves
+        only commits and is not part of ``state`` (indexes), before the last checkpoint
+        gathers the state."""
+
     def release(self) -> None:
-        """The campaign is done (and checkpointed): drop what only a running campaign
-        needs, before the result files and plots are made."""
+        """The campaign is done and checkpointed: drop what only a running campaign or
+        its checkpoints need, before the result files and plots are made. ``result``,
+        ``counts`` and ``failure_points`` still answer; ``state`` need not."""
 
     def result(self) -> tuple[np.ndarray, float]:
         """The quantified set: (M, n) alive centres and the half-width."""

@@ -71,26 +71,30 @@ class Counters:
     attempts: int = 0  # certification attempts (a change during certification starts the next)
 
 
-@dataclass
 class CommitLog:
-    """Columns of the committed-run record since the last flush (the run ledger)."""
+    """Columns of the committed-run record since the last flush (the run ledger).
 
-    sample_index: list = field(default_factory=list)
-    round: list = field(default_factory=list)
-    delta: list = field(default_factory=list)
-    start: list = field(default_factory=list)
-    outcome: list = field(default_factory=list)
-    steps: list = field(default_factory=list)
-    changed: list = field(default_factory=list)
-    counted: list = field(default_factory=list)
+    Per chunk, what every row shares (first sample index, round, delta) is kept once and
+    expanded at ``take``: a campaign shorter than ``farm.checkpoint_every`` holds the log
+    of all its runs (2.2 M at delta_min 0.125), and those columns were 20 of 51 bytes a
+    run."""
+
+    COLUMNS = ("sample_index", "round", "delta", "start", "outcome", "steps", "changed", "counted")
+
+    def __init__(self):
+        self.shared: list[tuple[int, int, int, float]] = []  # (first sample index, rows, round, delta)
+        self.start: list[np.ndarray] = []
+        self.outcome: list[np.ndarray] = []
+        self.steps: list[np.ndarray] = []
+        self.changed: list[np.ndarray] = []
+        self.counted: list[np.ndarray] = []
 
     def add(self, first_index: int, starts: np.ndarray, chunk: Chunk, rows: np.ndarray, rnd: int, delta: float,
             changed: np.ndarray, counted: np.ndarray) -> None:
+        """``rows`` are the chunk's first rows, 0..k-1 (a chunk is committed in order)."""
         if len(rows) == 0:
             return
-        self.sample_index.append(first_index + rows.astype(np.int64))
-        self.round.append(np.full(len(rows), rnd, dtype=np.int32))
-        self.delta.append(np.full(len(rows), delta))
+        self.shared.append((first_index, len(rows), rnd, delta))
         self.start.append(starts[rows])
         self.outcome.append(chunk.outcomes[rows].astype(np.int8))
         self.steps.append((chunk.lengths[rows] - 1).astype(np.int32))
@@ -98,12 +102,18 @@ class CommitLog:
         self.counted.append(counted)
 
     def take(self) -> dict[str, np.ndarray] | None:
-        if not self.sample_index:
+        if not self.shared:
             return None
-        out = {name: np.concatenate(getattr(self, name)) for name in self.__dataclass_fields__}
-        for name in self.__dataclass_fields__:
-            getattr(self, name).clear()
-        return out
+        first, rows, rounds, deltas = (np.array(c) for c in zip(*self.shared))
+        within = np.arange(int(rows.sum())) - np.repeat(np.cumsum(rows) - rows, rows)
+        out = {"sample_index": np.repeat(first.astype(np.int64), rows) + within,
+               "round": np.repeat(rounds.astype(np.int32), rows), "delta": np.repeat(deltas.astype(float), rows)}
+        self.shared.clear()
+        for name in self.COLUMNS[3:]:  # a column's pieces go as it is joined: ~1x the log held, not 2x
+            pieces = getattr(self, name)
+            out[name] = np.concatenate(pieces)
+            pieces.clear()
+        return {name: out[name] for name in self.COLUMNS}
 
 
 class Campaign:

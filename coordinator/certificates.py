@@ -83,6 +83,7 @@ class Certificates:
 
     def add(self, vertices: np.ndarray, witness_offsets: np.ndarray, witnesses: np.ndarray) -> None:
         """Entries for ``vertices`` (their runs' witnesses in CSR form)."""
+        self._entries()
         if len(vertices) == 0:
             return
         if int(vertices.max()) >= 2**31 or (len(witnesses) and int(witnesses.max()) >= 2**31):
@@ -106,6 +107,7 @@ class Certificates:
         witness no longer hold (an entry for a killed centre itself does not matter:
         only alive centres are asked about). Returns the vertices that lost their last
         certificate."""
+        self._entries()
         killed = np.asarray(killed, dtype=np.int64)
         if len(killed) == 0 or self._witness.size == 0:
             return np.zeros(0, dtype=np.int64)
@@ -129,8 +131,20 @@ class Certificates:
         ``invalidate`` builds it again."""
         self._reverse = None
 
+    def release(self) -> None:
+        """Keep only which centres are certified (the ``certified*`` queries): the
+        campaign is done and checkpointed. The entries (~0.35 GB at delta_min 0.125) are
+        dropped; ``add``, ``invalidate`` and ``state`` are refused after it."""
+        self._reverse = None
+        self._vertex = self._offsets = self._witness = self._valid = None
+
+    def _entries(self) -> None:
+        if self._witness is None:
+            raise RuntimeError("certificates: the entries were released (the campaign is done)")
+
     # -- persistence ----------------------------------------------------------------------
     def state(self) -> dict[str, np.ndarray]:
+        self._entries()
         return {"cert.vertex": self._vertex.view, "cert.offsets": self._offsets.view,
                 "cert.witness": self._witness.view, "cert.valid": self._valid.view}
 
@@ -164,9 +178,12 @@ class _SortedRuns:
     values (int32). A key recurs ~20 times in such a run (witnesses of neighbouring
     centres, drawn close together), so it costs ~4.4 bytes per pair instead of 8: the
     83 M pairs of the certified delta_min 0.125 campaign take ~0.4 GB, not 0.66. Merges
-    stay below TIER x FINAL_SIZE pairs: a merge holds its inputs, their concatenation
-    and the sort's buffer at once, and the last merges, 4 x 12 M pairs into 48 M, made
-    that campaign's peak memory; a lookup pays a binary search in each of a few more runs."""
+    stay below TIER x FINAL_SIZE pairs, and hold about 1.5x their pairs at once: a merge
+    lets each input go once it is copied, and compression reads the pairs' halves in
+    place (the last merges, 4 x 12 M pairs into 48 M, holding inputs, concatenation and
+    the sort's buffer at once, made that campaign's peak memory; then the merge into a
+    compressed run, with int64 temporaries). A lookup pays a binary search in each of a
+    few more runs."""
 
     TIER = 4
     FINAL_SIZE = 1 << 22
@@ -187,10 +204,9 @@ class _SortedRuns:
         while (len(self.tiers) >= self.TIER and len(set(self.tiers[-self.TIER :])) == 1
                and self.tiers[-1] != self.FINAL):
             tier = self.tiers[-1] + 1
-            merged = np.concatenate(self.runs[-self.TIER :])
+            parts = self.runs[-self.TIER :]
             del self.runs[-self.TIER :], self.tiers[-self.TIER :]
-            merged.sort(kind="stable")
-            self._append(merged, tier)
+            self._append(_merge(parts), tier)
 
     def _append(self, pairs: np.ndarray, tier: int) -> None:
         if len(pairs) >= self.FINAL_SIZE:
@@ -223,8 +239,35 @@ class _SortedRuns:
         return np.concatenate(found) if found else np.zeros(0, dtype=np.int64)
 
 
+def _merge(parts: list[np.ndarray]) -> np.ndarray:
+    """One sorted run of the sorted ``parts`` (emptied): each part is let go once it is
+    copied, so that the merge holds about one copy of the pairs, not two (the inputs and
+    their concatenation)."""
+    merged = np.empty(sum(len(p) for p in parts), dtype=np.int64)
+    at = 0
+    while parts:
+        part = parts.pop(0)
+        merged[at : at + len(part)] = part
+        at += len(part)
+        del part
+    merged.sort(kind="stable")  # a merge of the sorted runs it finds (timsort)
+    return merged
+
+
 def _compress(pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Sorted pairs key << 32 | value -> (distinct keys, starts of their values, values)."""
-    keys = (pairs >> 32).astype(np.int32)
-    first = np.flatnonzero(np.concatenate([[True], keys[1:] != keys[:-1]]))
-    return keys[first], np.append(first, len(pairs)), (pairs & 0xFFFFFFFF).astype(np.int32)
+    """Sorted pairs key << 32 | value -> (distinct keys, starts of their values, values).
+
+    The halves are read through an int32 view of the pairs (both < 2^31, so the same
+    numbers): shifting and masking made two int64 temporaries the size of the run, at
+    the moment the campaign's memory peaks (after its largest merge)."""
+    halves = pairs.view(np.int32).reshape(-1, 2)
+    high = 1 if np.little_endian else 0
+    keys = np.ascontiguousarray(halves[:, high])
+    change = np.empty(len(keys), dtype=bool)
+    change[0] = True
+    np.not_equal(keys[1:], keys[:-1], out=change[1:])
+    first = np.flatnonzero(change).astype(np.int32)
+    del change
+    distinct = keys[first]
+    del keys
+    return distinct, np.append(first, np.int32(len(pairs))), np.ascontiguousarray(halves[:, 1 - high])

@@ -30,6 +30,11 @@ _P = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
 TOLERANCE = 1e-9  # closed boxes, decided as exact arithmetic would on grid boundaries
 DENSE_LIMIT = 1 << 25  # cells; 32 Mi int32 counters = 128 MiB at most
 MISS_BLOCK = 1 << 15  # queries whose touched cells are enumerated at once (2^n cells each)
+# point ids and dense cell numbers in the chains and the dense grid: both < 2^31 (a dense
+# grid has at most DENSE_LIMIT cells; ``insert`` refuses the 2^31st point). Half of int64:
+# ~0.1 GB at delta_min 0.125 (1.8 M points, 7 M dense cells, in the centres' and the
+# failures' index alike). Queries still answer int64 ids.
+LINK = np.int32
 
 
 class PointIndex:
@@ -43,13 +48,13 @@ class PointIndex:
         capacity = max(16, int(capacity))
         self.points = np.empty((capacity, n))
         self.alive = np.zeros(capacity, dtype=bool)
-        self.next = np.full(capacity, -1, dtype=np.int64)
+        self.next = np.full(capacity, -1, dtype=LINK)
         self.count = 0
-        self._heads = np.full(64, -1, dtype=np.int64)
+        self._heads = np.full(64, -1, dtype=LINK)
         self.bounds = None if bounds is None else (np.asarray(bounds[0], float), np.asarray(bounds[1], float))
         self._dense = None
-        self._centre_cell = np.full(capacity, -1, dtype=np.int64)  # flat dense cell if at a centre
-        self._off_next = np.full(capacity, -1, dtype=np.int64)  # off-centre chains (dense)
+        self._centre_cell = np.full(capacity, -1, dtype=LINK)  # flat dense cell if at a centre
+        self._off_next = np.full(capacity, -1, dtype=LINK)  # off-centre chains (dense)
         self._build_dense()
 
     # -- dense fast path --------------------------------------------------------------------
@@ -67,9 +72,9 @@ class PointIndex:
         self._dense = np.zeros(int(np.prod(shape)), dtype=np.int32)
         # the id of one alive centre point per cell (-1: none), so that a hit names its
         # witness
-        self._centre_point = np.full(int(np.prod(shape)), -1, dtype=np.int64)
+        self._centre_point = np.full(int(np.prod(shape)), -1, dtype=LINK)
         self._others = np.zeros(int(np.prod(shape)), dtype=np.int32)  # off-centre points per cell
-        self._off_head = np.full(int(np.prod(shape)), -1, dtype=np.int64)  # their chains
+        self._off_head = np.full(int(np.prod(shape)), -1, dtype=LINK)  # their chains
         ids = np.arange(self.count)
         self._centre_cell[: self.count] = self._centre_cells(self.points[: self.count])
         live = ids[self.alive[: self.count] & (self._centre_cell[: self.count] >= 0)]
@@ -141,7 +146,7 @@ class PointIndex:
         heads[keys[last]] = ids[last]
 
     def _rehash(self, buckets: int) -> None:
-        self._heads = np.full(buckets, -1, dtype=np.int64)
+        self._heads = np.full(buckets, -1, dtype=LINK)
         self.next[: self.count] = -1
         self._link(np.nonzero(self.alive[: self.count])[0])
 
@@ -149,15 +154,16 @@ class PointIndex:
     def insert(self, pts: np.ndarray) -> np.ndarray:
         pts = np.atleast_2d(np.asarray(pts, dtype=float))
         k = len(pts)
+        if self.count + k >= 2**31:
+            raise OverflowError("spatial index: 2^31 points or more")
         if self.count + k > len(self.points):
             cap = max(2 * len(self.points), self.count + k)
             self.points = np.resize(self.points, (cap, self.n))
             self.alive = np.concatenate([self.alive, np.zeros(cap - len(self.alive), dtype=bool)])
-            self.next = np.concatenate([self.next, np.full(cap - len(self.next), -1, dtype=np.int64)])
+            self.next = np.concatenate([self.next, np.full(cap - len(self.next), -1, dtype=LINK)])
             self._centre_cell = np.concatenate([self._centre_cell, np.full(cap - len(self._centre_cell), -1,
-                                                                            dtype=np.int64)])
-            self._off_next = np.concatenate([self._off_next, np.full(cap - len(self._off_next), -1,
-                                                                      dtype=np.int64)])
+                                                                            dtype=LINK)])
+            self._off_next = np.concatenate([self._off_next, np.full(cap - len(self._off_next), -1, dtype=LINK)])
         ids = np.arange(self.count, self.count + k)
         self.points[ids] = pts
         self.alive[ids] = True
@@ -236,7 +242,7 @@ class PointIndex:
         if self._dense is not None and abs(radius - self.cell / 2) <= 1e-12:
             # a centre point covers its whole cell; a miss checks every cell its ball
             # touches (in blocks: 2^n cells per query)
-            found = self._centre_point[self._flat(home)]
+            found = self._centre_point[self._flat(home)].astype(np.int64)
             misses = np.flatnonzero(found < 0)
             for at in range(0, len(misses), MISS_BLOCK):
                 rows = misses[at : at + MISS_BLOCK]
@@ -245,7 +251,7 @@ class PointIndex:
                 found[rows] = sub
             return found
         elif self._dense is not None and radius > self.cell / 2:
-            found = self._centre_point[self._flat(home)]
+            found = self._centre_point[self._flat(home)].astype(np.int64)
             todo = np.flatnonzero(found < 0)
             if len(todo) == 0:
                 return found

@@ -206,6 +206,8 @@ class Part:
                 self.campaign.run()
             finally:
                 executor.close()
+        if self.campaign.counters.done:
+            self.algorithm.stop_committing()  # the last checkpoint is then gathered with less held
         self.checkpoint()
         if not self.campaign.counters.done:
             status.update(self.label, self.algorithm, self.campaign, self.n_eps, state="stopped", force=True)

@@ -5,7 +5,7 @@ a checkpoint round trip and a released reverse index keep all of it."""
 import numpy as np
 import pytest
 
-from coordinator.certificates import Certificates, _SortedRuns
+from coordinator.certificates import Certificates, _compress, _merge, _SortedRuns
 
 
 @pytest.mark.parametrize("final_size", [_SortedRuns.FINAL_SIZE, 500])
@@ -69,3 +69,44 @@ def test_reverse_index_finds_every_value_of_every_key(final_size, monkeypatch):
         found = np.sort(index.find(asked))
         assert np.array_equal(found, np.sort(stored_values[np.isin(stored_keys, asked)]))
     assert (index.tiers.count(_SortedRuns.FINAL) >= 3) == (final_size < 10_000)
+
+
+def test_released_certificates_still_say_which_centres_are_certified_and_refuse_the_rest():
+    rng = np.random.default_rng(11)
+    cert = Certificates()
+    for _ in range(30):
+        k = int(rng.integers(1, 30))
+        counts = rng.integers(1, 8, k)
+        cert.add(rng.integers(0, 500, k), np.concatenate([[0], np.cumsum(counts)]),
+                 rng.integers(0, 500, int(counts.sum())))
+    cert.invalidate(rng.integers(0, 500, 40))
+    before = cert.certified(600)
+    assert 0 < before.sum() < 500
+    cert.release()
+    assert np.array_equal(cert.certified(600), before)
+    assert np.array_equal(cert.certified_at(np.arange(600)), before)
+    for call in (cert.state, lambda: cert.invalidate(np.array([1])),
+                 lambda: cert.add(np.array([1]), np.array([0, 1]), np.array([2]))):
+        with pytest.raises(RuntimeError, match="released"):
+            call()
+
+
+def test_compression_reads_keys_and_values_of_every_pair():
+    # keys recur (as witnesses do) and reach the largest allowed; values span the int32 range
+    keys = np.concatenate([np.random.default_rng(3).integers(0, 800, 4990), np.full(10, 2**31 - 1)])
+    values = np.random.default_rng(4).integers(0, 2**31, 5000)
+    pairs = np.sort((keys.astype(np.int64) << 32) | values)
+    distinct, starts, stored = _compress(pairs)
+    assert distinct.dtype == stored.dtype == np.int32
+    assert np.array_equal(np.repeat(distinct, np.diff(starts)), pairs >> 32)
+    assert np.array_equal(stored, pairs & 0xFFFFFFFF)
+    assert len(distinct) == len(np.unique(keys)) < 1000
+
+
+def test_a_merge_is_the_sorted_union_of_its_parts_and_empties_them():
+    rng = np.random.default_rng(5)
+    parts = [np.sort(rng.integers(0, 2**62, int(rng.integers(0, 300)))) for _ in range(4)]
+    expected = np.sort(np.concatenate(parts))
+    given = list(parts)
+    assert np.array_equal(_merge(given), expected)
+    assert given == []

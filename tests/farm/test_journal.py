@@ -48,3 +48,31 @@ def test_reading_leaves_unlisted_segments_loading_removes_them(tmp_path):
     assert fresh.exists()
     Journal(tmp_path).load()  # the owner, resuming: debris goes
     assert not fresh.exists()
+
+
+def test_a_finished_certified_campaign_checkpoints_its_whole_certificates_then_lets_them_go(tmp_path, monkeypatch):
+    # the reverse index goes before the last checkpoint, the entries after it: the
+    # checkpoint still holds every entry, and certifies every alive centre of the result
+    from coordinator.certificates import Certificates
+    from farm import config as config_mod
+    from farm import quantification
+
+    parts = []
+    monkeypatch.setattr(quantification, "finish", lambda cfg, out, p: parts.append(p) or {"result_hash": ""})
+    cfg = config_mod.normalize({
+        "scenario": {"name": "lead-follow", "sv_policy": "idm"}, "actions": {"mode": "adversarial"},
+        "quantify": {"delta0": 4.0, "delta_min": 1.0, "epsilon": 0.01, "beta": 0.1, "horizon": 30},
+        "farm": {"executor": "local", "batch_size": 256, "seed": 1}})
+    quantification.run(cfg, tmp_path / "c")
+    algo = parts[0]["total"].algorithm
+    assert algo.certifying and algo.enumerates
+    state, _ = Journal(tmp_path / "c").read(["algo.cert.vertex", "algo.cert.offsets", "algo.cert.witness",
+                                             "algo.cert.valid", "algo.vertices.alive"])
+    assert state["algo.cert.offsets"][-1] == len(state["algo.cert.witness"]) > 0
+    assert len(state["algo.cert.vertex"]) == len(state["algo.cert.valid"]) == len(state["algo.cert.offsets"]) - 1
+    alive = state["algo.vertices.alive"].astype(bool)
+    saved = Certificates.from_state({k[len("algo."):]: v for k, v in state.items() if k.startswith("algo.cert.")})
+    assert saved.certified(len(alive))[alive].all()
+    assert np.array_equal(algo.certificates.certified(len(alive)), saved.certified(len(alive)))
+    with pytest.raises(RuntimeError, match="released"):
+        algo.state()
