@@ -142,3 +142,14 @@ def test_covered_by_since_answers_as_an_index_of_those_points(dense):
     lone.insert(np.array([[9.0, 9.0], [3.0 + 1.8e-9, 3.0 + 1.8e-9]]))
     corner = np.array([[2.0, 2.0]])
     assert lone.covered_by_since(corner, delta, 1)[0] == dense == (lone.cover(corner, delta)[0] == 1)
+
+
+def test_ids_stay_below_2_31_and_queries_answer_int64_ids():
+    # chains and the dense grid hold int32 ids: the index refuses the 2^31st point
+    index = PointIndex(2, 0.5, [0.0, 0.0], bounds=([0.0, 0.0], [4.0, 4.0]))
+    ids = index.insert(np.array([[0.25, 0.25], [1.0, 1.1]]))
+    assert index.cover(np.array([[0.3, 0.2], [1.05, 1.0], [3.0, 3.0]]), 0.25).tolist() == [ids[0], ids[1], -1]
+    assert index.cover(np.array([[0.3, 0.2]]), 0.25).dtype == np.int64
+    index.count = 2**31 - 1
+    with pytest.raises(OverflowError, match="2\\^31"):
+        index.insert(np.array([[2.0, 2.0]]))
