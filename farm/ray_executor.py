@@ -413,10 +413,12 @@ class RayExecutor:
         self._queued[part.actor] -= 1
         # its changes may never reach the actor: the next message starts from what is known
         self._synced[part.actor] = self._confirmed[part.actor]
-        try:
-            self.ray.cancel(part.ref)
-        except Exception:  # noqa: BLE001 - an actor task already running just finishes
-            pass
+        # The chunk is left to finish, its results unread (and freed with the refs): no
+        # ray.cancel. Cancelling a queued actor task can leave a gap in the actor's
+        # sequence numbers that stalls its next tasks until Ray's 30 s reorder timeout
+        # (Ray issues 65785, 66020); seen once here, a round end's replay screening
+        # retried after "Timed out waiting for seq_no". A running actor task is not
+        # cancelled anyway, and a round end drops at most the batches in flight.
 
     def close(self) -> None:
         for a in self.actors:

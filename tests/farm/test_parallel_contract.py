@@ -222,3 +222,26 @@ def test_workers_that_cannot_be_kept_busy_are_announced(ray_local, reference, tm
     log = io.StringIO()
     run(contract_config("ray", 3), tmp_path / "d", resume=False, progress=Progress(stream=log))
     assert "Ray (local) up with 3 workers" in log.getvalue() and "workers busy" not in log.getvalue()
+
+
+def test_a_dropped_chunk_is_left_to_finish_and_the_actor_goes_on(ray_local):
+    """``cancel`` drops a chunk without ``ray.cancel``: cancelling a queued actor task can
+    leave a gap in the actor's sequence numbers that stalls its next tasks for Ray's 30 s
+    reorder timeout. A chunk queued behind a running one is dropped; it still runs (the
+    actor counts 3 tasks, 2 had it been cancelled), and the next chunk comes back."""
+    from farm import ray_executor
+    from farm.quantification import spec_of
+
+    ex = ray_executor.RayExecutor(spec_of(contract_config("ray", 1)), 1)
+    try:
+        starts = np.tile([10.0, 10.0, 40.0], (20_000, 1))
+        running = ex.submit(0, starts)
+        queued = ex.submit(20_000, starts[:500])
+        for handle in queued:
+            ex.cancel(handle)
+        after = ex.submit(20_500, starts[:300])
+        assert len(ex.result(running[0])) == 20_000
+        assert [len(ex.result(h)) for h in after] == [300]
+        assert ex.worker_stats()[0]["tasks"] == 3
+    finally:
+        ex.close()
