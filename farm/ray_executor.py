@@ -95,8 +95,8 @@ def _actor_class():
                 self.mirror = Coverage.from_state(ray.get(payload))
                 return self.mirror
             # "changes": change blocks (inline, or refs) holding every change after number ``base``
-            # (a mirror ahead of base skips what it has: the chunk that took it there may
-            # have been cancelled, or not)
+            # (a mirror ahead of base skips what it has: the chunk that took it there was
+            # dropped by the coordinator, which then sends from what it knows was applied)
             if self.mirror is None or self.mirror.seq < base:
                 return RESYNC
             for block in payload:
