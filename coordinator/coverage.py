@@ -199,9 +199,8 @@ class Coverage:
             self.vertices.kill(np.concatenate(kills))
         self.seq += len(entries)
         self.version = entries[-1][1]
-        if self._log is not None:
-            self._log.extend((self.seq - len(entries) + i + 1, version, change)
-                             for i, (_, version, change) in enumerate(entries))
+        if self._log is not None:  # the entries' own numbers: they follow this mirror's seq
+            self._log.extend(entries)
 
     # -- history: the points added since a seq ----------------------------------------------
     def _forget_history(self) -> None:
