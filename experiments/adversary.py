@@ -53,6 +53,8 @@ def run_case(label, scenario, quantify, grid, mode, certify, root: Path) -> dict
     row = {"case": label, "mode": mode, "certify": certify, "runs": summary["runs_committed"],
            "converged": summary["converged"], "boxes": summary["boxes"], "delta_min": quantify["delta_min"],
            "precision": metrics["precision"], "recall": metrics["recall"], "iou": metrics["iou"],
+           "missed_depth_boxes": metrics["missed_depth_boxes"],
+           "overclaimed_depth_boxes": metrics["overclaimed_depth_boxes"], "grid_cell_boxes": metrics["grid_cell_boxes"],
            "campaign_s": round(wall, 1), "reference": metrics["reference"]}
     adversary = out / "adversary.json"
     if adversary.exists():
@@ -80,11 +82,14 @@ def _toml(cfg: dict) -> str:
 
 def render() -> None:
     data = json.loads(JSON.read_text())
-    head = ["| case | actions | certify | runs | converged | precision | recall | IoU | proposed Gamma* | campaign s |",
-            "| --- | --- | --- | ---: | --- | ---: | ---: | ---: | --- | ---: |"]
+    head = ["| case | actions | certify | runs | converged | precision | recall | IoU | "
+            "error depth: missed / claimed (grid cell), box widths | proposed Gamma* | campaign s |",
+            "| --- | --- | --- | ---: | --- | ---: | ---: | ---: | ---: | --- | ---: |"]
     rows = [f"| {r['case']} (delta_min {r['delta_min']:g}) | {r['mode']} | {'on' if r['certify'] else 'off'} | "
             f"{r['runs']:,} | {'yes' if r['converged'] else 'no (budget)'} | {r['precision']:.4f} | "
-            f"{r['recall']:.4f} | {r['iou']:.4f} | {r.get('proposed_gamma_star') or '-'} | {r['campaign_s']:g} |"
+            f"{r['recall']:.4f} | {r['iou']:.4f} | "
+            f"{r['missed_depth_boxes']:.2f} / {r['overclaimed_depth_boxes']:.2f} ({r['grid_cell_boxes']:.2f}) | "
+            f"{r.get('proposed_gamma_star') or '-'} | {r['campaign_s']:g} |"
             for r in data["rows"]]
     table = "\n".join(head + rows)
     text = DOC.read_text()

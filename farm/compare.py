@@ -71,7 +71,10 @@ def describe(directory: Path, metrics: dict) -> str:
              f"{metrics['reference']} reference on {metrics['grid_points']:,} grid points",
              f"  IoU {metrics['iou']:.4f}  precision {metrics['precision']:.4f}  recall {metrics['recall']:.4f}  "
              f"Hausdorff (l-inf) {metrics['hausdorff']:.3g}",
-             f"  claimed volume {metrics['claimed_volume']:.6g}, reference volume {metrics['reference_volume']:.6g}"]
+             f"  claimed volume {metrics['claimed_volume']:.6g}, reference volume {metrics['reference_volume']:.6g}",
+             f"  errors reach {metrics['missed_depth_boxes']:.3g} box widths into the reference's safe region "
+             f"(missed) and {metrics['overclaimed_depth_boxes']:.3g} into its unsafe region (claimed); the boxes' "
+             f"boundary layer is 1 box width plus a grid cell ({metrics['grid_cell_boxes']:.3g} box widths)"]
     lines += [f"  {n}" for n in metrics["notes"]]
     lines.append(f"  wrote {directory / 'compare.json'} and {directory / 'plots' / 'compare.png'}")
     return "\n".join(lines)

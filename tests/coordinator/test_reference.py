@@ -39,11 +39,18 @@ def test_compare_scores_a_perfect_and_a_shifted_set():
     centres = np.stack(np.meshgrid(xs, np.arange(0.25, 10.0, 0.5), indexing="ij"), -1).reshape(-1, 2)
     perfect = compare_boxes(sc, centres, 0.25, grid_points_per_axis=200)
     assert perfect["iou"] == 1.0 and perfect["hausdorff"] < 0.1
+    assert perfect["missed_depth_boxes"] == perfect["overclaimed_depth_boxes"] == 0.0
+    assert perfect["grid_cell_boxes"] == pytest.approx(0.1)  # cells of 0.05, boxes 0.5 wide
     one_well = compare_boxes(sc, centres[centres[:, 0] < 5], 0.25, grid_points_per_axis=200)
     assert one_well["precision"] == 1.0 and 0.45 < one_well["iou"] < 0.55
     assert abs(one_well["hausdorff"] - 5.0) < 0.1  # the missed well is 5 away from the found one
+    # the missed well (x in [6, 9]) reaches 1.5 = 3 box widths into the safe region
+    assert one_well["missed_depth_boxes"] == pytest.approx(3.0) and one_well["overclaimed_depth_boxes"] == 0.0
     shifted = compare_boxes(sc, centres + [0.5, 0.0], 0.25, grid_points_per_axis=200)
     assert shifted["iou"] < perfect["iou"] and shifted["precision"] < 1.0
+    # a band one box (0.5) wide missed at each well's left edge, claimed at its right
+    assert shifted["missed_depth_boxes"] == pytest.approx(1.0)
+    assert shifted["overclaimed_depth_boxes"] == pytest.approx(1.0)
 
 
 def test_compare_cli_on_a_campaign(tmp_path):
