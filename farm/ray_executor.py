@@ -41,6 +41,17 @@ STORED_PART = 4096  # runs per replay task when a stored piece must be re-simula
 MIN_CHUNK = 256  # runs: the smallest chunk a batch is cut into for a worker
 INLINE_BYTES = 1 << 16  # change blocks up to this size travel inside the task call
 
+# Return values up to this size come back inside the task's reply instead of through
+# the object store (Ray's default: 100 KB). A chunk's summary is ~150 KB for 1,024
+# lead-follow runs (mostly witnesses), and the store's create, seal, get and free of it
+# cost the driver more than its bytes; the visited states (~1.1 MB a chunk) stay above
+# the limit, in the worker's store, until the driver asks for them. Measured: +18%
+# committed runs per coordinator-CPU-second (docs/benchmarks.md). A local Ray gets it
+# here; a cluster from RAY_max_direct_call_object_size on every `ray start`
+# (deploy/), read by each Ray process when it starts.
+INLINE_RETURN_BYTES = 256 * 1024
+RAY_SYSTEM_CONFIG = {"max_direct_call_object_size": INLINE_RETURN_BYTES}
+
 
 def _nbytes(changes) -> int:
     """Array bytes of logged coverage changes (a whole-coverage Reset counts as large)."""
@@ -149,7 +160,7 @@ def _init(ray, address: str, workers: int) -> None:
         path = os.pathsep.join(p for p in (os.getcwd(), os.environ.get("PYTHONPATH")) if p)
         with _loopback_only():
             ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, configure_logging=False,
-                     _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1",
+                     _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1", _system_config=RAY_SYSTEM_CONFIG,
                      runtime_env={"env_vars": {"PYTHONPATH": path}})
     else:
         ray.init(address=address, log_to_driver=False, configure_logging=False)

@@ -35,7 +35,8 @@ def free_ports(k):
 @pytest.fixture
 def ray_head(tmp_path):
     gcs, dashboard, client, agent = free_ports(4)
-    env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(16)}
+    env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(16),
+           "RAY_max_direct_call_object_size": "262144"}  # as deploy/ starts a cluster
     temp_dir = Path("/tmp") / f"sfh-{secrets.token_hex(3)}"  # short: Ray's socket paths are length-limited
     log = open(tmp_path / "head.log", "w")
     head = subprocess.Popen(

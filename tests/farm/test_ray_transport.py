@@ -1,0 +1,52 @@
+"""How a chunk travels: its summary back inside the task's reply, its visited states
+left in the worker's object store until the driver asks for them (issue 11, point 2)."""
+
+import subprocess
+import sys
+import textwrap
+
+
+def test_a_local_ray_returns_chunk_summaries_inline_and_keeps_visited_states_in_the_store(tmp_path):
+    """A fresh process, so that ``connect("local")`` starts the Ray it describes (the
+    tests' shared Ray is started by conftest). A return value is inline when Ray knows
+    no node that holds it (within 3 s: a stored object's location is reported late at
+    times)."""
+    script = textwrap.dedent("""
+        import time
+
+        import numpy as np
+        import ray
+        from farm import ray_executor
+        from scenarios.simulator import SimSpec
+
+        ray_executor.connect("local", 1)
+        limit = ray_executor.INLINE_RETURN_BYTES
+
+        @ray.remote
+        def payload(n):
+            return np.zeros(n, np.uint8)
+
+        def inline(ref):
+            # a stored object's location can reach its owner a moment after its value
+            ray.get(ref)
+            for _ in range(30):
+                if ray.experimental.get_object_locations([ref])[ref]["node_ids"]:
+                    return False
+                time.sleep(0.1)
+            return True
+
+        # Ray's own default (100 KB) would put the first in the store
+        print("sized", inline(payload.remote(limit - 4096)), inline(payload.remote(2 * limit)))
+        spec = SimSpec({"name": "lead-follow", "sv_policy": "idm"}, {"mode": "uniform"}, 50, 0)
+        ex = ray_executor.RayExecutor(spec, 1)
+        (handle,) = ex.submit(0, np.tile([10.0, 10.0, 40.0], (1024, 1)))
+        part = ex._jobs[handle]
+        chunk = ex.result(handle)
+        states, offsets = chunk.visited()
+        print("chunk", len(chunk), inline(part.ref), inline(part.visited_ref), states.nbytes > limit)
+    """)
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-3000:]
+    lines = dict(line.split(" ", 1) for line in out.stdout.splitlines() if line.startswith(("sized", "chunk")))
+    assert lines["sized"] == "True False", out.stdout + out.stderr[-3000:]
+    assert lines["chunk"] == "1024 True False True", out.stdout + out.stderr[-3000:]
