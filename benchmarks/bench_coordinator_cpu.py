@@ -29,10 +29,9 @@ def main() -> None:
     ap.add_argument("--batch", type=int, help="farm.batch_size (default: the config default)")
     ap.add_argument("--depth", type=int, help="farm.pipeline_depth (default: the config default)")
     args = ap.parse_args()
-    from farm.ray_executor import RAY_SYSTEM_CONFIG
+    from farm.ray_executor import start_local
 
-    ray.init(num_cpus=os.cpu_count(), include_dashboard=False, log_to_driver=False, configure_logging=False,
-             _system_config=RAY_SYSTEM_CONFIG)  # as the CLI's local Ray
+    start_local(os.cpu_count())  # as the CLI's local Ray
     farm = campaign_config(2, args.batch, args.depth).farm
     print(f"machine: {os.cpu_count()} cores; Ray {ray.__version__}, local; lead-follow idm, uniform Gamma, "
           f"delta 2 -> 0.5, numpy back end, 2 workers, batch_size {farm.batch_size}, pipeline_depth "

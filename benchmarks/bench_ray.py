@@ -64,10 +64,9 @@ def idle(stats, wall) -> str:
 def main() -> None:
     import ray
 
-    from farm.ray_executor import RAY_SYSTEM_CONFIG
+    from farm.ray_executor import start_local
 
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=False,
-             runtime_env={"env_vars": {"PYTHONPATH": HERE}}, _system_config=RAY_SYSTEM_CONFIG)
+    start_local(2, HERE)
     print(f"machine: {os.cpu_count()} cores; Ray {ray.__version__} local two-core mode")
     base, hashes = None, set()
     for label, executor, workers in [("in-process", "local", 1), ("Ray, 1 worker", "ray", 1),

@@ -88,10 +88,9 @@ def main() -> None:
     ap.add_argument("--batch", type=int, help="farm.batch_size (default: the config default)")
     ap.add_argument("--depth", type=int, help="farm.pipeline_depth (default: the config default)")
     args = ap.parse_args()
-    from farm.ray_executor import RAY_SYSTEM_CONFIG
+    from farm.ray_executor import start_local
 
-    ray.init(num_cpus=os.cpu_count(), include_dashboard=False, log_to_driver=False, configure_logging=False,
-             runtime_env={"env_vars": {"PYTHONPATH": HERE}}, _system_config=RAY_SYSTEM_CONFIG)
+    start_local(os.cpu_count(), HERE)
     cfg0 = campaign_config(1, args.batch, args.depth)
     print(f"machine: {os.cpu_count()} cores; Ray {ray.__version__}, local; simulator 4 us per run-step (sleep); "
           f"batch_size {cfg0.farm.batch_size}, pipeline_depth {cfg0.farm.pipeline_depth}")

@@ -21,10 +21,9 @@ def main() -> None:
     import ray
 
     from scenarios.simulator import SimSpec
-    from farm.ray_executor import RAY_SYSTEM_CONFIG, RayExecutor
+    from farm.ray_executor import RayExecutor, start_local
 
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=False,
-             _system_config=RAY_SYSTEM_CONFIG)
+    start_local(2)
     spec = SimSpec({"name": "lead-follow", "backend": "sumo", "sv_policy": "sumo",
                     "sumo": {"car_follow_model": "Krauss", "params": {"sigma": 0.0}}}, {"mode": "uniform"}, 50, 0)
     # starts where nobody crashes or leaves: every run lasts K = 50 states

@@ -155,15 +155,24 @@ def connect(address: str, workers: int) -> None:
 
 def _init(ray, address: str, workers: int) -> None:
     if address == "local":
-        # the banner says token auth is on by default; it stays on, the line goes
-        logging.getLogger("ray._private.authentication").setLevel(logging.ERROR)
-        path = os.pathsep.join(p for p in (os.getcwd(), os.environ.get("PYTHONPATH")) if p)
-        with _loopback_only():
-            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, configure_logging=False,
-                     _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1", _system_config=RAY_SYSTEM_CONFIG,
-                     runtime_env={"env_vars": {"PYTHONPATH": path}})
+        start_local(workers)
     else:
         ray.init(address=address, log_to_driver=False, configure_logging=False)
+
+
+def start_local(num_cpus: int, extra_path: str | None = None) -> None:
+    """A private local Ray as the CLI starts it (benchmarks and tests start theirs here
+    too): loopback only, ``RAY_SYSTEM_CONFIG``, and ``extra_path``, the working directory
+    and PYTHONPATH on the workers' import path."""
+    import ray
+
+    # the banner says token auth is on by default; it stays on, the line goes
+    logging.getLogger("ray._private.authentication").setLevel(logging.ERROR)
+    path = os.pathsep.join(p for p in (extra_path, os.getcwd(), os.environ.get("PYTHONPATH")) if p)
+    with _loopback_only():
+        ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False, configure_logging=False,
+                 _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1", _system_config=RAY_SYSTEM_CONFIG,
+                 runtime_env={"env_vars": {"PYTHONPATH": path}})
 
 
 class _keep_sigterm_handler:

@@ -10,11 +10,8 @@ def ray_local():
 
     os.environ.setdefault("RAY_DEDUP_LOGS", "0")
     # workers import user scenarios defined under tests/, like a user's own package
-    tests_dir = os.path.dirname(os.path.abspath(__file__))
-    path = os.pathsep.join(p for p in (tests_dir, os.environ.get("PYTHONPATH")) if p)
-    from farm.ray_executor import RAY_SYSTEM_CONFIG
+    from farm.ray_executor import start_local
 
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=False,
-             runtime_env={"env_vars": {"PYTHONPATH": path}}, _system_config=RAY_SYSTEM_CONFIG)
+    start_local(2, os.path.dirname(os.path.abspath(__file__)))
     yield ray
     ray.shutdown()

@@ -19,6 +19,8 @@ from pathlib import Path
 
 import pytest
 
+from farm.ray_executor import INLINE_RETURN_BYTES
+
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -36,7 +38,7 @@ def free_ports(k):
 def ray_head(tmp_path):
     gcs, dashboard, client, agent = free_ports(4)
     env = {**os.environ, "RAY_AUTH_MODE": "token", "RAY_AUTH_TOKEN": secrets.token_hex(16),
-           "RAY_max_direct_call_object_size": "262144"}  # as deploy/ starts a cluster
+           "RAY_max_direct_call_object_size": str(INLINE_RETURN_BYTES)}  # as deploy/ starts a cluster
     temp_dir = Path("/tmp") / f"sfh-{secrets.token_hex(3)}"  # short: Ray's socket paths are length-limited
     log = open(tmp_path / "head.log", "w")
     head = subprocess.Popen(
