@@ -30,7 +30,8 @@ CASES = [
     ("lead-follow idm", {"name": "lead-follow", "sv_policy": "idm"}, {"delta0": 2.0, "delta_min": 0.5}, None),
     ("fleet3 idm", {"name": "fleet3", "sv_policy": "idm"}, {"delta0": 2.0, "delta_min": 1.0}, None),
     # one round at delta 1: SPE never revisits what a coarser round pruned, so recall is
-    # set by delta0's boxes; with one round the search never adapts (docs/adversary.md)
+    # set by delta0's boxes; with one round the search samples its first mixture
+    # throughout and proposes from that round's evidence (docs/adversary.md)
     ("fleet3 idm", {"name": "fleet3", "sv_policy": "idm"}, {"delta0": 1.0, "delta_min": 1.0}, None),
     ("lead-follow SUMO Krauss", {"name": "lead-follow", "backend": "sumo", "sv_policy": "sumo",
                                  "sumo": {"car_follow_model": "Krauss",
@@ -66,6 +67,8 @@ def run_case(label, scenario, quantify, grid, mode, certify, root: Path) -> dict
         row["proposed_gamma_star"] = (found["proposed_gamma_star"] or {}).get("actions")
         row["known_gamma_star"] = found["known_gamma_star"]
         row["final_weights"] = {f["family"]: round(f["weight"], 3) for f in found["families"]}
+        row["evidence_weights"] = {f["family"]: round(f["evidence_weight"], 3) for f in found["families"]}
+        row["proposal_z"] = round((found["proposed_gamma_star"] or {}).get("z_over_runner_up", float("nan")), 2)
         row["failure_rates"] = {f["family"]: round(f["failure_rate"], 5) for f in found["families"]}
     print(json.dumps(row), flush=True)
     return row

@@ -88,6 +88,41 @@ def test_the_update_moves_weight_to_the_family_that_fails_and_is_pure():
     assert report["families"][1]["failure_share"] == 1.0
 
 
+def test_before_any_round_end_the_proposal_reads_the_first_rounds_runs_and_changes_nothing():
+    sc = LeadFollow("idm")
+    search = AdversarySearch(SearchActions(sc), seed=1)
+    idx = np.arange(8_000)
+    fam = search.policy.family_of(RunStreams.of(1, idx.astype(np.uint64)))
+    search.observe(idx, np.where((fam == 1) & (idx % 4 == 0), FAILURE, 0))  # no round end yet
+    before = search.state()
+    report = search.report(sc)
+    assert [f["weight"] for f in report["families"]] == [0.25] * 4  # what the round sampled
+    evidence = [f["evidence_weight"] for f in report["families"]]
+    assert np.argmax(evidence) == 1 and evidence[1] >= 0.5 and abs(sum(evidence) - 1) < 1e-12
+    assert report["proposed_gamma_star"]["actions"] == [[-5.0]]
+    assert report["proposed_gamma_star"]["z_over_runner_up"] > 10  # ~500 failures against none
+    after = search.state()
+    assert all(np.array_equal(before[k], after[k]) for k in before)  # reporting changed no state
+    assert search.report(sc) == report
+    # once a round ended, the proposal reads the latest update: a later round's runs are
+    # not folded in (the set was pruned against the leader, so it fails less there)
+    search.end_round(8_000)
+    search.observe(np.arange(8_000, 9_000), np.zeros(1_000))
+    later = search.report(sc)
+    assert [f["evidence_weight"] for f in later["families"]] == [f["weight"] for f in later["families"]]
+    assert later["proposed_gamma_star"]["actions"] == [[-5.0]]
+
+
+def test_no_proposal_when_no_vertex_family_stands_out():
+    sc = LeadFollow("idm")
+    search = AdversarySearch(SearchActions(sc), seed=1)
+    idx = np.arange(8_000)
+    search.observe(idx, np.where(idx % 50 == 0, FAILURE, 0))  # every family fails alike
+    report = search.report(sc)
+    assert report["proposed_gamma_star"] is None
+    assert max(f["evidence_weight"] for f in report["families"]) < 0.5
+
+
 # -- campaigns ------------------------------------------------------------------------------
 def search_config(executor="local", workers=2):
     raw = {"scenario": {"name": "lead-follow", "sv_policy": "idm"}, "actions": {"mode": "search"},
@@ -153,6 +188,19 @@ def test_kill_9_mid_campaign_then_resume_gives_the_same_search(tmp_path):
     assert a["result_hash"] == b["result_hash"] and a["runs_committed"] == b["runs_committed"]
     assert (json.loads((tmp_path / "whole" / "adversary.json").read_text())
             == json.loads((out / "adversary.json").read_text()))
+
+
+def test_a_one_round_campaign_samples_its_first_mixture_and_proposes_from_its_runs(tmp_path):
+    raw = {"scenario": {"name": "lead-follow", "sv_policy": "idm"}, "actions": {"mode": "search"},
+           "quantify": {"delta0": 1.0, "delta_min": 1.0, "epsilon": 0.005, "beta": 0.1, "horizon": 40,
+                        "certify": False},
+           "farm": {"executor": "local", "batch_size": 256, "pipeline_depth": 2, "seed": 3}}
+    summary = run(config_mod.normalize(raw), tmp_path / "c", resume=False)
+    adversary = json.loads((tmp_path / "c" / "adversary.json").read_text())
+    assert summary["rounds"] == 1 and adversary["rounds"] == []  # no round end: no update
+    assert adversary["schedule"] == [[0, [0.25] * 4]]
+    assert "25% the lead vehicle's acceleration at -5 m/s^2" in summary["guarantee"]  # what was sampled
+    assert adversary["proposed_gamma_star"]["actions"] == [[-5.0]]  # what its runs point at
 
 
 def test_replay_of_a_search_run_uses_the_schedule(in_process):
