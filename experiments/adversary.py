@@ -68,7 +68,8 @@ def run_case(label, scenario, quantify, grid, mode, certify, root: Path) -> dict
         row["known_gamma_star"] = found["known_gamma_star"]
         row["final_weights"] = {f["family"]: round(f["weight"], 3) for f in found["families"]}
         row["evidence_weights"] = {f["family"]: round(f["evidence_weight"], 3) for f in found["families"]}
-        row["proposal_z"] = round((found["proposed_gamma_star"] or {}).get("z_over_runner_up", float("nan")), 2)
+        proposal = found["proposed_gamma_star"]
+        row["proposal_z"] = round(proposal["z_over_runner_up"], 2) if proposal else None  # JSON has no NaN
         row["failure_rates"] = {f["family"]: round(f["failure_rate"], 5) for f in found["families"]}
     print(json.dumps(row), flush=True)
     return row
