@@ -98,15 +98,17 @@ class PrioritySampler:
     def _count_at_most(self, block: np.ndarray, rest: np.ndarray) -> np.ndarray:
         """Per draw, how many of its block's running sums are <= its rest: a binary search
         per row, vectorized over the draws (the running sums never decrease: weights are
-        >= 0), instead of comparing all BLOCK sums of each row."""
+        >= 0), instead of comparing all BLOCK sums of each row. Binary lifting over the
+        first BLOCK - 1 sums, then the last one: every step reads one sum per draw, with
+        no masks (a masked step cost ~5 numpy calls more, 5% of a campaign's driver)."""
+        flat = self.cum.reshape(-1)
+        base = block * BLOCK - 1
         pos = np.zeros(len(block), dtype=np.int64)
-        step = BLOCK
+        step = BLOCK // 2
         while step:
-            cand = pos + step
-            ok = cand <= BLOCK
-            ok[ok] = self.cum[block[ok], cand[ok] - 1] <= rest[ok]
-            pos[ok] = cand[ok]
+            pos += step * (flat[base + pos + step] <= rest)
             step //= 2
+        pos += flat[base + pos + 1] <= rest  # pos <= BLOCK - 1 here: the last sum decides BLOCK
         return pos
 
     # -- internals --------------------------------------------------------------------------
