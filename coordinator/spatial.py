@@ -51,6 +51,8 @@ class PointIndex:
         self.next = np.full(capacity, -1, dtype=LINK)
         self.count = 0
         self._heads = np.full(64, -1, dtype=LINK)
+        self._buckets = 64  # the hash table's size once the deferred chain work is done
+        self._chain_work: list[tuple] = []  # ("rehash", buckets, count) / ("link", lo, hi), in order
         self.bounds = None if bounds is None else (np.asarray(bounds[0], float), np.asarray(bounds[1], float))
         self._dense = None
         self._centre_cell = np.full(capacity, -1, dtype=LINK)  # flat dense cell if at a centre
@@ -101,13 +103,18 @@ class PointIndex:
         return part
 
     def _centre_cells(self, pts: np.ndarray) -> np.ndarray:
+        """Flat dense cell of each point sitting at a cell centre, -1 for the others."""
+        return self._dense_cells(pts)[0]
+
+    def _dense_cells(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(flat dense cell if at a cell centre else -1, flat dense cell) of each point:
+        the second is ``_flat(_cells(pts))`` (the same floor of the same quotient)."""
         rel = (pts - self.origin) / self.cell
         cells = np.floor(rel).astype(np.int64)
         at_centre = (np.abs(rel - cells - 0.5) <= 1e-9).all(axis=1)
         at_centre &= ((cells >= 0) & (cells + 1 < self._shape - 1)).all(axis=1)
         flat = self._flat(cells)
-        flat[~at_centre] = -1
-        return flat
+        return np.where(at_centre, flat, -1), flat
 
     # -- hashing ----------------------------------------------------------------------
     def _cells(self, pts: np.ndarray) -> np.ndarray:
@@ -145,10 +152,38 @@ class PointIndex:
         last[:-1] = keys[:-1] != keys[1:]
         heads[keys[last]] = ids[last]
 
-    def _rehash(self, buckets: int) -> None:
+    def _rehash(self, buckets: int, count: int | None = None) -> None:
+        """Hash chains of a table of ``buckets`` over the alive points among the first
+        ``count`` (default: all)."""
+        count = self.count if count is None else count
         self._heads = np.full(buckets, -1, dtype=LINK)
-        self.next[: self.count] = -1
-        self._link(np.nonzero(self.alive[: self.count])[0])
+        self.next[:count] = -1
+        self._link(np.nonzero(self.alive[:count])[0])
+
+    def _chains(self, work: tuple) -> None:
+        """The hash chains' share of an insert (or a recell): done now without a dense
+        grid, else kept until a query walks the chains (``_sync_chains``). With a dense
+        grid no query at radius cell/2, i.e. none a campaign makes, walks them, and
+        linking cost an insert of a few points ~40% of its time."""
+        if self._dense is None:
+            self._chain_work.append(work)
+            self._sync_chains()
+        elif work[0] == "rehash":  # it relinks every alive point: the earlier work is moot
+            self._chain_work = [work]
+        else:
+            self._chain_work.append(work)
+
+    def _sync_chains(self) -> None:
+        """Do the deferred chain work, in order. A rehash done late leaves out the points
+        killed since it was due; they would only have been skipped (walks check
+        ``alive``), and the alive points keep their order in every chain (newest
+        first), so every walk finds what it found with the work done at once."""
+        for work in self._chain_work:
+            if work[0] == "rehash":
+                self._rehash(work[1], work[2])
+            else:
+                self._link(np.arange(work[1], work[2]))
+        self._chain_work = []
 
     # -- mutation -----------------------------------------------------------------------
     def insert(self, pts: np.ndarray) -> np.ndarray:
@@ -169,18 +204,21 @@ class PointIndex:
         self.alive[ids] = True
         self.count += k
         if self._dense is not None:
-            cells = self._centre_cells(pts)
+            cells, flat = self._dense_cells(pts)
             self._centre_cell[ids] = cells
-            np.add.at(self._dense, cells[cells >= 0], 1)
-            self._centre_point[cells[cells >= 0]] = ids[cells >= 0]
-            off = cells < 0
-            off_cells = self._flat(self._cells(pts[off]))
-            np.add.at(self._others, off_cells, 1)
-            self._push(ids[off], off_cells, self._off_head, self._off_next)
-        if self.count > len(self._heads) // 2:
-            self._rehash(1 << int(np.ceil(np.log2(4 * self.count))))
+            centred = cells >= 0
+            if centred.any():
+                np.add.at(self._dense, cells[centred], 1)
+                self._centre_point[cells[centred]] = ids[centred]
+            if not centred.all():
+                off = ~centred
+                np.add.at(self._others, flat[off], 1)
+                self._push(ids[off], flat[off], self._off_head, self._off_next)
+        if self.count > self._buckets // 2:
+            self._buckets = 1 << int(np.ceil(np.log2(4 * self.count)))
+            self._chains(("rehash", self._buckets, self.count))
         else:
-            self._link(ids)
+            self._chains(("link", self.count - k, self.count))
         return ids
 
     def kill(self, ids) -> None:
@@ -209,8 +247,9 @@ class PointIndex:
     def recell(self, cell: float) -> None:
         """Change the cell size (when delta shrinks) and rebuild the chains."""
         self.cell = float(cell)
-        self._rehash(len(self._heads))
         self._build_dense()
+        self._chain_work = []
+        self._chains(("rehash", self._buckets, self.count))
 
     # -- queries ------------------------------------------------------------------------
     def alive_ids(self) -> np.ndarray:
@@ -352,6 +391,7 @@ class PointIndex:
 
     def _scan(self, q, cells, sel, r, found) -> None:
         """Walk the hash chains of ``cells`` (row i: the cell for query ``sel[i]``), setting ``found``."""
+        self._sync_chains()
         self._walk(q, sel, self._heads[self._bucket(cells)], r, found, self.next)
 
     def _walk(self, q, sel, cur, r, found, links) -> None:

@@ -153,3 +153,36 @@ def test_ids_stay_below_2_31_and_queries_answer_int64_ids():
     index.count = 2**31 - 1
     with pytest.raises(OverflowError, match="2\\^31"):
         index.insert(np.array([[2.0, 2.0]]))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_deferred_chains_walk_as_chains_kept_at_once(seed):
+    """A dense index links its hash chains only when a query walks them (radius other
+    than cell/2); it must then name the very witnesses of an index that linked at every
+    insert (no bounds: no dense grid), through rehashes, kills and a recell."""
+    rng = np.random.default_rng(seed)
+    lo, hi = np.zeros(3), np.full(3, 24.0)
+    dense = PointIndex(3, 2.0, lo, bounds=(lo, hi))
+    eager = PointIndex(3, 2.0, lo)
+    assert dense._dense is not None and eager._dense is None
+
+    def both(method, *args):
+        getattr(dense, method)(*args)
+        getattr(eager, method)(*args)
+
+    for step in range(60):
+        k = int(rng.integers(1, 40))  # crosses the table's doubling thresholds several times
+        pts = np.where(rng.random((k, 1)) < 0.5, np.floor(rng.random((k, 3)) * 12) * 2 + 1, rng.random((k, 3)) * 24)
+        both("insert", pts)
+        if step % 7 == 3:
+            both("kill", rng.choice(dense.count, size=dense.count // 5, replace=False))
+        if step == 40:
+            both("recell", 1.0)
+        if step % 10 == 9:
+            queries = rng.random((500, 3)) * 26 - 1
+            small = dense.cell / 2 * 0.8  # walks the hash chains in both
+            np.testing.assert_array_equal(dense.cover(queries, small), eager.cover(queries, small))
+            large = dense.cell / 2 * 1.3
+            alive = dense.points[: dense.count][dense.alive[: dense.count]]
+            truth = (np.abs(queries[:, None, :] - alive[None, :, :]).max(axis=2) <= large + 1e-9).any(axis=1)
+            np.testing.assert_array_equal(dense.any_within(queries, large), truth)
