@@ -29,6 +29,7 @@ _P = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
                0x2545F4914F6CDD1D, 0x9FB21C651E98DF25], dtype=np.uint64)
 TOLERANCE = 1e-9  # closed boxes, decided as exact arithmetic would on grid boundaries
 DENSE_LIMIT = 1 << 25  # cells; 32 Mi int32 counters = 128 MiB at most
+SMALL_PUSH = 8  # points pushed one by one: ~12 array operations cost more below this
 MISS_BLOCK = 1 << 15  # queries whose touched cells are enumerated at once (2^n cells each)
 # point ids and dense cell numbers in the chains and the dense grid: both < 2^31 (a dense
 # grid has at most DENSE_LIMIT cells; ``insert`` refuses the 2^31st point). Half of int64:
@@ -135,8 +136,14 @@ class PointIndex:
 
     @staticmethod
     def _push(ids: np.ndarray, keys: np.ndarray, heads: np.ndarray, links: np.ndarray) -> None:
-        """Push points ``ids`` onto the chains ``heads[keys]`` (vectorized)."""
+        """Push points ``ids`` onto the chains ``heads[keys]`` (vectorized; a few points
+        one by one, in the given order, which links them exactly as the grouped form)."""
         if len(ids) == 0:
+            return
+        if len(ids) <= SMALL_PUSH:
+            for point, key in zip(ids.tolist(), keys.tolist()):
+                links[point] = heads[key]
+                heads[key] = point
             return
         order = np.argsort(keys, kind="stable")
         ids, keys = ids[order], keys[order]
