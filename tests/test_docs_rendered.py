@@ -14,6 +14,7 @@ RENDERED = {  # renderer -> the docs it writes
     "figures.py": ["figures.md"],
     "adversary.py": ["adversary.md"],
     "reproduce.py": ["reproduction.md"],
+    "window.py": ["window.md"],
 }
 
 
