@@ -199,8 +199,8 @@ class Part:
                 if busy < farm.workers:  # the cut is fixed by result-relevant settings: say so, do not change it
                     self.progress.line(f"note: {farm.batch_size} x {farm.pipeline_depth} runs in flight "
                                        f"(farm.batch_size x farm.pipeline_depth) keep at most {busy} of the "
-                                       f"{farm.workers} workers busy; raise them for more (README, 'Many workers': "
-                                       f"it costs runs)")
+                                       f"{farm.workers} workers busy; raise them for more (it costs runs: README, "
+                                       f"'Many workers', and docs/window.md)")
             self.campaign.executor = executor
             try:
                 self.campaign.run()
