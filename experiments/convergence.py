@@ -14,9 +14,6 @@ those files, so the document cannot drift from the experiment.
 from __future__ import annotations
 
 import json
-import os
-import platform
-import sys
 import time
 from pathlib import Path
 
@@ -30,6 +27,8 @@ from farm.executors import LocalExecutor
 from scenarios.simulator import SimSpec
 from scenarios import make_scenario
 from scenarios.backend import NumpyBackend
+
+from experiment import machine_stamp, main
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 VARIANTS = [
@@ -112,9 +111,8 @@ def write(rows, curves):
 def _machine() -> dict:
     import ray
 
-    return {"date": time.strftime("%Y-%m-%d"), "machine": f"{platform.machine()}, {os.cpu_count()} cores",
-            "python": platform.python_version(), "numpy": np.__version__, "ray": ray.__version__,
-            "settings": "lead-follow / brake, delta 2 -> 0.5, eps = 0.001, beta = 0.1, K = 50, seed 0"}
+    return machine_stamp(ray=ray.__version__,
+                         settings="lead-follow / brake, delta 2 -> 0.5, eps = 0.001, beta = 0.1, K = 50, seed 0")
 
 
 def _table(rows) -> list[str]:
@@ -233,8 +231,4 @@ def render() -> Path:
 
 
 if __name__ == "__main__":
-    if sys.argv[1:] == ["--render"]:
-        print(render())
-    else:
-        rows, curves = study(**({"budget": int(sys.argv[1])} if len(sys.argv) > 1 else {}))
-        write(rows, curves)
+    main(lambda args: write(*study(**({"budget": int(args[0])} if args else {}))), render)

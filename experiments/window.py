@@ -18,13 +18,8 @@ model-based reference on the compare grid.
 from __future__ import annotations
 
 import json
-import os
-import platform
-import sys
 import time
 from pathlib import Path
-
-import numpy as np
 
 from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign
@@ -33,6 +28,8 @@ from coordinator.reference import compare_boxes, grid, reference_safe
 from farm import config as config_mod
 from farm.executors import LocalExecutor
 from farm.quantification import spec_of
+
+from experiment import machine_stamp, main
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 DEFAULT = (1024, 2)  # farm.batch_size, farm.pipeline_depth (farm/config.py)
@@ -113,9 +110,7 @@ def study() -> list[dict]:
 
 
 def write(rows: list[dict]) -> None:
-    meta = {"date": time.strftime("%Y-%m-%d"), "machine": f"{platform.machine()}, {os.cpu_count()} cores",
-            "python": platform.python_version(), "numpy": np.__version__}
-    (DOCS / "window.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1) + "\n")
+    (DOCS / "window.json").write_text(json.dumps({"meta": machine_stamp(), "rows": rows}, indent=1) + "\n")
     print(render())
 
 
@@ -208,7 +203,4 @@ def render() -> Path:
 
 
 if __name__ == "__main__":
-    if sys.argv[1:] == ["--render"]:
-        print(render())
-    else:
-        write(study())
+    main(lambda args: write(study()), render)
