@@ -386,24 +386,35 @@ class Rescreen:
         """(len(rows),) bool: these runs change the state now (one classification), and
         that classification: (uncovered, near, offsets of each row's states), or None."""
         failed = self.outcomes[rows] == FAILURE
+        if len(rows) == 1:  # most calls (the first block is one row): no per-row bookkeeping
+            if failed[0]:
+                return failed, None
+            states = self.candidates(int(rows[0]))
+            if len(states) == 0:
+                return failed, None
+            uncovered, near = self._classify(states, rows)
+            new = uncovered & ~near
+            return new.any(keepdims=True), (uncovered, near, np.array([0, len(states)]))
         parts = [self.candidates(int(r)) if not f else np.empty((0, self.coverage.n))
                  for r, f in zip(rows, failed)]
         states = np.concatenate(parts)
         if len(states) == 0:
             return failed, None
-        known = None
-        if not self._full[rows].any() and self.screening.epoch == self.coverage.epoch:
-            known = self.coverage.classify_since(states, self.screening.seq)  # states new at screening
-        if known is None:
-            witness, near = self.coverage.classify_states(states)
-            uncovered = witness < 0
-        else:
-            uncovered, near = known
+        uncovered, near = self._classify(states, rows)
         new = uncovered & ~near
         lengths = [len(p) for p in parts]
         run = np.repeat(np.arange(len(rows)), lengths)
         changes = failed | (np.bincount(run[new], minlength=len(rows)) > 0)
         return changes, (uncovered, near, np.concatenate([[0], np.cumsum(lengths)]))
+
+    def _classify(self, states: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(uncovered, near) of the candidate states of ``rows`` now."""
+        if not self._full[rows].any() and self.screening.epoch == self.coverage.epoch:
+            known = self.coverage.classify_since(states, self.screening.seq)  # states new at screening
+            if known is not None:
+                return known
+        witness, near = self.coverage.classify_states(states)
+        return witness < 0, near
 
     def _found(self, rows: np.ndarray, at: int, classified: tuple | None) -> int:
         """Run ``rows[at]`` changes the state: keep what its classification found."""
