@@ -79,14 +79,14 @@ class PointIndex:
         self._others = np.zeros(int(np.prod(shape)), dtype=np.int32)  # off-centre points per cell
         self._off_head = np.full(int(np.prod(shape)), -1, dtype=LINK)  # their chains
         ids = np.arange(self.count)
-        self._centre_cell[: self.count] = self._centre_cells(self.points[: self.count])
-        live = ids[self.alive[: self.count] & (self._centre_cell[: self.count] >= 0)]
-        np.add.at(self._dense, self._centre_cell[live], 1)
-        self._centre_point[self._centre_cell[live]] = live
-        off = ids[self.alive[: self.count] & (self._centre_cell[: self.count] < 0)]
-        off_cells = self._flat(self._cells(self.points[off]))
-        np.add.at(self._others, off_cells, 1)
-        self._push(off, off_cells, self._off_head, self._off_next)
+        centre_cells, flat = self._dense_cells(self.points[: self.count])
+        self._centre_cell[: self.count] = centre_cells
+        live = ids[self.alive[: self.count] & (centre_cells >= 0)]
+        np.add.at(self._dense, centre_cells[live], 1)
+        self._centre_point[centre_cells[live]] = live
+        off = ids[self.alive[: self.count] & (centre_cells < 0)]
+        np.add.at(self._others, flat[off], 1)
+        self._push(off, flat[off], self._off_head, self._off_next)
 
     def _flat(self, cells: np.ndarray) -> np.ndarray:
         """Flat dense index of integer cells (clipped into the margin when outside).
@@ -102,10 +102,6 @@ class PointIndex:
         np.minimum(np.maximum(part, 0, out=part), self._shape[axis] - 1, out=part)
         part *= self._strides[axis]
         return part
-
-    def _centre_cells(self, pts: np.ndarray) -> np.ndarray:
-        """Flat dense cell of each point sitting at a cell centre, -1 for the others."""
-        return self._dense_cells(pts)[0]
 
     def _dense_cells(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(flat dense cell if at a cell centre else -1, flat dense cell) of each point:
@@ -159,10 +155,9 @@ class PointIndex:
         last[:-1] = keys[:-1] != keys[1:]
         heads[keys[last]] = ids[last]
 
-    def _rehash(self, buckets: int, count: int | None = None) -> None:
+    def _rehash(self, buckets: int, count: int) -> None:
         """Hash chains of a table of ``buckets`` over the alive points among the first
-        ``count`` (default: all)."""
-        count = self.count if count is None else count
+        ``count``."""
         self._heads = np.full(buckets, -1, dtype=LINK)
         self.next[:count] = -1
         self._link(np.nonzero(self.alive[:count])[0])
@@ -172,13 +167,12 @@ class PointIndex:
         grid, else kept until a query walks the chains (``_sync_chains``). With a dense
         grid no query at radius cell/2, i.e. none a campaign makes, walks them, and
         linking cost an insert of a few points ~40% of its time."""
-        if self._dense is None:
-            self._chain_work.append(work)
-            self._sync_chains()
-        elif work[0] == "rehash":  # it relinks every alive point: the earlier work is moot
+        if work[0] == "rehash":  # it relinks every alive point: the earlier work is moot
             self._chain_work = [work]
         else:
             self._chain_work.append(work)
+        if self._dense is None:
+            self._sync_chains()
 
     def _sync_chains(self) -> None:
         """Do the deferred chain work, in order. A rehash done late leaves out the points
@@ -255,7 +249,6 @@ class PointIndex:
         """Change the cell size (when delta shrinks) and rebuild the chains."""
         self.cell = float(cell)
         self._build_dense()
-        self._chain_work = []
         self._chains(("rehash", self._buckets, self.count))
 
     # -- queries ------------------------------------------------------------------------

@@ -28,12 +28,12 @@ from coordinator.reference import compare_boxes, grid, reference_safe
 from farm import config as config_mod
 from farm.executors import LocalExecutor
 from farm.quantification import spec_of
+from farm.ray_executor import busy_at_most
 
 from experiment import machine_stamp, main
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 DEFAULT = (1024, 2)  # farm.batch_size, farm.pipeline_depth (farm/config.py)
-MIN_CHUNK = 256  # farm/ray_executor.py: the smallest chunk a batch is cut into
 WINDOWS = [(1024, 2), (2048, 2), (2048, 4), (4096, 4), (8192, 4), (1024, 32)]
 CASES = [  # delta_min, certify, windows
     (1.0, True, WINDOWS), (1.0, False, WINDOWS), (0.5, True, [(1024, 2), (2048, 4), (4096, 4)])]
@@ -49,12 +49,9 @@ def config(batch: int, depth: int, delta_min: float, certify: bool, seed: int = 
         "farm": {"executor": "local", "seed": seed, "batch_size": batch, "pipeline_depth": depth}})
 
 
-def busy_at_most(batch: int, depth: int, workers: int = 32) -> int:
-    """Workers the Ray executor can keep busy (RayExecutor.busy_at_most)."""
-    return min(workers, depth * min(-(-workers // depth), max(1, batch // MIN_CHUNK)))
-
-
-def run(batch: int, depth: int, delta_min: float, certify: bool, truth_cache: dict, seed: int = 0) -> dict:
+def run(batch: int, depth: int, delta_min: float, certify: bool, truth: dict, seed: int = 0) -> dict:
+    """One campaign; ``truth``: the reference on the compare grid, filled by the first
+    call (it depends on neither delta nor the window)."""
     cfg = config(batch, depth, delta_min, certify, seed)
     executor = LocalExecutor(spec_of(cfg))
     q = cfg.quantify
@@ -80,13 +77,12 @@ def run(batch: int, depth: int, delta_min: float, certify: bool, truth_cache: di
     rounds = [b - a for a, b in zip([0] + ends[:-1], ends)]
     centres, half_width = algo.result()
     backend = executor.simulator.backend
-    if delta_min not in truth_cache:
-        points = grid(backend.scenario)
-        truth_cache[delta_min] = reference_safe(backend, points)
-    metrics = compare_boxes(backend, centres, half_width, truth=truth_cache[delta_min])
+    if "safe" not in truth:
+        truth["safe"] = reference_safe(backend, grid(backend.scenario))
+    metrics = compare_boxes(backend, centres, half_width, truth=truth["safe"])
     stale = sum(v for k, v in kinds.items() if "in flight" in k)
     return {"seed": seed, "delta_min": delta_min, "certify": certify, "batch_size": batch, "pipeline_depth": depth,
-            "in_flight": batch * depth, "busy_at_most_of_32": busy_at_most(batch, depth),
+            "in_flight": batch * depth, "busy_at_most_of_32": busy_at_most(32, depth, batch),
             "committed": c.committed, "rounds": rounds, "converged": c.converged, "changes": c.changes,
             "changes_start_pruned_in_flight": stale, "changes_by_kind": dict(sorted(kinds.items())),
             "boxes": int(len(centres)), "iou": metrics["iou"], "precision": metrics["precision"],

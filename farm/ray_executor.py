@@ -53,6 +53,24 @@ INLINE_RETURN_BYTES = 256 * 1024
 RAY_SYSTEM_CONFIG = {"max_direct_call_object_size": INLINE_RETURN_BYTES}
 
 
+def chunks_per_batch(workers: int, pipeline_depth: int, batch_size: int) -> int:
+    """The chunks a batch of ``batch_size`` runs is cut into for ``workers`` workers.
+
+    ``pipeline_depth`` batches are in flight: workers / depth chunks per batch keep every
+    worker busy with the fewest Ray calls (2 workers at depth 2: one chunk per batch).
+    None under MIN_CHUNK runs: a smaller chunk costs the driver a Ray call (~1-2 ms) for
+    little simulation, and a worker its per-step overhead for few runs; more workers are
+    kept busy by more runs in flight (farm.batch_size x farm.pipeline_depth), not by
+    thinner chunks."""
+    return min(-(-workers // pipeline_depth), max(1, batch_size // MIN_CHUNK))
+
+
+def busy_at_most(workers: int, pipeline_depth: int, batch_size: int) -> int:
+    """Workers that batches of ``batch_size`` runs, ``pipeline_depth`` in flight, can keep
+    busy (docs/window.md: what raising them costs)."""
+    return min(workers, pipeline_depth * chunks_per_batch(workers, pipeline_depth, batch_size))
+
+
 def _nbytes(changes) -> int:
     """Array bytes of logged coverage changes (a whole-coverage Reset counts as large)."""
     total = 0
@@ -328,20 +346,13 @@ class RayExecutor:
         return handles
 
     def chunks_per_batch(self, batch_size: int) -> int:
-        """The chunks a batch of ``batch_size`` runs is cut into (``submit``).
-
-        ``pipeline_depth`` batches are in flight: workers / depth chunks per batch keep
-        every worker busy with the fewest Ray calls (2 workers at depth 2: one chunk per
-        batch). None under MIN_CHUNK runs: a smaller chunk costs the driver a Ray call
-        (~1-2 ms) for little simulation, and a worker its per-step overhead for few runs;
-        more workers are kept busy by more runs in flight (farm.batch_size x
-        farm.pipeline_depth), not by thinner chunks."""
-        return min(-(-self.workers // self.pipeline_depth), max(1, batch_size // MIN_CHUNK))
+        """The chunks a batch of ``batch_size`` runs is cut into (``submit``)."""
+        return chunks_per_batch(self.workers, self.pipeline_depth, batch_size)
 
     def busy_at_most(self, batch_size: int) -> int:
         """Workers that batches of ``batch_size`` runs, ``pipeline_depth`` in flight, can
         keep busy: the others are never sent a chunk."""
-        return min(self.workers, self.pipeline_depth * self.chunks_per_batch(batch_size))
+        return busy_at_most(self.workers, self.pipeline_depth, batch_size)
 
     def _launch(self, part: _Part, fresh: bool = False) -> None:
         self._queued[part.actor] += 1
