@@ -40,6 +40,7 @@ STORED_PART = 4096  # runs per replay task when a stored piece must be re-simula
 
 MIN_CHUNK = 256  # runs: the smallest chunk a batch is cut into for a worker
 INLINE_BYTES = 1 << 16  # change blocks up to this size travel inside the task call
+CLOSE_GRACE_S = 2.0  # [s] an actor's time to finish its chunks at close before it is killed
 
 # Return values up to this size come back inside the task's reply instead of through
 # the object store (Ray's default: 100 KB). A chunk's summary is ~150 KB for 1,024
@@ -469,8 +470,19 @@ class RayExecutor:
         # cancelled anyway, and a round end drops at most the batches in flight.
 
     def close(self) -> None:
-        for a in self.actors:
-            self.ray.kill(a)
+        """End the actors. Each first finishes what it was sent (at a round's end, chunks
+        that were dropped: short) and exits; one still busy after ``CLOSE_GRACE_S`` is
+        killed. Killing at once failed the running chunk, which Ray reports on the
+        driver as "Task SimWorker.run failed ... will be retried" at the end of every
+        normal campaign."""
+        if not self.actors:
+            return
+        ends = [a.__ray_terminate__.options(max_task_retries=0).remote() for a in self.actors]
+        ready, _ = self.ray.wait(ends, num_returns=len(ends), timeout=CLOSE_GRACE_S)
+        done = {ref.hex() for ref in ready}
+        for actor, end in zip(self.actors, ends):
+            if end.hex() not in done:
+                self.ray.kill(actor)
         self.actors = []
 
 
