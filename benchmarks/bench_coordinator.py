@@ -45,7 +45,7 @@ def index_of_size(boxes: int, rng) -> tuple[PointIndex, float]:
 def visited_queries(queries: int = 400_000) -> np.ndarray:
     """States visited by lead-follow idm runs (uniform Gamma) from uniform starts."""
     from scenarios import make_scenario
-    from scenarios.actions import make_action_policy
+    from scenarios.action_modes import make_action_policy
     from scenarios.backend import NumpyBackend
     from scenarios.rollout import run_scenario
     from scenarios.streams import RunStreams

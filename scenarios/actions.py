@@ -38,7 +38,7 @@ class ActionPolicy:
         raise NotImplementedError
 
 
-def _named(scenario: Scenario, values) -> str:
+def describe_action(scenario: Scenario, values) -> str:
     """'the lead vehicle's acceleration at -5 m/s^2 and ...' for one action vector."""
     parts = []
     for name, value in zip(scenario.action_names, np.asarray(values, dtype=float).ravel()):
@@ -79,8 +79,8 @@ class AdversarialActions(ActionPolicy):
     def words(self, scenario):
         options = scenario.adversarial_actions
         if len(options) == 1:
-            return f"with {_named(scenario, options[0])} throughout (the worst case, Gamma*)"
-        return ("with, at every step, one of " + "; ".join(_named(scenario, o) for o in options)
+            return f"with {describe_action(scenario, options[0])} throughout (the worst case, Gamma*)"
+        return ("with, at every step, one of " + "; ".join(describe_action(scenario, o) for o in options)
                 + " drawn at random (the worst cases, Gamma*)")
 
     def __call__(self, scenario, states, t, streams):
@@ -101,7 +101,7 @@ class ConstantActions(ActionPolicy):
         return f"u = {list(self.value)} (constant)"
 
     def words(self, scenario):
-        return f"with {_named(scenario, self.value)} throughout"
+        return f"with {describe_action(scenario, self.value)} throughout"
 
     def __call__(self, scenario, states, t, streams):
         return np.broadcast_to(np.asarray(self.value, dtype=float), (len(states), scenario.m))
@@ -157,25 +157,3 @@ def load_callable(target: str, field: str, signature: str):
     except ValueError:  # builtins without a signature: let the call decide
         pass
     return fn
-
-
-def make_action_policy(mode: str, scenario: Scenario, value=None, policy: str | None = None) -> ActionPolicy:
-    if mode == "uniform":
-        return UniformActions()
-    if mode == "adversarial":
-        return AdversarialActions(deterministic=len(scenario.adversarial_actions) == 1)
-    if mode == "constant":
-        if value is None:
-            raise ValueError("actions.value: required for mode = 'constant'")
-        values = value if isinstance(value, list) else [value]
-        vals = check_action(values, scenario, "actions.value")
-        return ConstantActions(vals)
-    if mode == "search":
-        from scenarios.search import SearchActions  # it builds on this module
-
-        return SearchActions(scenario)
-    if mode == "feedback":
-        if not policy:
-            raise ValueError("actions.policy: required for mode = 'feedback' ('package.module:function')")
-        return FeedbackActions(policy)
-    raise ValueError(f"actions.mode: unknown mode {mode!r}; allowed: uniform, adversarial, constant, feedback, search")

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from scenarios.actions import ActionPolicy, _named
+from scenarios.actions import ActionPolicy, describe_action
 from scenarios.streams import PURPOSE_ACTION, RunStreams
 
 MAX_VERTEX_FAMILIES = 16  # Gamma's vertices get a family each up to this many (m <= 4)
@@ -49,7 +49,7 @@ class Family:
 
     def words(self, scenario) -> str:
         if self.kind == "vertex":
-            return _named(scenario, self.vertex) + " throughout"
+            return describe_action(scenario, self.vertex) + " throughout"
         if self.kind == "bang-bang":
             return "switching between the extremes of Gamma at random times (bang-bang)"
         return "drawn uniformly from Gamma at every step"

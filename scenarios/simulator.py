@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scenarios.actions import make_action_policy
+from scenarios.action_modes import make_action_policy
 from scenarios.base import ScenarioError
 from scenarios.registry import make_backend
 from scenarios.rollout import RunBatch, run_scenario

@@ -9,7 +9,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 
 from scenarios import make_backend  # noqa: E402
-from scenarios.actions import make_action_policy  # noqa: E402
+from scenarios.action_modes import make_action_policy  # noqa: E402
 from scenarios.rollout import run_scenario  # noqa: E402
 from scenarios.streams import RunStreams  # noqa: E402
 

@@ -48,7 +48,7 @@ def test_search_actions_depend_on_the_key_and_start_alone(backend):
 @pytest.mark.parametrize("mode", ["uniform", "adversarial", "constant", "search", "feedback"])
 @pytest.mark.parametrize("name", ["lead-follow", "fleet3", "toy"])
 def test_every_action_policy_keeps_the_policy_contract(mode, name):
-    from scenarios.actions import make_action_policy
+    from scenarios.action_modes import make_action_policy
 
     scenario = make_backend({"name": name}).scenario
     value = list(scenario.action_lower) if mode == "constant" else None

@@ -3,7 +3,7 @@ import pytest
 
 from scenarios.streams import RunStreams
 from scenarios import make_scenario
-from scenarios.actions import make_action_policy
+from scenarios.action_modes import make_action_policy
 from scenarios.base import FAILURE, HORIZON, TRUNCATED, ScenarioError
 from scenarios.rollout import run_scenario
 
