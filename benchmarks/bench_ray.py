@@ -64,7 +64,7 @@ def idle(stats, wall) -> str:
 def main() -> None:
     import ray
 
-    from farm.ray_executor import start_local
+    from farm.ray_session import start_local
 
     start_local(2, HERE)
     print(f"machine: {os.cpu_count()} cores; Ray {ray.__version__} local two-core mode")

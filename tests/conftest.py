@@ -10,7 +10,7 @@ def ray_local():
 
     os.environ.setdefault("RAY_DEDUP_LOGS", "0")
     # workers import user scenarios defined under tests/, like a user's own package
-    from farm.ray_executor import start_local
+    from farm.ray_session import start_local
 
     start_local(2, os.path.dirname(os.path.abspath(__file__)))
     yield ray

@@ -12,12 +12,12 @@ from ray.cluster_utils import Cluster
 
 from farm import config as config_mod
 from farm import quantification
-from farm import ray_executor
+from farm import ray_executor, ray_session
 
 
 def main(raw_config: str) -> None:
     cluster = Cluster(initialize_head=True,
-                      head_node_args={"num_cpus": 1, "_system_config": ray_executor.RAY_SYSTEM_CONFIG})
+                      head_node_args={"num_cpus": 1, "_system_config": ray_session.RAY_SYSTEM_CONFIG})
     for _ in range(2):
         cluster.add_node(num_cpus=1)
     ray.init(address=cluster.address, log_to_driver=False, configure_logging=False)

@@ -16,11 +16,11 @@ def test_a_local_ray_returns_chunk_summaries_inline_and_keeps_visited_states_in_
 
         import numpy as np
         import ray
-        from farm import ray_executor
+        from farm import ray_executor, ray_session
         from scenarios.simulator import SimSpec
 
-        ray_executor.connect("local", 1)
-        limit = ray_executor.INLINE_RETURN_BYTES
+        ray_session.connect("local", 1)
+        limit = ray_session.INLINE_RETURN_BYTES
 
         @ray.remote
         def payload(n):

@@ -115,7 +115,7 @@ def test_stale_temp_files_are_removed_on_resume_and_damaged_recordings_skipped(t
 def test_local_ray_listens_on_loopback_only():
     code = """
 import os, time, psutil, ray
-from farm.ray_executor import connect
+from farm.ray_session import connect
 connect("local", 2)
 @ray.remote
 def pid():
