@@ -11,6 +11,7 @@ from matplotlib.colors import to_rgba
 from matplotlib.text import Text
 
 from farm import plots
+from farm.plots.membership import _member, _points
 from scenarios.fleet3 import Fleet3
 from scenarios.lead_follow import LeadFollow
 from scenarios.toy import Toy
@@ -299,10 +300,10 @@ def test_membership_indexing_only_boxes_a_query_can_meet_answers_as_one_full_ind
     centres = np.round(rng.uniform(0, 10, (20_000, 3)) / 0.5) * 0.5 + rng.choice([0, 0.1], (20_000, 1))
     full = PointIndex(3, 2 * h, lower, bounds=(lower, upper))
     full.insert(centres)
-    member = plots._member(centres, h, lower, upper)
+    member = _member(centres, h, lower, upper)
     xs = np.linspace(0, 10, 60)
     for held in ({2: 5.0}, {2: 5.25}, {1: 3.1, 2: 7.0}, {}):
         grid = {a: xs for a in range(3) if a not in held}
-        pts = plots._points(type("S", (), {"n": 3})(), grid, held)
+        pts = _points(type("S", (), {"n": 3})(), grid, held)
         assert np.array_equal(member(pts), full.any_within(pts, h))
     assert len(member._indexes) == 4 and 0 < member._indexes[((2, 5.0),)].count < len(centres) / 5
