@@ -398,10 +398,9 @@ class RayExecutor:
         if not self.actors:
             return
         ends = [a.__ray_terminate__.options(max_task_retries=0).remote() for a in self.actors]
-        ready, _ = self.ray.wait(ends, num_returns=len(ends), timeout=CLOSE_GRACE_S)
-        done = {ref.hex() for ref in ready}
+        _, busy = self.ray.wait(ends, num_returns=len(ends), timeout=CLOSE_GRACE_S)
         for actor, end in zip(self.actors, ends):
-            if end.hex() not in done:
+            if end in busy:
                 self.ray.kill(actor)
         self.actors = []
 

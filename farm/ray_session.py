@@ -1,8 +1,6 @@
 """Starting or joining Ray for a campaign: a private local Ray as the CLI starts it
-(loopback only, with ``RAY_SYSTEM_CONFIG``), or a cluster at an address.
-
-Only the farm's executor and the tools around it (benchmarks, tests) start Ray, and
-always through here, so every local Ray has the same settings as the CLI's.
+(loopback only, with ``RAY_SYSTEM_CONFIG``), or a cluster at an address. Benchmarks
+and tests start their local Ray here too, so it has the CLI's settings.
 """
 
 from __future__ import annotations

@@ -53,7 +53,6 @@ def test_resume_of_a_finished_campaign_says_so_and_touches_nothing(tmp_path):
     assert {p: (p.read_bytes(), p.stat().st_mtime_ns) for p in out.rglob("*") if p.is_file()} == before
 
 
-
 def test_a_ray_campaign_ends_without_a_word_when_quiet(tmp_path):
     """At the last round end the chunks in flight are dropped but still running; ending
     the actors must not fail them (Ray then printed "Task SimWorker.run failed ... will be
