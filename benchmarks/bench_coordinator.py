@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from coordinator.covering import Lattice
+from coordinator.lattice import Lattice
 from coordinator.spatial import PointIndex
 from farm.memory import keep_freed_memory
 
@@ -81,7 +81,7 @@ def query_rate(boxes: int, q: np.ndarray | None = None, repeats: int = 7) -> tup
 
 def campaign_scaling() -> tuple[list[tuple[int, float]], float]:
     from coordinator.campaign import Campaign
-    from coordinator.covering import n_eps
+    from coordinator.sample_size import n_eps
     from coordinator.spe import SPE, SPESettings
     from farm.executors import LocalExecutor
     from scenarios import make_scenario

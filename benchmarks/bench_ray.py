@@ -32,7 +32,7 @@ def run_campaign(cfg):
     """-> (counters, wall seconds of the campaign loop, worker stats or None, result hash)."""
     from coordinator.baselines import make_algorithm
     from coordinator.campaign import Campaign
-    from coordinator.covering import n_eps
+    from coordinator.sample_size import n_eps
     from coordinator.results import result_hash
     from farm.executors import build_simulator
     from farm.quantification import spec_of

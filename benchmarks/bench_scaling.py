@@ -38,7 +38,7 @@ def campaign_config(workers: int, batch: int | None = None, depth: int | None = 
 def run_campaign(cfg) -> dict:
     from coordinator.baselines import make_algorithm
     from coordinator.campaign import Campaign
-    from coordinator.covering import n_eps
+    from coordinator.sample_size import n_eps
     from farm.executors import build_simulator
     from farm.quantification import spec_of
     from farm.ray_executor import RayExecutor

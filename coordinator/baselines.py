@@ -14,7 +14,7 @@ import numpy as np
 
 from coordinator.algorithm import Algorithm, Event, greedy_uncovered, uniform_pick
 from coordinator.coverage import Coverage, Insert, Kill, Recell, Reset
-from coordinator.covering import Lattice
+from coordinator.lattice import Lattice
 from scenarios.base import Scenario
 from scenarios.streams import PURPOSE_START, RunStreams
 

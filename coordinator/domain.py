@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from coordinator.covering import Lattice
+from coordinator.lattice import Lattice
 from coordinator.spatial import PointIndex
 from scenarios.streams import PURPOSE_START, RunStreams
 from scenarios.base import FACET_TOLERANCE, Scenario

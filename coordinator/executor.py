@@ -11,7 +11,7 @@
     result(handle) -> Chunk                          wait for one chunk
     cancel(handle)                                   drop a chunk (it is not committed)
     screen_stored(pieces, coverage) -> [(states, run)]   experience replay: for each stored
-                                                     piece (coordinator/replay.py), its states
+                                                     piece (coordinator/experience_replay.py), its states
                                                      that are new under ``coverage`` (a piece
                                                      re-simulated from its keys uses the
                                                      newest ``actions`` submitted)
@@ -108,7 +108,7 @@ def screen_piece(simulator, source, piece, coverage) -> tuple[np.ndarray, np.nda
     """A stored piece's states that are new under ``coverage`` and their runs' positions,
     from the chunk's visited states ``source`` = (states, offsets), or re-simulated from
     the runs' keys when the source is gone."""
-    from coordinator.replay import new_states, select
+    from coordinator.experience_replay import new_states, select
 
     if source is None:
         batch = simulator.simulate(0, piece.starts, indices=piece.indices)  # the newest actions state

@@ -47,7 +47,7 @@ def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, h
     uniformly over the final centres (a certification round); ``escaped``: counted runs
     that left Phi_delta toward a known failure (possible only without certification);
     ``attempts``/``n_final``: the sampled certification's attempt count and the runs the
-    last attempt needed (beta split over attempts, coordinator.covering.n_eps_attempt)."""
+    last attempt needed (beta split over attempts, coordinator.sample_size.n_eps_attempt)."""
     cond, fail, t = _conditions(scenario, policy), scenario.failure_words, _horizon_s(scenario, horizon)
     gamma = "Gamma*" if adversarial else "Gamma"
     if not converged:

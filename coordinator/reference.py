@@ -6,7 +6,7 @@ failure facet before a truncating one (infinite horizon). For the scenarios here
 - ``toy``: closed form (``Toy.safe``), via ``Scenario.reference_safe``.
 - ``lead-follow`` / ``fleet3`` under a single adversarial action: the system is then
   deterministic, and one rollout per point until failure, truncation or standstill
-  decides membership exactly (``scenarios.reference``). This is the reference for
+  decides membership exactly (``scenarios.worst_case_rollout``). This is the reference for
   every campaign run with ``actions.mode = "adversarial"``.
 - With ``brake`` and uniform Gamma as well: the brake SV ignores the lead, and maximal
   lead braking minimises the lead's position at every future time, so a sequence that
@@ -25,7 +25,7 @@ from scipy.spatial import cKDTree
 
 from scenarios.actions import UniformActions
 from scenarios.base import FAILURE, Scenario
-from scenarios.reference import safe_by_simulation
+from scenarios.worst_case_rollout import safe_by_simulation
 from scenarios.rollout import run_scenario
 from scenarios.streams import RunStreams
 

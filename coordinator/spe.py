@@ -29,11 +29,11 @@ import numpy as np
 from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered, uniform_index, uniform_pick
 from coordinator.certificates import Certificates
 from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell, Strict
-from coordinator.covering import Lattice
+from coordinator.lattice import Lattice
 from coordinator.enumeration import Enumeration
 from coordinator.graph import ExplorationForest
 from coordinator.priorities import FailureDistances
-from coordinator.replay import ReplayBuffer
+from coordinator.experience_replay import ReplayBuffer
 from coordinator.sampler import PrioritySampler
 from scenarios.base import Scenario
 from scenarios.streams import PURPOSE_START, RunStreams
@@ -272,7 +272,7 @@ class SPE(Algorithm):
         self.enumeration.reopened(self.certificates.invalidate(ids))
 
     def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray, starts: np.ndarray) -> None:
-        """Keep committed, non-failing runs for experience replay (coordinator/replay.py).
+        """Keep committed, non-failing runs for experience replay (coordinator/experience_replay.py).
         Runs of the final round (and of certification) are not kept: no round end
         follows to replay them, and they are most of a campaign's runs (at delta_min
         0.125 on lead-follow, 1.46 M of 1.81 M, whose trajectories took ~0.5 GB)."""

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from coordinator.covering import covering_size, n_eps
+from coordinator.sample_size import covering_size, n_eps
 from coordinator.domain import Domain
 from coordinator.spatial import PointIndex
 from scenarios.streams import PURPOSE_START, RunStreams

@@ -21,7 +21,7 @@ import numpy as np
 
 from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign
-from coordinator.covering import n_eps
+from coordinator.sample_size import n_eps
 from coordinator.spe import SPESettings
 from farm.executors import LocalExecutor
 from scenarios.simulator import SimSpec

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign
-from coordinator.covering import n_eps
+from coordinator.sample_size import n_eps
 from coordinator.reference import compare_boxes
 from coordinator.spe import SPESettings
 from farm.executors import LocalExecutor

@@ -19,7 +19,7 @@ import tempfile
 import tomllib
 from pathlib import Path
 
-from coordinator.covering import n_eps
+from coordinator.sample_size import n_eps
 from farm import config as config_mod
 from farm.quantification import run
 
@@ -75,7 +75,7 @@ def _tables(results: dict) -> dict[str, list[str]]:
             r = results[f"fleet3_{sv} delta={d}"]
             f3.append(f"| {sv} | {d} | {r['volume_lead_side']:,.0f} | {r['volume_rear_side']:,.0f} | "
                       f"{r['volume_union']:,.0f} | {r['runs_committed']:,} |")
-    lemma = ["| eps | confidence | N (paper) | N (here, `coordinator.covering.n_eps`) |",
+    lemma = ["| eps | confidence | N (paper) | N (here, `coordinator.sample_size.n_eps`) |",
              "| --- | --- | ---: | ---: |",
              f"| 0.001 | 0.99 | 4603 | {results['lemma2']['eps=0.001, beta=0.01']} |",
              f"| 0.001 | 0.9 | - | {results['lemma2']['eps=0.001, beta=0.1']} |"]

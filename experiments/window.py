@@ -23,7 +23,7 @@ from pathlib import Path
 
 from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign
-from coordinator.covering import n_eps
+from coordinator.sample_size import n_eps
 from coordinator.reference import compare_boxes, grid, reference_safe
 from farm import config as config_mod
 from farm.executors import LocalExecutor

@@ -245,8 +245,8 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
     from scenarios.version import __version__
 
     cfg = load_config(config, **overrides)
-    v, farm = cfg.validate, cfg.farm
-    spec = SimSpec(cfg.scenario.model_dump(), cfg.actions.model_dump(), v.horizon, farm.seed)
+    v, farm_cfg = cfg.validate, cfg.farm
+    spec = SimSpec(cfg.scenario.model_dump(), cfg.actions.model_dump(), v.horizon, farm_cfg.seed)
     simulator = build_simulator(spec)
     scenario, policy = simulator.scenario, simulator.policy
     set_boxes = read_safe_set(v.domain_set, scenario.state_names) if v.domain_set else None
@@ -263,15 +263,15 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
             raise CampaignError(f"{out}: a {marker.get('kind')} directory; choose another --out")
         if (Path(out) / "certificate.json").exists() and not force:
             raise CampaignError(f"{out}/certificate.json exists; pass --force to replace it")
-    executor = make_executor(farm.executor, spec, farm.workers, farm.address, farm.max_retries,
-                             check_step_bound=v.boundary, pipeline_depth=farm.pipeline_depth)
+    executor = make_executor(farm_cfg.executor, spec, farm_cfg.workers, farm_cfg.address, farm_cfg.max_retries,
+                             check_step_bound=v.boundary, pipeline_depth=farm_cfg.pipeline_depth)
     try:
-        result = run_validation(domain, p, executor, seed=farm.seed, delta=v.delta, batch_size=farm.batch_size,
-                                pipeline_depth=farm.pipeline_depth, progress=progress)
+        result = run_validation(domain, p, executor, seed=farm_cfg.seed, delta=v.delta, batch_size=farm_cfg.batch_size,
+                                pipeline_depth=farm_cfg.pipeline_depth, progress=progress)
     finally:
         executor.close()
     g = validated(scenario, policy, result, algorithm=p.algorithm, plan_description=p.description,
-                  epsilon=v.epsilon, beta=v.beta, delta=v.delta, horizon=v.horizon, seed=farm.seed,
+                  epsilon=v.epsilon, beta=v.beta, delta=v.delta, horizon=v.horizon, seed=farm_cfg.seed,
                   adversarial=cfg.actions.mode == "adversarial")
     # only the parameters the algorithm used: VAL^eps has no delta, VAL^delta no epsilon/beta
     used = {"delta": ("delta",), "eps": ("epsilon", "beta"), "eps-delta": ("epsilon", "beta", "delta")}[p.algorithm]
@@ -279,7 +279,7 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
             "statement": g.formal, "algorithm": p.algorithm,
             **{name: getattr(v, name) for name in used}, "horizon": v.horizon, "n_required": p.n_required,
             "n_run": result["n_run"], "runs_simulated": result["runs_simulated"],
-            "steps_simulated": result["steps_simulated"], "seed": farm.seed,
+            "steps_simulated": result["steps_simulated"], "seed": farm_cfg.seed,
             "config_hash": config_mod.config_hash(cfg), "scenario": cfg.scenario.name,
             "sv_policy": scenario.sv_policy_name, "domain": domain.describe(), "sampling": p.description,
             "actions": policy.description, "boundary": v.boundary,
@@ -295,7 +295,7 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
                                                         "config_hash": cert["config_hash"]})
             write_json(directory.path / "certificate.json", cert)
             if result["counterexample"] and cfg.record.counterexamples:
-                from farm.replay import record_counterexample
+                from farm.rerun import record_counterexample
 
                 record_counterexample(directory.path / "counterexample.mcap", scenario, cert)
         finally:

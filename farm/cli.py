@@ -141,7 +141,7 @@ def cmd_status(args) -> int:
 
 
 def cmd_replay(args) -> int:
-    from farm.replay import replay
+    from farm.rerun import replay
 
     ok, text = replay(Path(args.dir), args.sample)
     print(text)

@@ -12,7 +12,7 @@ import numpy as np
 import dataclasses
 
 from coordinator.executor import Chunk, chunk_of, screen_piece, summarize
-from coordinator.replay import select
+from coordinator.experience_replay import select
 from farm.memory import keep_freed_memory
 from scenarios.simulator import SimSpec, Simulator
 

@@ -21,7 +21,7 @@ import numpy as np
 from coordinator.adversary import AdversarySearch
 from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign, Counters
-from coordinator.covering import n_eps, n_eps_attempt
+from coordinator.sample_size import n_eps, n_eps_attempt
 from coordinator.results import result_hash
 from coordinator.volume import hull_volume, union_volume
 from farm import config as config_mod

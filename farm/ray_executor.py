@@ -153,7 +153,9 @@ def _actor_class():
 
 
 @dataclasses.dataclass
-class _Part:
+class _InFlight:
+    """A chunk sent to an actor and not yet read back."""
+
     ref: object  # the summary's object ref
     visited_ref: object
     actor: int
@@ -194,7 +196,7 @@ class RayExecutor:
         self._blocks: dict[tuple, object] = {}  # (coverage id, from seq, to seq) -> ref
         self._static: dict[int, object] = {}  # id(screen) -> ref of a fixed screen
         self._snapshot: tuple = (None, None)  # (coverage id, epoch, seq), ref of its state
-        self._jobs: dict[int, _Part] = {}
+        self._jobs: dict[int, _InFlight] = {}
         self._next = 0
         self._actions: dict | None = None  # the newest adaptive policy state submitted
 
@@ -259,9 +261,9 @@ class RayExecutor:
                 continue
             actor = int(np.argmin(self._queued))
             first = first_index + int(rows[0])
-            part = _Part(None, None, actor, first, starts[rows], screen, actions)
-            self._launch(part)
-            self._jobs[self._next] = part
+            job = _InFlight(None, None, actor, first, starts[rows], screen, actions)
+            self._launch(job)
+            self._jobs[self._next] = job
             handles.append(self._next)
             self._next += 1
         return handles
@@ -275,59 +277,59 @@ class RayExecutor:
         keep busy: the others are never sent a chunk."""
         return busy_at_most(self.workers, self.pipeline_depth, batch_size)
 
-    def _launch(self, part: _Part, fresh: bool = False) -> None:
-        self._queued[part.actor] += 1
-        message = self._message(part.actor, part.screen, fresh)
-        part.sent = self._synced[part.actor]
-        part.ref, part.visited_ref = self.actors[part.actor].run.remote(part.first, part.starts, message, part.actions)
+    def _launch(self, job: _InFlight, fresh: bool = False) -> None:
+        self._queued[job.actor] += 1
+        message = self._message(job.actor, job.screen, fresh)
+        job.sent = self._synced[job.actor]
+        job.ref, job.visited_ref = self.actors[job.actor].run.remote(job.first, job.starts, message, job.actions)
 
     def result(self, handle: int) -> Chunk:
-        part = self._jobs.pop(handle)
+        job = self._jobs.pop(handle)
         while True:
-            summary = self._get(part)
+            summary = self._get(job)
             if not (isinstance(summary, str) and summary == RESYNC):
                 break
-            self._launch(part, fresh=True)  # the actor lost its mirror (restarted)
-        visited_ref = part.visited_ref
+            self._launch(job, fresh=True)  # the actor lost its mirror (restarted)
+        visited_ref = job.visited_ref
         return chunk_of(summary, lambda: self.ray.get(visited_ref), lambda rows, takes: visited_ref)
 
     def screen_stored(self, pieces, screen):
         """The pieces shared out among the actors by runs, one call per actor; a piece
-        whose states are gone (resume) is re-simulated in parts, so that every actor
+        whose states are gone (resume) is re-simulated in shares, so that every actor
         takes a share."""
-        from coordinator.replay import Stored
+        from coordinator.experience_replay import Stored
 
-        parts = []
+        shares = []
         for piece in pieces:
             if piece.source is None and len(piece.indices) > STORED_PART:
                 for lo in range(0, len(piece.indices), STORED_PART):
                     sl = slice(lo, lo + STORED_PART)
-                    parts.append(Stored(None, piece.indices[sl], piece.rows[sl], piece.takes[sl], piece.parents[sl],
+                    shares.append(Stored(None, piece.indices[sl], piece.rows[sl], piece.takes[sl], piece.parents[sl],
                                         piece.starts[sl]))
             else:
-                parts.append(piece)
-        # one call per actor with its share of the parts (balanced by runs), results
-        # back in the parts' order
+                shares.append(piece)
+        # one call per actor with its share (balanced by runs), results
+        # back in the shares' order
         groups: list[list[int]] = [[] for _ in self.actors]
         load = np.zeros(len(self.actors))
-        for i, part in enumerate(parts):
+        for i, share in enumerate(shares):
             actor = int(np.argmin(load))
             groups[actor].append(i)
-            load[actor] += len(part.indices)
+            load[actor] += len(share.indices)
         calls = []
         for actor, members in enumerate(groups):
             if members:
                 self._queued[actor] += 1
-                calls.append((actor, members, self._replay_call(actor, [parts[i] for i in members], screen)))
-        found: list = [None] * len(parts)
+                calls.append((actor, members, self._replay_call(actor, [shares[i] for i in members], screen)))
+        found: list = [None] * len(shares)
         for actor, members, ref in calls:
             result = self.ray.get(ref)
             while isinstance(result, str):  # the actor was restarted without its mirror
-                result = self.ray.get(self._replay_call(actor, [parts[i] for i in members], screen, fresh=True))
+                result = self.ray.get(self._replay_call(actor, [shares[i] for i in members], screen, fresh=True))
             self._queued[actor] -= 1
             for i, piece_found in zip(members, result):
                 found[i] = piece_found
-        # back to one result per piece (re-simulated pieces came in parts)
+        # back to one result per piece (re-simulated pieces came in shares)
         out, at = [], 0
         for piece in pieces:
             if piece.source is None and len(piece.indices) > STORED_PART:
@@ -341,47 +343,47 @@ class RayExecutor:
                 at += 1
         return out
 
-    def _replay_call(self, actor: int, parts: list, screen, fresh: bool = False):
-        from coordinator.replay import Stored
+    def _replay_call(self, actor: int, shares: list, screen, fresh: bool = False):
+        from coordinator.experience_replay import Stored
 
-        stripped = [Stored(None, p.indices, p.rows, p.takes, p.parents, p.starts) for p in parts]
-        sources = [[p.source] if p.source is not None else [] for p in parts]  # nested: not resolved by Ray
+        stripped = [Stored(None, p.indices, p.rows, p.takes, p.parents, p.starts) for p in shares]
+        sources = [[p.source] if p.source is not None else [] for p in shares]  # nested: not resolved by Ray
         return self.actors[actor].replay_screen.remote(stripped, sources, self._message(actor, screen, fresh),
                                                        self._actions)
 
-    def _get(self, part: _Part):
+    def _get(self, job: _InFlight):
         ray = self.ray
         while True:
             try:
-                summary = ray.get(part.ref)
-                self._queued[part.actor] -= 1
-                if part.sent is not None:  # the actor's mirror has reached what was sent
-                    known = self._confirmed[part.actor]
-                    if known is None or known[:2] != part.sent[:2] or known[2] < part.sent[2]:
-                        self._confirmed[part.actor] = part.sent
+                summary = ray.get(job.ref)
+                self._queued[job.actor] -= 1
+                if job.sent is not None:  # the actor's mirror has reached what was sent
+                    known = self._confirmed[job.actor]
+                    if known is None or known[:2] != job.sent[:2] or known[2] < job.sent[2]:
+                        self._confirmed[job.actor] = job.sent
                 return summary
             except ray.exceptions.RayTaskError as exc:
-                self._queued[part.actor] -= 1
+                self._queued[job.actor] -= 1
                 cause = exc.cause if getattr(exc, "cause", None) is not None else exc
-                raise WorkerError(f"worker failed on runs from sample index {part.first}: {cause}") from None
+                raise WorkerError(f"worker failed on runs from sample index {job.first}: {cause}") from None
             except (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError,
                     ray.exceptions.ObjectLostError) as exc:
-                self._queued[part.actor] -= 1
-                part.tries += 1
-                if part.tries > self.max_retries:
-                    raise WorkerError(f"runs from sample index {part.first} failed {part.tries} times "
+                self._queued[job.actor] -= 1
+                job.tries += 1
+                if job.tries > self.max_retries:
+                    raise WorkerError(f"runs from sample index {job.first} failed {job.tries} times "
                                       f"(last: {type(exc).__name__}); giving up") from None
-                self._synced[part.actor] = None  # Ray restarts it without its mirror
-                part.actor = (part.actor + 1) % self.workers  # try another actor meanwhile
-                self._launch(part, fresh=True)
+                self._synced[job.actor] = None  # Ray restarts it without its mirror
+                job.actor = (job.actor + 1) % self.workers  # try another actor meanwhile
+                self._launch(job, fresh=True)
 
     def cancel(self, handle: int) -> None:
-        part = self._jobs.pop(handle, None)
-        if part is None:
+        job = self._jobs.pop(handle, None)
+        if job is None:
             return
-        self._queued[part.actor] -= 1
+        self._queued[job.actor] -= 1
         # its changes may never reach the actor: the next message starts from what is known
-        self._synced[part.actor] = self._confirmed[part.actor]
+        self._synced[job.actor] = self._confirmed[job.actor]
         # The chunk is left to finish, its results unread (and freed with the refs): no
         # ray.cancel. Cancelling a queued actor task can leave a gap in the actor's
         # sequence numbers that stalls its next tasks until Ray's 30 s reorder timeout

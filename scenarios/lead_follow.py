@@ -9,7 +9,7 @@ import numpy as np
 from scenarios.base import Scenario
 from scenarios.kinematics import advance, disturb
 from scenarios.policies import BRAKE_ACCEL, SV_POLICIES
-from scenarios.reference import safe_until_standstill
+from scenarios.worst_case_rollout import safe_until_standstill
 
 
 class LeadFollow(Scenario):

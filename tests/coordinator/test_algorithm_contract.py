@@ -10,7 +10,7 @@ import pytest
 
 from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign
-from coordinator.covering import n_eps, n_eps_attempt
+from coordinator.sample_size import n_eps, n_eps_attempt
 from farm import config as config_mod
 from farm.executors import LocalExecutor, build_simulator
 from farm.quantification import spec_of

@@ -6,7 +6,7 @@ import pytest
 
 from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign
-from coordinator.covering import n_eps
+from coordinator.sample_size import n_eps
 from coordinator.spatial import PointIndex
 from coordinator.spe import SPESettings
 from farm.executors import LocalExecutor

@@ -8,7 +8,7 @@ import pytest
 from coordinator.reference import NoReference, compare_boxes, falsify, grid, reference_safe
 from invariant_sets import min_future_gap_brake
 from scenarios import NumpyBackend, make_scenario
-from scenarios.reference import safe_until_standstill
+from scenarios.worst_case_rollout import safe_until_standstill
 from scenarios.toy import Toy
 
 

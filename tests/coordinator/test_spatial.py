@@ -31,7 +31,7 @@ def test_state_round_trip():
 
 
 def test_dense_fast_path_agrees_with_the_chains():
-    from coordinator.covering import Lattice
+    from coordinator.lattice import Lattice
 
     rng = np.random.default_rng(3)
     lo, hi = np.zeros(3), np.array([20.0, 20.0, 70.0])
@@ -59,7 +59,7 @@ def test_dense_fast_path_agrees_with_the_chains():
 def test_dense_miss_path_on_faces_and_edges():
     """Queries exactly on cell faces and at the grid's edges, with centre points killed
     so that only neighbours and off-centre points can answer."""
-    from coordinator.covering import Lattice
+    from coordinator.lattice import Lattice
 
     rng = np.random.default_rng(5)
     lo, hi = np.zeros(2), np.array([10.0, 6.0])
@@ -85,7 +85,7 @@ def test_dense_paths_match_brute_force_near_faces_and_tolerances(seed):
     """Aligned lattice (faces on Sigma's bounds, as in SPE at delta = 2, 1, 0.5, ...),
     centres killed at random, off-centre points on faces, corners and a hair off them,
     queries likewise: the dense index answers exactly as a brute-force l-inf check."""
-    from coordinator.covering import Lattice
+    from coordinator.lattice import Lattice
 
     rng = np.random.default_rng(seed)
     lo, hi = np.zeros(3), np.array([4.0, 4.0, 6.0])

@@ -7,7 +7,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from coordinator.covering import n_eps, n_eps_attempt
+from coordinator.sample_size import n_eps, n_eps_attempt
 from farm import config as config_mod
 from farm.quantification import run
 

@@ -1,4 +1,4 @@
-"""delta-covering sets (paper Definition 1) of boxes and of unions of boxes.
+"""The lattice of delta-covering sets (paper Definition 1) of boxes and of unions of boxes.
 
 The delta-covering of a box is the grid of centres spaced 2*delta whose l-infinity boxes
 of half-width delta tile it; when the box's extent is not a multiple of 2*delta the
@@ -57,23 +57,3 @@ class Lattice:
         out = self.anchor + delta + 2 * delta * ks
         out = out[((out + delta > self.lo + 1e-12) & (out - delta < self.hi - 1e-12)).all(axis=1)]
         return np.clip(out, self.lo, self.hi)
-
-
-def covering_size(volume: float, delta: float, n: int) -> int:
-    """Lemma 1: N >= |Phi| / (2 delta)^n runs make VAL^delta resolution complete."""
-    return int(np.ceil(volume / (2 * delta) ** n - 1e-9))
-
-
-def n_eps_attempt(epsilon: float, beta: float, attempt: int) -> int:
-    """N_eps for the ``attempt``-th certification of a changing set: beta_i = 6 beta /
-    (pi^2 i^2), which sums to beta over all attempts. A set that fails its check is
-    changed and checked again; each bad set passes its own check with probability
-    <= beta_i, so the one finally exported is bad with probability <= beta (a union
-    bound; N grows only with ln i). Measured without it: 4 of 20 exported sets above
-    eps at beta = 0.1 (docs/guarantee.md)."""
-    return n_eps(epsilon, beta * 6 / (np.pi**2 * attempt**2))
-
-
-def n_eps(epsilon: float, beta: float) -> int:
-    """Lemma 2: N_eps = ceil(ln(beta) / ln(1 - epsilon)) consecutive successes."""
-    return int(np.ceil(np.log(beta) / np.log1p(-epsilon) - 1e-9))
