@@ -21,13 +21,11 @@ import json
 import time
 from pathlib import Path
 
-from coordinator.baselines import make_algorithm
-from coordinator.campaign import Campaign
 from coordinator.sample_size import n_eps
 from coordinator.reference import compare_boxes, grid, reference_safe
 from farm import config as config_mod
-from farm.executors import LocalExecutor
-from farm.quantification import spec_of
+from farm.local_executor import LocalExecutor
+from farm.campaign_setup import build_algorithm, build_campaign, spec_of
 from farm.ray_executor import busy_at_most
 
 from experiment import machine_stamp, main
@@ -54,9 +52,7 @@ def run(batch: int, depth: int, delta_min: float, certify: bool, truth: dict, se
     call (it depends on neither delta nor the window)."""
     cfg = config(batch, depth, delta_min, certify, seed)
     executor = LocalExecutor(spec_of(cfg))
-    q = cfg.quantify
-    algo = make_algorithm("spe", executor.simulator.scenario, q.settings(), cfg.farm.seed,
-                          executor.simulator.deterministic)
+    algo = build_algorithm(cfg, executor.simulator)
     kinds: dict[str, int] = {}
     apply = algo.apply
 
@@ -68,8 +64,7 @@ def run(batch: int, depth: int, delta_min: float, certify: bool, truth: dict, se
         return kind
 
     algo.apply = counting_apply
-    campaign = Campaign(algo, executor, n_eps=n_eps(q.epsilon, q.beta), budget=q.budget, batch_size=batch,
-                        pipeline_depth=depth, seed=cfg.farm.seed, certify=q.certify)
+    campaign = build_campaign(cfg, algo, executor.simulator, executor)
     t0 = time.perf_counter()
     c = campaign.run()
     seconds = time.perf_counter() - t0

@@ -59,10 +59,9 @@ class QuantifyResult:
         except FileNotFoundError:
             raise CampaignError(f"{directory}: the campaign has not finished (no summary.json); see "
                                 f"`scenario-farm status {directory}`") from None
-        from farm.quantification import load_frozen_config
         from scenarios.registry import scenario_class
 
-        cfg = load_frozen_config(directory)
+        cfg = CampaignDir(directory).frozen_config()
         names = scenario_class(cfg.scenario.name).state_names
         path = directory / (f"safe_set_{side}_side.parquet" if side else "safe_set.parquet")
         centres, h = read_safe_set(path, names)
@@ -157,18 +156,18 @@ class QuantifyResult:
                              self.centres, self.half_width, runs[:64])
 
     def _scenario(self):
-        from farm.quantification import load_frozen_config, spec_of
+        from farm.campaign_setup import spec_of
         from scenarios.registry import make_backend
 
-        return make_backend(spec_of(load_frozen_config(self.directory)).scenario).scenario
+        return make_backend(spec_of(CampaignDir(self.directory).frozen_config()).scenario).scenario
 
     def plot(self, out_dir=None) -> list[Path]:
         """Redraw the figures (into DIR/plots by default); -> the files written."""
         from farm.plots import draw
-        from farm.quantification import load_frozen_config, spec_of
+        from farm.campaign_setup import spec_of
         from scenarios.registry import make_backend
 
-        cfg = load_frozen_config(self.directory)
+        cfg = CampaignDir(self.directory).frozen_config()
         scenario = make_backend(spec_of(cfg).scenario).scenario
         return draw(Path(out_dir) if out_dir else self.directory / "plots", scenario, self.centres, self.half_width,
                     self.summary)
@@ -238,8 +237,8 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
     from coordinator.domain import Domain
     from coordinator.guarantee import validated
     from coordinator.validation import plan, validate as run_validation
-    from farm.executors import build_simulator
-    from farm.ray_executor import make_executor
+    from farm.simulators import build_simulator
+    from farm.executors import make_executor
     from farm.resources import check_validate
     from scenarios.simulator import SimSpec
     from scenarios.version import __version__
@@ -263,8 +262,7 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
             raise CampaignError(f"{out}: a {marker.get('kind')} directory; choose another --out")
         if (Path(out) / "certificate.json").exists() and not force:
             raise CampaignError(f"{out}/certificate.json exists; pass --force to replace it")
-    executor = make_executor(farm_cfg.executor, spec, farm_cfg.workers, farm_cfg.address, farm_cfg.max_retries,
-                             check_step_bound=v.boundary, pipeline_depth=farm_cfg.pipeline_depth)
+    executor = make_executor(farm_cfg, spec, check_step_bound=v.boundary)
     try:
         result = run_validation(domain, p, executor, seed=farm_cfg.seed, delta=v.delta, batch_size=farm_cfg.batch_size,
                                 pipeline_depth=farm_cfg.pipeline_depth, progress=progress)

@@ -82,8 +82,8 @@ def cmd_resume(args) -> int:
 
     out = Path(args.dir)
     CampaignDir(out).open("quantify")
-    cfg = quantification.load_frozen_config(out).with_overrides(_overrides(args))
-    done = quantification._finished_summary(out)
+    cfg = CampaignDir(out).frozen_config().with_overrides(_overrides(args))
+    done = CampaignDir(out).finished_summary()
     if done is not None:
         print(f"{out}: the campaign has finished (result hash {done['result_hash']}); nothing to resume")
         return EXIT_OK

@@ -13,7 +13,8 @@ import numpy as np
 
 from coordinator.reference import claimed, compare_boxes, falsify, grid, reference_safe
 from farm.files import read_safe_set, write_json
-from farm.executors import build_simulator
+from farm.simulators import build_simulator
+from farm.storage import CampaignDir
 
 
 def compare(directory: Path, grid: int | None = None, progress=None) -> dict:
@@ -22,12 +23,11 @@ def compare(directory: Path, grid: int | None = None, progress=None) -> dict:
     ``progress``: a farm.progress.Progress told of each phase (the reference can take
     a minute)."""
     say = progress.line if progress is not None else (lambda text: None)
-    from farm.quantification import load_frozen_config, spec_of
-    from farm.storage import CampaignDir
+    from farm.campaign_setup import spec_of
 
     directory = Path(directory)
     CampaignDir(directory).open("quantify")
-    cfg = load_frozen_config(directory)
+    cfg = CampaignDir(directory).frozen_config()
     if grid is not None and not (2 <= grid <= 4096):
         raise ValueError(f"--grid: {grid} is out of range; allowed [2, 4096] points per axis")
     simulated = cfg.scenario.backend != "numpy"

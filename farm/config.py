@@ -233,6 +233,30 @@ def _read_toml(source) -> dict:
         raise ConfigError(f"{where}: not valid TOML ({exc})") from None
 
 
+def to_toml(cfg: Config) -> str:
+    """The normalized config as TOML (a campaign started from Python has no file)."""
+    lines = []
+    for section, values in cfg.model_dump(mode="json", exclude_none=True).items():
+        lines.append(f"[{section}]")
+        lines += [f"{k} = {_toml_value(v)}" for k, v in values.items()]
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)  # a TOML basic string
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{json.dumps(k)} = {_toml_value(v)}" for k, v in value.items()) + " }"
+    raise TypeError(f"no TOML form for {value!r}")
+
+
 # -- hashing and resume --------------------------------------------------------------------------
 def result_view(cfg: Config) -> dict:
     """The part of a config that can change a result (hash input, resume check)."""

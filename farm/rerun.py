@@ -14,7 +14,8 @@ from pathlib import Path
 import numpy as np
 import pyarrow.dataset as ds
 
-from farm.executors import build_simulator
+from farm.simulators import build_simulator
+from farm.storage import CampaignDir
 from scenarios.base import OUTCOME_NAMES
 from scenarios.simulator import SimSpec
 
@@ -67,15 +68,13 @@ def _load_adaptive_actions(directory: Path, simulator) -> None:
 
 
 def replay(directory: Path, index: int) -> tuple[bool, str]:
-    from farm.storage import CampaignDir
 
     directory = Path(directory)
     CampaignDir(directory).open()  # a one-line error for a file or a directory not ours
     if (directory / "certificate.json").exists():
         return _replay_counterexample(directory, index)
-    from farm.quantification import load_frozen_config
 
-    cfg = load_frozen_config(directory)
+    cfg = CampaignDir(directory).frozen_config()
     if not 0 <= index < 2**63:
         raise ValueError(f"--sample: {index} is out of range; allowed [0, 2**63)")
     rows = ds.dataset(directory / "ledger").to_table(filter=ds.field("sample_index") == index).to_pylist()
@@ -108,9 +107,8 @@ def _replay_counterexample(directory: Path, index: int) -> tuple[bool, str]:
     ce = cert.get("counterexample")
     if not ce or ce["sample_index"] != index:
         raise ValueError(f"{directory}: certificate.json holds no counterexample with sample index {index}")
-    from farm.quantification import load_frozen_config
 
-    cfg = load_frozen_config(directory)
+    cfg = CampaignDir(directory).frozen_config()
     spec = SimSpec(cfg.scenario.model_dump(), cfg.actions.model_dump(), cfg.validate.horizon, cfg.farm.seed)
     simulator = build_simulator(spec)
     start = np.array([ce["start_state"][name] for name in simulator.scenario.state_names])

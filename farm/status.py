@@ -27,16 +27,17 @@ class StatusWriter:
     def write(self, fields: dict) -> None:
         write_json(self.dir / "status.json", {**fields, "updated": time.time(), "started": self._started})
 
-    def update(self, label: str, algorithm, campaign, n_eps: int, *, state: str = "running", force: bool = False):
+    def update(self, label: str, campaign, *, state: str = "running", force: bool = False):
         now = time.monotonic()
         if not force and now - self._last < EVERY_S:
             return
         self._last = now
-        self.write({"state": state, "part": label, **snapshot(algorithm, campaign, n_eps)})
+        self.write({"state": state, "part": label, **snapshot(campaign)})
 
 
-def snapshot(algorithm, campaign, n_eps: int) -> dict:
-    c = campaign.counters
+def snapshot(campaign) -> dict:
+    """Where a running campaign stands (coordinator.campaign.Campaign)."""
+    c, algorithm, n_eps = campaign.counters, campaign.algorithm, campaign.n_eps
     counts = algorithm.counts()
     return {"round": counts.get("round", 0), "delta": counts.get("delta"), "boxes": counts.get("boxes"),
             "n_eps_counter": c.quiet, "n_eps": n_eps, "runs_committed": c.committed,
@@ -55,7 +56,7 @@ def _search(campaign) -> dict:
 
 def _certification(algorithm, counts) -> dict:
     """A deterministic certification counts centres run, not runs in a row."""
-    if not getattr(algorithm, "enumerates", False):
+    if not algorithm.enumerates:
         return {}
     return {"certified": counts.get("certified", 0), "centres": counts.get("boxes", 0)}
 

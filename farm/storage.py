@@ -152,6 +152,52 @@ class CampaignDir:
         finally:
             os.close(fd)
 
+    # -- what a campaign directory holds ----------------------------------------------------
+    def frozen_config(self):
+        """The campaign's config as frozen when it started (``config.json``)."""
+        from farm import config as config_mod
+
+        path = self.path / "config.json"
+        try:
+            raw = json.loads(path.read_text())["config"]
+        except FileNotFoundError:
+            raise CampaignError(f"{self.path}: not a campaign directory (no config.json)") from None
+        except (ValueError, KeyError, TypeError) as exc:
+            raise CampaignError(f"{path}: unreadable ({type(exc).__name__}: {exc})") from None
+        try:
+            return config_mod.normalize(raw)
+        except config_mod.ConfigError as exc:
+            raise CampaignError(f"{path}: not a valid frozen config ({exc})") from None
+
+    def freeze_config(self, cfg, text: str | None = None) -> None:
+        """Keep the config as given (``config.toml``: ``text``, or the normalized config as
+        TOML) and normalized with its hash (``config.json``)."""
+        from farm import config as config_mod
+
+        (self.path / "config.toml").write_text(text if text is not None else config_mod.to_toml(cfg))
+        write_json(self.path / "config.json", {"config": cfg.model_dump(mode="json"),
+                                               "config_hash": config_mod.config_hash(cfg),
+                                               "scenario_farm_version": __version__})
+
+    def finished_summary(self) -> dict | None:
+        """``summary.json`` of a finished campaign, or None."""
+        try:
+            summary = json.loads((self.path / "summary.json").read_text())
+        except (OSError, ValueError):
+            return None
+        return summary if isinstance(summary, dict) and "result_hash" in summary else None
+
+    def nothing_started(self) -> bool:
+        """No directory, an empty one, or one of ours killed before its config was frozen."""
+        p = self.path
+        if not p.exists():
+            return True
+        if not p.is_dir():
+            return False
+        names = {c.name for c in p.iterdir()} - {LOCK}
+        return not names or (self.marker() is not None and "config.json" not in names
+                             and "checkpoint.npz" not in names and "ledger" not in names)
+
     # -- housekeeping -------------------------------------------------------------------------
     def remove_stale_temp_files(self) -> list[Path]:
         """Temp files (".<name>.tmp-<pid>") of writers that are gone: a kill -9 or a full
