@@ -13,9 +13,9 @@ known failure or not. A deterministic system runs every final centre once (VAL^d
 otherwise start states are drawn uniformly over the final centres (VAL^eps-delta) until
 N_eps runs in a row pass. A run that fails or leaves the set re-opens SPE: a failure
 prunes as usual, a new state is explored as usual, and a run that leaves only toward a
-known failure prunes its start's tree as a failure would (measured: removing the start
-alone, with or without adding it to PhiBar, makes certification peel or churn for many
-more runs), without adding it to PhiBar: it did not fail.
+known failure prunes its start's tree as a failure would (removing the start alone, with
+or without adding it to PhiBar, makes certification peel or churn for many more runs:
+docs/benchmarks.md), without adding it to PhiBar: it did not fail.
 Certification then starts again, so the set exported is the one the last one passed.
 """
 
@@ -67,8 +67,7 @@ class SPE(Algorithm):
     name = "spe"
     decays = True
     certifies = True
-    # certificates' entries too: ~350 MB at delta_min 0.125, written whole at every
-    # checkpoint before
+    # certificates' entries too: the bulk of a certified campaign's state
     append_only = ("vertices.points", "failures.points", "graph.parent", "replay.index", "replay.take",
                    "replay.parent", "replay.start", "cert.vertex", "cert.offsets", "cert.witness")
 
@@ -270,8 +269,8 @@ class SPE(Algorithm):
     def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray, starts: np.ndarray) -> None:
         """Keep committed, non-failing runs for experience replay (coordinator/experience_replay.py).
         Runs of the final round (and of certification) are not kept: no round end
-        follows to replay them, and they are most of a campaign's runs (at delta_min
-        0.125 on lead-follow, 1.46 M of 1.81 M, whose trajectories took ~0.5 GB)."""
+        follows to replay them, and they are most of a campaign's runs and of the memory
+        their trajectories would hold."""
         if self.final_round:
             return
         self.replay.add(chunk, rows, start_ids, starts, self.vertices.count)
@@ -323,10 +322,10 @@ class SPE(Algorithm):
         return added
 
     def stop_committing(self) -> None:
-        self.certificates.release_index()  # ~0.37 GB at delta_min 0.125, certified
+        self.certificates.release_index()  # the reverse index: large, and only prunes use it
 
     def release(self) -> None:
-        self.certificates.release()  # its entries, ~0.35 GB more
+        self.certificates.release()  # its entries
 
     # -- output ---------------------------------------------------------------------------
     def counts(self) -> dict:

@@ -1,0 +1,66 @@
+"""The algorithm conformance suite (coordinator/testing.py) on every algorithm we ship,
+with uniform actions (stochastic) and Gamma* (deterministic: enumerating certification)."""
+
+import pytest
+
+from coordinator import testing
+from coordinator.baselines import make_algorithm
+from coordinator.spe import SPESettings
+from farm.local_executor import LocalExecutor
+from scenarios import make_scenario
+from scenarios.simulator import SimSpec
+
+SCENARIO = {"name": "lead-follow", "sv_policy": "idm"}
+HORIZON = 30
+
+
+def factories(algorithm: str, mode: str, **options):
+    scenario = make_scenario(SCENARIO["name"], sv_policy=SCENARIO["sv_policy"])
+    spec = SimSpec(dict(SCENARIO), {"mode": mode}, HORIZON, testing.SETTINGS.seed)
+    deterministic = mode == "adversarial"
+    settings = SPESettings(delta0=8.0, gamma=0.5, delta_min=4.0, **options)
+
+    def make():
+        return make_algorithm(algorithm, scenario, settings, testing.SETTINGS.seed, deterministic)
+
+    return make, lambda: LocalExecutor(spec), scenario
+
+
+CASES = [("spe", "uniform", {}), ("spe", "adversarial", {}), ("spe", "uniform", {"prioritized": False}),
+         ("spe", "uniform", {"boundary": True}), ("ae", "uniform", {}), ("delta-pruning", "adversarial", {}),
+         ("vs", "uniform", {})]
+
+
+@pytest.fixture(params=CASES, ids=lambda c: f"{c[0]}-{c[1]}" + "".join(f"-{k}" for k in c[2]))
+def algorithm(request):
+    return factories(*request.param[:2], **request.param[2])
+
+
+def test_draw(algorithm):
+    make, _, scenario = algorithm
+    testing.check_draw(make, scenario)
+
+
+def test_apply(algorithm):
+    make, _, scenario = algorithm
+    testing.check_apply(make, scenario)
+
+
+def test_rounds(algorithm):
+    make, _, _ = algorithm
+    testing.check_rounds(make)
+
+
+def test_determinism(algorithm):
+    make, make_executor, _ = algorithm
+    testing.check_determinism(make, make_executor)
+
+
+def test_state_round_trip(algorithm):
+    make, make_executor, _ = algorithm
+    testing.check_state_round_trip(make, make_executor)
+
+
+def test_certification(algorithm):
+    make, make_executor, _ = algorithm
+    testing.check_certification(make, make_executor)
