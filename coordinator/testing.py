@@ -27,6 +27,7 @@ relies on, and what each check tests:
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Callable
 
 import numpy as np
@@ -107,16 +108,16 @@ def check_rounds(make: MakeAlgorithm) -> None:
     assert algo.end_round() is False, f"{name}: end_round after the last round must return False"
 
 
-def check_determinism(make: MakeAlgorithm, make_executor) -> None:
-    a, ca = _run(make, make_executor)
-    b, cb = _run(make, make_executor)
+def check_determinism(make: MakeAlgorithm, make_executor, settings: CampaignSettings = SETTINGS) -> None:
+    a, ca = _run(make, make_executor, settings)
+    b, cb = _run(make, make_executor, settings)
     name = _name(a)
     assert ca.committed == cb.committed and ca.round_ends == cb.round_ends, f"{name}: runs differ between repeats"
     _same_state(a.state(), b.state(), f"{name}: two identical campaigns")
 
 
-def check_state_round_trip(make: MakeAlgorithm, make_executor) -> None:
-    whole, counters = _run(make, make_executor)
+def check_state_round_trip(make: MakeAlgorithm, make_executor, settings: CampaignSettings = SETTINGS) -> None:
+    whole, counters = _run(make, make_executor, settings)
     name = _name(whole)
     # stop half-way at a chunk boundary, as a checkpoint does, and continue in a fresh
     # algorithm from the saved arrays
@@ -127,7 +128,7 @@ def check_state_round_trip(make: MakeAlgorithm, make_executor) -> None:
         if campaign.counters.committed >= half:
             campaign.stop()
 
-    first = Campaign(part, make_executor(), SETTINGS, observers=[stop_half_way])
+    first = Campaign(part, make_executor(), settings, observers=[stop_half_way])
     first.run()
     first.executor.close()
     state = {k: np.array(v, copy=True) for k, v in part.state().items()}
@@ -136,14 +137,14 @@ def check_state_round_trip(make: MakeAlgorithm, make_executor) -> None:
     fresh.state_epoch = part.state_epoch
     _same_state(fresh.state(), state, f"{name}: state() loaded into a fresh algorithm")
     arrays, meta = first.state()
-    rest = Campaign(fresh, make_executor(), SETTINGS, restored=DriverState.read(arrays, meta))
+    rest = Campaign(fresh, make_executor(), settings, restored=DriverState.read(arrays, meta))
     rest.run()
     rest.executor.close()
     assert rest.counters.committed == counters.committed, f"{name}: a continued campaign committed other runs"
     _same_state(fresh.state(), whole.state(), f"{name}: continued vs uninterrupted campaign")
 
 
-def check_certification(make: MakeAlgorithm, make_executor) -> None:
+def check_certification(make: MakeAlgorithm, make_executor, settings: CampaignSettings = SETTINGS) -> None:
     algo = make()
     name = _name(algo)
     if not algo.certifies:
@@ -153,21 +154,21 @@ def check_certification(make: MakeAlgorithm, make_executor) -> None:
             pass
         else:
             raise AssertionError(f"{name}: certifies is False but begin_certification did not refuse")
-        _, counters = _run(make, make_executor, CampaignSettings(**{**SETTINGS.__dict__, "certify": True}), algo)
+        _, counters = _run(make, make_executor, dataclasses.replace(settings, certify=True), algo)
         assert not algo.certifying, f"{name}: a campaign asked a non-certifying algorithm to certify"
         return
-    _, counters = _run(make, make_executor, CampaignSettings(**{**SETTINGS.__dict__, "certify": True}), algo)
+    _, counters = _run(make, make_executor, dataclasses.replace(settings, certify=True), algo)
     if counters.converged:
         assert algo.certifying, f"{name}: a certified campaign ended outside its certification round"
         assert counters.attempts >= 1, f"{name}: no certification attempt was counted"
         assert algo.enumerates == algo.deterministic, f"{name}: enumerates must follow determinism while certifying"
 
 
-def check_algorithm(make: MakeAlgorithm, make_executor, scenario) -> None:
+def check_algorithm(make: MakeAlgorithm, make_executor, scenario, settings: CampaignSettings = SETTINGS) -> None:
     """Every check above."""
     check_draw(make, scenario)
     check_apply(make, scenario)
     check_rounds(make)
-    check_determinism(make, make_executor)
-    check_state_round_trip(make, make_executor)
-    check_certification(make, make_executor)
+    check_determinism(make, make_executor, settings)
+    check_state_round_trip(make, make_executor, settings)
+    check_certification(make, make_executor, settings)
