@@ -2,8 +2,11 @@
 
 ``coordinator.campaign`` drives every algorithm the same way (the parallel contract):
 
-    draw(streams)             ask: start states and their vertex ids for a batch, from
-                              the state as it is now (its ``version``)
+    draw(streams)             ask: start vertices for a batch from each run's own stream,
+                              at the state as it is now (its ``version``)
+    moved(draws)              which earlier draws a change since may have moved (coupled
+                              counting: a moved draw is drawn again and, if it differs,
+                              replaced by the driver)
     next_event(rescreen, lo, ids)  the first run lo.. of a screened chunk that changes
                               the state now
     apply(event)              tell: a run that changes the state (prune, explore, ...)
@@ -18,7 +21,7 @@
 Everything a run is screened against lives in ``coverage`` and changes only through
 ``coverage.apply``, so that workers can screen runs on mirrors of it (see
 coordinator/coverage.py). ``version`` counts changes; a run counts toward N_eps only if
-it was drawn at the current version.
+its start is what its stream draws at the current state (coordinator/stable_sampler.py).
 
 The shared conformance suite every algorithm passes is ``coordinator/testing.py``.
 """
@@ -31,7 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.coverage import Coverage, Rescreen
-from scenarios.streams import PURPOSE_START, RunStreams
+from coordinator.stable_sampler import Draws
+from scenarios.streams import RunStreams
 
 
 class EmptySetError(RuntimeError):
@@ -83,10 +87,16 @@ class Algorithm(ABC):
         """The current round is the last one (its end ends the campaign)."""
 
     @abstractmethod
-    def draw(self, streams: RunStreams) -> tuple[np.ndarray, np.ndarray]:
-        """(B', n) start states and (B',) vertex ids for the first B' <= B streams, from
-        the current state. B' < B ends the batch early (e.g. a certification with fewer
-        centres left to run than the batch has runs); its indices go to the next batch."""
+    def draw(self, streams: RunStreams) -> Draws:
+        """Start vertices for the first B' <= B streams, each from its own stream at the
+        current state (the starts are ``vertices.points[draws.ids]``). B' < B ends the
+        batch early (e.g. a certification with fewer centres left to run than the batch
+        has runs); its indices go to the next batch."""
+
+    @abstractmethod
+    def moved(self, draws: Draws) -> np.ndarray:
+        """(B,) bool: which of these draws a change since they were made may have moved
+        (a draw not flagged is what its stream draws now; a flagged one is drawn again)."""
 
     def next_event(self, rescreen: Rescreen, lo: int, start_ids: np.ndarray) -> int:
         """The first run at or after ``lo`` of a screened chunk that changes the state
@@ -124,10 +134,11 @@ class Algorithm(ABC):
         """Enter the certification round (only when ``certifies``)."""
 
     @abstractmethod
-    def certify_runs(self, chunk, rows: np.ndarray, start_ids: np.ndarray, trusted: np.ndarray) -> int:
-        """Enumerating certification: quiet runs ``rows`` of ``chunk`` (``trusted``: their
-        screening's witnesses are current) certify their start centres. Returns the row
-        after which every alive centre is certified, or -1."""
+    def certify_runs(self, start_ids: np.ndarray, offsets: np.ndarray, witnesses: np.ndarray) -> int:
+        """Enumerating certification: quiet runs from centres ``start_ids``, the alive
+        centres that cover their states now being ``witnesses[offsets[i]:offsets[i + 1]]``,
+        certify their centres. Returns the position of the run after which every alive
+        centre is certified, or -1."""
 
     # -- the end ----------------------------------------------------------------------------
     def stop_committing(self) -> None:
@@ -178,20 +189,8 @@ class NoCertification:
     def begin_certification(self) -> None:
         raise NotImplementedError(f"{type(self).__name__} does not certify")
 
-    def certify_runs(self, chunk, rows, start_ids, trusted) -> int:
+    def certify_runs(self, start_ids, offsets, witnesses) -> int:
         raise NotImplementedError(f"{type(self).__name__} does not certify")
-
-
-def uniform_pick(ids: np.ndarray, streams: RunStreams) -> np.ndarray:
-    """One of ``ids`` per stream, uniformly, from each run's start stream."""
-    if len(ids) == 0:
-        raise EmptySetError("the safe set is empty: every centre was pruned")
-    return uniform_index(ids, streams.uniform(0, PURPOSE_START, 1)[:, 0])
-
-
-def uniform_index(ids: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """One of ``ids`` per uniform number u in [0, 1), uniformly."""
-    return ids[np.minimum((u * len(ids)).astype(np.int64), len(ids) - 1)]
 
 
 GREEDY_WINDOWED = 64  # points from which the greedy pass compares each only with its neighbours

@@ -12,9 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from coordinator.algorithm import Algorithm, Event, NoCertification, greedy_uncovered, uniform_pick
+from coordinator.algorithm import Algorithm, EmptySetError, Event, NoCertification, greedy_uncovered
 from coordinator.coverage import Coverage, Insert, Kill, Recell, Reset
 from coordinator.lattice import Lattice
+from coordinator.stable_sampler import Draws, StableSampler, UniformLaw
 from scenarios.base import Scenario
 from scenarios.streams import PURPOSE_START, RunStreams
 
@@ -38,9 +39,32 @@ class _CoverageOnly(NoCertification, Algorithm):
         self.coverage.apply(Reset(fresh.state()), self.version)
         self.state_epoch += 1
 
-    def draw(self, streams):
-        chosen = uniform_pick(self.vertices.alive_ids(), streams)
-        return self.vertices.points[chosen].copy(), chosen
+    # Start states uniform over the alive centres, each from its run's own stream. Any
+    # change may move any draw (the driver draws a flagged run again and compares): these
+    # baselines change their state rarely, or replace it whole.
+    _stable: StableSampler | None = None
+
+    def draw(self, streams: RunStreams) -> Draws:
+        if self.vertices.alive_count == 0:
+            raise EmptySetError("the safe set is empty: every centre was pruned")
+        stable = self._sampling()
+        law = UniformLaw(self.vertices.count, self._alive, self.vertices.alive_ids)
+        return stable.draw(streams, law, self.version)
+
+    def moved(self, draws: Draws) -> np.ndarray:
+        return self._sampling().moved(draws)
+
+    def _sampling(self) -> StableSampler:
+        """The sampler, restarted after every change: its cap follows the vertex count."""
+        if self._stable is None or self._stable_version != self.version:
+            if self._stable is None:
+                self._stable = StableSampler()
+            self._stable.restart(self.vertices.count, self.version)
+            self._stable_version = self.version
+        return self._stable
+
+    def _alive(self, ids: np.ndarray) -> np.ndarray:
+        return self.vertices.alive[ids]
 
     def state(self) -> dict:
         out = self.coverage.state()
@@ -133,10 +157,6 @@ class DeltaPruning(_CoverageOnly):
         self.state_epoch = 0
         lattice = Lattice.tiling(scenario.lower, scenario.upper, self._delta0)
         self.coverage = self._fresh(lattice.box_centres(self._delta0), scenario.lower, scenario.upper, bounded=True)
-
-    def next_event(self, rescreen, lo, start_ids):
-        # a stale draw's centre may be pruned already: pruning it again changes nothing
-        return rescreen.next_event(lo, allowed=self.vertices.alive[start_ids])
 
     def apply(self, event: Event) -> str:
         self.version += 1

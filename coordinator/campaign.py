@@ -1,21 +1,26 @@
 """The batch driver of a quantification campaign: the parallel contract
-(shared/spec/algorithms.md) in one place.
+(shared/spec/algorithms.md, shared/spec/scaling.md) in one place.
 
-- Runs go out in batches of consecutive global sample indices; run i's randomness comes
-  from the stream (seed, i) alone.
-- Batch b's start states are drawn from the algorithm state right after batch b - D was
-  committed (D = pipeline depth): the driver keeps D batches drawn ahead and draws the
-  next one only after committing the oldest. Which worker simulates what, and when,
-  cannot change what is drawn.
+- Runs go out in batches of consecutive global sample indices; run i's randomness,
+  its start included, comes from the stream (seed, i) alone: its start is what its
+  stream draws from the algorithm's state (coordinator/stable_sampler.py).
 - Results are committed strictly in sample-index order, chunk by chunk as they arrive.
   Workers screen their runs against a mirror of the coverage (coordinator/coverage.py);
   the driver takes a screening as it is when nothing changed since, and otherwise
   re-decides each run at the current version from its witnesses.
-- N_eps rule: a round ends after N_eps consecutive committed runs that changed nothing
-  *and were drawn from the state as it is now* (their draw version equals the current
-  version). A run drawn before the last change still has its evidence used, but does not
-  count. At a round end, runs after the N_eps-th, and all chunks in flight, are dropped
-  and their indices re-used: the committed sequence depends only on the config and seed.
+- Coupled counting. At commit a run is *exact* when its start is still the draw its
+  stream makes at the current state (only runs whose examined slots a change touched are
+  drawn again to know); an exact run is what the one-run-at-a-time campaign runs at that
+  index, and is used as it would use it. A *mispredicted* run is discarded unseen and
+  replaced: the current draw, the same index and streams, applied ``lag`` indices later
+  (``counting = "sequential"``: lag 0, waited for at the head, so the committed sequence
+  is the sequential campaign's at any window; ``"deferred"``: lag = the window,
+  batch_size x pipeline_depth). A replacement that a later change moves is replaced again.
+- The streak is the index range after the last change. A round ends when N_eps
+  consecutive indices of it are resolved (exact or replaced) and quiet: the head stops
+  at its end and waits for the streak's replacements. Batches in flight and replacements
+  of indices before the streak are then dropped, their indices re-used: the committed
+  sequence depends on the config and seed alone.
 - At a round end the driver decays the algorithm's resolution and runs experience
   replay: the algorithm names its stored runs, the executor screens them where they are,
   the algorithm applies what is new.
@@ -40,15 +45,21 @@ from coordinator.commit_log import CommitLog
 from coordinator.coverage import Rescreen
 from coordinator.executor import Chunk, Executor
 from coordinator.sample_size import n_eps, n_eps_attempt
+from coordinator.stable_sampler import Draws
 from scenarios.base import FAILURE, OUTCOME_NAMES
 from scenarios.streams import RunStreams
+
+COUNTING = ("sequential", "deferred")
+VERIFY_BLOCK = 64  # runs checked for exactness at once after a change (then 4x more each time)
+MAX_VERIFY_BLOCK = 1 << 16
+LEAD_PER_WORKER = 4  # replacements launched this many runs per worker ahead of the head
 
 
 @dataclass(frozen=True)
 class CampaignSettings:
     """What the driver needs besides the algorithm and the executor (the config's
-    quantify.epsilon, beta, budget, certify, farm.batch_size, pipeline_depth, seed and
-    record.quantify_runs)."""
+    quantify.epsilon, beta, budget, certify, farm.batch_size, pipeline_depth, counting,
+    seed and record.quantify_runs)."""
 
     epsilon: float = 0.001
     beta: float = 0.1
@@ -58,11 +69,21 @@ class CampaignSettings:
     seed: int = 0
     certify: bool = False
     record_limit: int = 0  # state-changing failures kept for the MCAP recording
+    counting: str = "deferred"
+
+    def __post_init__(self):
+        if self.counting not in COUNTING:
+            raise ValueError(f"counting: {self.counting!r} is not allowed; allowed: {', '.join(COUNTING)}")
 
     @property
     def n_eps(self) -> int:
         """Quiet runs in a row that end a round (Lemma 2)."""
         return n_eps(self.epsilon, self.beta)
+
+    @property
+    def lag(self) -> int:
+        """Indices after which a mispredicted run's replacement is applied."""
+        return 0 if self.counting == "sequential" else self.batch_size * self.pipeline_depth
 
     def certification_quiet(self, attempt: int) -> int:
         """Quiet runs in a row that certify at sampled attempt ``attempt`` (1, 2, ...): beta
@@ -72,29 +93,64 @@ class CampaignSettings:
 
 @dataclass
 class Pending:
-    """A batch drawn at ``version``; ``done`` of its runs are committed."""
+    """A batch of draws from ``first_index`` on; ``done`` of its runs are committed."""
 
     first_index: int
+    draws: Draws
     starts: np.ndarray
-    start_ids: np.ndarray
-    version: int
     handles: list = field(default_factory=list)
     done: int = 0
     next_handle: int = 0
 
     def __len__(self) -> int:
-        return len(self.starts)
+        return len(self.draws)
+
+
+class ReplacementGroup:
+    """Replacements submitted together, as one batch: the chunks they travel in (in the
+    batch's order), fetched on demand."""
+
+    def __init__(self, handles: list):
+        self.handles = list(handles)
+        self.chunks: list[Chunk] = []
+        self.rows = 0  # rows of the chunks fetched so far
+
+    def find(self, position: int) -> tuple[Chunk, int] | None:
+        """The chunk and row of the batch's ``position``-th run, if fetched."""
+        for chunk in self.chunks:
+            if position < len(chunk):
+                return chunk, position
+            position -= len(chunk)
+        return None
+
+
+@dataclass
+class Replacement:
+    """The run that replaces a mispredicted one: index ``index``, drawn as ``draws``
+    (one draw), applied before the head commits index ``due`` + 1."""
+
+    index: int
+    draws: Draws
+    start: np.ndarray
+    due: int
+    group: ReplacementGroup | None = None
+    position: int = 0  # its row in its group's batch
 
 
 @dataclass
 class Counters:
-    committed: int = 0  # == the next sample index to commit (indices are contiguous)
-    quiet: int = 0  # the N_eps counter
+    """Where a campaign stands. Runs simulated and read back are committed (the head's
+    runs, a discarded one included), replaced, or dropped (``runs_dropped``)."""
+
+    committed: int = 0  # the head: the next sample index to commit (indices are contiguous)
+    quiet: int = 0  # the N_eps counter: indices of the streak resolved and quiet
+    streak_start: int = 0  # the first index after the last change
     escaped_in_streak: int = 0  # counted quiet runs that left Phi_delta near PhiBar
     changes: int = 0
     runs_simulated: int = 0
     steps_simulated: int = 0
-    runs_dropped: int = 0
+    runs_discarded: int = 0  # mispredicted runs, discarded unseen
+    runs_replaced: int = 0  # replacements applied
     rounds_completed: int = 0
     done: bool = False
     converged: bool = False  # the last round ended by the N_eps rule
@@ -103,13 +159,18 @@ class Counters:
     recorded: int = 0  # runs handed to the recorder so far
     attempts: int = 0  # certification attempts (a change during certification starts the next)
 
+    @property
+    def runs_dropped(self) -> int:
+        """Runs simulated whose results were not used: in flight at a round end."""
+        return self.runs_simulated - self.committed - self.runs_replaced
+
 
 Observer = Callable[["Campaign"], None]
 
 
 class Campaign:
     """Drive ``algorithm`` with ``executor`` until the last round ends by the N_eps rule
-    or ``settings.budget`` runs are committed. ``observers`` are called after every
+    or ``settings.budget`` indices are committed. ``observers`` are called after every
     committed chunk (progress, status, checkpoints); ``adversary`` (actions.mode =
     "search") sees every committed run and re-weights the action mixture at round ends."""
 
@@ -127,14 +188,25 @@ class Campaign:
         self.certify = settings.certify and algorithm.certifies
         self.counters = restored.counters if restored is not None else Counters()
         self.pending: deque[Pending] = deque(restored.pending if restored is not None else ())
+        self.replacements: deque[Replacement] = deque(restored.replacements if restored is not None else ())
         self.final_distribution = restored.final_distribution if restored is not None else ""
         self.log = CommitLog()
         self.recordings: list[dict] = []  # runs to record, since the last flush
+        # replacements to submit at the next chunk boundary (read back ones are re-simulated)
+        self._unsent: list[Replacement] = list(self.replacements)
+        # runs launched ahead for in-flight draws a change moved, by index: a mispredicted
+        # run's replacement, simulated before the head asks for it
+        self._ahead: dict[int, Replacement] = {}
+        self._changes_seen = self.counters.changes
+        self._ahead_to = 0  # launched ahead up to this index (when nothing changed since)
         self._stop = False
 
     @property
     def n_eps(self) -> int:
         return self.settings.n_eps
+
+    def _streams(self, indices) -> RunStreams:
+        return RunStreams.of(self.settings.seed, np.asarray(indices, dtype=np.uint64))
 
     # -- drawing ------------------------------------------------------------------------
     def _next_draw_index(self) -> int:
@@ -145,82 +217,297 @@ class Campaign:
 
     def _fill(self) -> None:
         """Keep ``pipeline_depth`` batches drawn and submitted (fewer when the budget ends)."""
-        s = self.settings
+        s, algo = self.settings, self.algorithm
+        # sequential counting: the batch size changes no result, so it follows the workers
+        batch = self.executor.batch_size(s.batch_size, s.pipeline_depth) if s.lag == 0 else s.batch_size
         while len(self.pending) < s.pipeline_depth:
             first = self._next_draw_index()
-            size = min(s.batch_size, s.budget - first)
+            size = min(batch, s.budget - first)
             if size <= 0:
                 break
-            streams = RunStreams.of(s.seed, np.arange(first, first + size, dtype=np.uint64))
-            starts, ids = self.algorithm.draw(streams)
-            self.pending.append(Pending(first, starts, ids, self.algorithm.version))  # len(starts) may be < size
+            draws = algo.draw(self._streams(np.arange(first, first + size)))
+            self.pending.append(Pending(first, draws, algo.vertices.points[draws.ids]))  # may be < size
         for p in self.pending:
             if not p.handles:
-                first = p.first_index + p.done
-                p.handles = self.executor.submit(first, p.starts[p.done :], self.algorithm.coverage,
+                p.handles = self.executor.submit(p.first_index + p.done, p.starts[p.done :], algo.coverage,
                                                  actions=self._actions())
+        self._launch_ahead()
+        self._send_replacements()
 
     def _actions(self) -> dict | None:
         return self.adversary.policy.state() if self.adversary is not None else None
 
+    # -- exact or replaced -----------------------------------------------------------------
+    def _verify(self, p: Pending, lo: int, hi: int) -> np.ndarray:
+        """(hi - lo,) bool: which runs ``lo:hi`` of batch ``p`` are exact now. A run a change
+        may have moved is drawn again: if its stream draws the same vertex it is exact
+        (its draw record is renewed), else it is mispredicted."""
+        algo = self.algorithm
+        moved = algo.moved(p.draws.span(lo, hi))
+        exact = ~moved
+        if moved.any():
+            again = lo + np.flatnonzero(moved)
+            fresh = algo.draw(self._streams(p.first_index + again))
+            same = fresh.ids == p.draws.ids[again]
+            exact[moved] = same
+            if same.any():
+                p.draws.replace_rows(again[same], fresh.rows(np.flatnonzero(same)))
+        return exact
+
+    def _replace(self, index: int) -> None:
+        """Launch the replacement of run ``index`` from its stream's current draw, due
+        ``lag`` indices after the head (a run launched ahead for that draw is taken)."""
+        c = self.counters
+        due = max(index, c.committed - 1) + self.settings.lag
+        ahead = self._ahead.pop(index, None)
+        if ahead is not None and self._still_drawn(ahead):
+            ahead.due = due
+            self.replacements.append(ahead)
+        else:
+            draws = self.algorithm.draw(self._streams([index]))
+            replacement = Replacement(index, draws, self.algorithm.vertices.points[draws.ids[0]], due)
+            self.replacements.append(replacement)  # in due order: due grows with the head
+            self._unsent.append(replacement)
+        c.runs_discarded += 1
+
+    def _still_drawn(self, r: Replacement) -> bool:
+        """Is ``r``'s start what its stream draws now?"""
+        algo = self.algorithm
+        if not algo.moved(r.draws)[0]:
+            return True
+        fresh = algo.draw(self._streams([r.index]))
+        if fresh.ids[0] != r.draws.ids[0]:
+            return False
+        r.draws = fresh  # renewed: later checks start from now
+        return True
+
+    def _launch_ahead(self) -> None:
+        """Draws in flight near the head that a change moved: launch their replacements
+        now, so that the head finds them done. Only within ``_lead()`` indices of the head:
+        farther ones may move again before the head needs them. (Results never depend on
+        this: a run is used only if it is what its stream draws when its index is committed.)"""
+        algo, head = self.algorithm, self.counters.committed
+        for index in [i for i in self._ahead if i < head]:  # the head passed them unused
+            del self._ahead[index]
+        changed = self.counters.changes != self._changes_seen
+        self._changes_seen = self.counters.changes
+        start = head if changed else max(head, self._ahead_to)
+        end = head + self._lead()
+        self._ahead_to = end
+        for p in self.pending:
+            lo, hi = max(p.done, start - p.first_index), min(len(p), end - p.first_index)
+            if not p.handles or lo >= hi:
+                continue
+            flagged = lo + np.flatnonzero(algo.moved(p.draws.span(lo, hi)))
+            if len(flagged) == 0:
+                continue
+            fresh = algo.draw(self._streams(p.first_index + flagged))
+            same = fresh.ids == p.draws.ids[flagged]
+            if same.any():  # still drawn: later checks start from now
+                p.draws.replace_rows(flagged[same], fresh.rows(np.flatnonzero(same)))
+            for k in np.flatnonzero(~same):
+                index = int(p.first_index + flagged[k])
+                known = self._ahead.get(index)
+                if known is not None and known.draws.ids[0] == fresh.ids[k]:
+                    continue
+                draws = fresh.rows(np.array([k]))
+                self._ahead[index] = r = Replacement(index, draws, algo.vertices.points[draws.ids[0]], index)
+                self._unsent.append(r)
+
+    def _lead(self) -> int:
+        """How far ahead of the head replacements are launched: a few rounds of every
+        worker's run (the head commits about a run per worker in a run's time)."""
+        return max(self.settings.batch_size, LEAD_PER_WORKER * self.executor.workers)
+
+    def _send_replacements(self) -> None:
+        """Submit the replacements launched since the last call, as one batch."""
+        if not self._unsent:
+            return
+        batch, self._unsent = self._unsent, []
+        indices = np.array([r.index for r in batch], dtype=np.int64)
+        group = ReplacementGroup(self.executor.submit(int(indices[0]), np.stack([r.start for r in batch]),
+                                                      self.algorithm.coverage, actions=self._actions(),
+                                                      indices=indices))
+        for position, r in enumerate(batch):
+            r.group, r.position = group, position
+
+    def _fetch(self, r: Replacement) -> tuple[Chunk, int]:
+        """Wait for replacement ``r``'s run: its chunk and row."""
+        if r.group is None:
+            self._send_replacements()
+        group, c = r.group, self.counters
+        found = group.find(r.position)
+        while found is None:
+            chunk = self.executor.result(group.handles.pop(0))
+            c.runs_simulated += len(chunk)
+            c.steps_simulated += chunk.steps
+            group.chunks.append(chunk)
+            found = group.find(r.position)
+        return found
+
     # -- committing ------------------------------------------------------------------------
+    def _streak_complete(self) -> bool:
+        c = self.counters
+        return c.committed - c.streak_start >= self.quiet_needed()
+
+    def _finish_streak(self) -> bool:
+        """The head is at the streak's end: apply the streak's replacements, in due order.
+        True if every index of the streak is resolved and quiet (the round ends); False
+        if one changed the state (the streak starts again at the head)."""
+        c = self.counters
+        while True:
+            waiting = [r for r in self.replacements if r.index >= c.streak_start]
+            if not waiting:
+                return True
+            self.replacements.remove(waiting[0])
+            if self._apply_replacement(waiting[0]):
+                return False
+
+    def _apply_due(self) -> None:
+        """Apply the replacements due before the head's index."""
+        c = self.counters
+        while self.replacements and self.replacements[0].due < c.committed:
+            self._apply_replacement(self.replacements.popleft())
+
+    def _apply_replacement(self, r: Replacement) -> bool:
+        """Use replacement ``r`` as the run of its index if it is still what its stream
+        draws now, else replace it again (unseen). True if it changed the state."""
+        algo, c = self.algorithm, self.counters
+        if not self._still_drawn(r):
+            self._replace(r.index)
+            return False
+        chunk, row = self._fetch(r)
+        rescreen = Rescreen(algo.coverage, chunk.screening, chunk.outcomes, chunk.visited)
+        start_id = r.draws.ids[:1]
+        changes = rescreen.next_event(row) == row
+        c.runs_replaced += 1
+        if changes:
+            self._change(Event(r.index, r.start, int(start_id[0]), bool(chunk.outcomes[row] == FAILURE),
+                               rescreen.candidates(row), *rescreen.classification(row)), chunk, row)
+        elif r.index >= c.streak_start:
+            c.quiet += 1
+            c.escaped_in_streak += int(chunk.screening.escaped[row])
+        self._log_rows(chunk, np.array([row]), r.index, r.start[None, :], start_id, CommitLog.REPLACEMENT,
+                       np.array([changes]), np.array([not changes and r.index >= c.streak_start]))
+        return changes
+
+    def _change(self, event: Event, chunk: Chunk, row: int) -> None:
+        """Apply a run that changes the state; the streak starts again at the head."""
+        algo, c = self.algorithm, self.counters
+        algo.apply(event)
+        self._maybe_record(chunk, row, event.index, event.start)
+        if algo.certifying:
+            c.attempts += 1
+        c.quiet = 0
+        c.escaped_in_streak = 0
+        c.changes += 1
+        c.streak_start = c.committed  # runs before the head were decided at the old state
+
     def _commit(self, p: Pending, chunk: Chunk) -> bool:
-        """Commit one chunk of batch ``p`` in index order. True if the round ended in it."""
+        """Commit one chunk of batch ``p`` in index order (``counters.committed``, the head,
+        walks its indices). True if the round ended in it."""
         algo, c = self.algorithm, self.counters
         at = chunk.first_index - p.first_index
         k = len(chunk)
-        starts, ids = p.starts[at : at + k], p.start_ids[at : at + k]
+        starts, ids = p.starts[at : at + k], p.draws.ids[at : at + k]
         rescreen = Rescreen(algo.coverage, chunk.screening, chunk.outcomes, chunk.visited)
+        kind = np.zeros(k, dtype=np.int8)
         changed = np.zeros(k, dtype=bool)
         counted = np.zeros(k, dtype=bool)
-        rnd, delta = algo.round, algo.delta
-        pos, ended = 0, False
+        pos, ended, block, logged = 0, False, VERIFY_BLOCK, 0
+
+        def log_upto(end: int) -> int:
+            """Log rows [logged, end): runs are logged (and stored for experience replay) in
+            the order they are committed, replacements in between."""
+            rows = np.arange(logged, end)
+            self._log_rows(chunk, rows, chunk.first_index + logged, starts[rows], ids[rows], kind[rows],
+                           changed[rows], counted[rows])
+            return end
+
         while pos < k:
-            offset = algo.next_event(rescreen, pos, ids) - pos
             if algo.enumerates:  # every centre once: any quiet run whose witnesses hold counts
+                offset = algo.next_event(rescreen, pos, ids) - pos
                 quiet = np.arange(pos, pos + offset)
-                trusted = rescreen.trusted(quiet)
-                done = algo.certify_runs(chunk, quiet, ids[quiet], trusted)
+                done = algo.certify_runs(ids[quiet], *rescreen.witnesses(quiet))
                 if done >= 0:
-                    offset, ended = done - pos + 1, True
-                counted[pos : pos + offset] = trusted[:offset]
-            elif p.version == algo.version:  # drawn from the state as it is now: counts
-                need = self.quiet_needed()
-                if c.quiet + offset >= need:
-                    offset, ended = need - c.quiet, True
-                counted[pos : pos + offset] = True
-                c.quiet += offset
-                c.escaped_in_streak += int(np.count_nonzero(chunk.screening.escaped[pos : pos + offset]))
-            pos += offset
-            if ended or pos == k:
-                break
-            event = Event(chunk.first_index + pos, starts[pos], int(ids[pos]), bool(chunk.outcomes[pos] == FAILURE),
-                          rescreen.candidates(pos), *rescreen.classification(pos))
-            algo.apply(event)
-            self._maybe_record(chunk, pos, starts[pos])
+                    offset, ended = done + 1, True
+                counted[pos : pos + offset] = algo.vertices.alive[ids[pos : pos + offset]]
+                pos += offset
+                c.committed += offset
+                if ended or pos == k:
+                    break
+            else:
+                if self._streak_complete():
+                    logged = log_upto(pos)
+                    ended = self._finish_streak()
+                    if ended:
+                        break
+                    continue
+                if c.committed >= self.settings.budget:
+                    break
+                if self.replacements and self.replacements[0].due < c.committed:
+                    logged = log_upto(pos)
+                    self._apply_due()
+                    continue
+                # exact runs from pos on, up to the streak's end and the next due replacement
+                limit = min(k, pos + block, pos + self.quiet_needed() - (c.committed - c.streak_start))
+                if self.replacements:
+                    limit = min(limit, pos + self.replacements[0].due + 1 - c.committed)
+                exact = self._verify(p, at + pos, at + limit)
+                bad = pos + (len(exact) if exact.all() else int(np.argmin(exact)))
+                event = algo.next_event(rescreen, pos, ids)
+                stop = min(bad, event)
+                counted[pos:stop] = True
+                c.quiet += stop - pos
+                c.escaped_in_streak += int(np.count_nonzero(chunk.screening.escaped[pos:stop]))
+                c.committed += stop - pos
+                pos = stop
+                if pos == limit:  # quiet and exact up to the limit: look further at once next time
+                    block = min(4 * block, MAX_VERIFY_BLOCK)
+                    continue
+                block = VERIFY_BLOCK
+                if pos == bad:  # mispredicted: discarded unseen, replaced
+                    c.committed += 1
+                    kind[pos] = CommitLog.DISCARDED
+                    self._replace(chunk.first_index + pos)
+                    if self.settings.lag == 0:
+                        self._send_replacements()
+                    pos += 1
+                    continue
+            c.committed += 1
+            self._change(Event(chunk.first_index + pos, starts[pos], int(ids[pos]),
+                               bool(chunk.outcomes[pos] == FAILURE), rescreen.candidates(pos),
+                               *rescreen.classification(pos)), chunk, pos)
             changed[pos] = True
-            if algo.certifying:
-                c.attempts += 1
-            c.quiet = 0
-            c.escaped_in_streak = 0
-            c.changes += 1
             pos += 1
-        rows = np.arange(pos)
-        c.committed += pos
         p.done = at + pos
-        self.log.add(chunk.first_index, starts, chunk, rows, rnd, delta, changed[:pos], counted[:pos])
-        algo.record(chunk, rows, ids[:pos], starts[:pos])
-        if self.adversary is not None:
-            self.adversary.observe(chunk.first_index + rows, chunk.outcomes[:pos])
+        log_upto(pos)
         return ended
 
-    def _maybe_record(self, chunk: Chunk, row: int, start: np.ndarray) -> None:
+    def _log_rows(self, chunk: Chunk, rows: np.ndarray, first_index: int, starts: np.ndarray, ids: np.ndarray,
+                  kind, changed: np.ndarray, counted: np.ndarray) -> None:
+        """Rows ``rows`` of ``chunk``, committed or discarded as indices ``first_index,
+        first_index + 1, ...`` (``starts``, ``ids``: theirs): to the ledger; the runs used
+        also to experience replay and the adversary."""
+        if len(rows) == 0:
+            return
+        algo = self.algorithm
+        kind = np.broadcast_to(np.asarray(kind, dtype=np.int8), (len(rows),))
+        self.log.add(first_index, starts, chunk, rows, algo.round, algo.delta, changed, counted, kind)
+        used = np.flatnonzero(kind != CommitLog.DISCARDED)
+        if len(used) == 0:
+            return
+        algo.record(chunk, rows[used], ids[used], starts[used])
+        if self.adversary is not None:
+            self.adversary.observe(first_index + used, chunk.outcomes[rows[used]])
+
+    def _maybe_record(self, chunk: Chunk, row: int, index: int, start: np.ndarray) -> None:
         """Keep the trajectory of a state-changing failure for the MCAP recording (the
         runs worth looking at), up to ``record_limit`` per campaign."""
         c = self.counters
         if c.recorded >= self.settings.record_limit or chunk.outcomes[row] != FAILURE:
             return
-        self.recordings.append({"sample_index": chunk.first_index + row, "trajectory": chunk.trajectory(row, start),
+        self.recordings.append({"sample_index": index, "trajectory": chunk.trajectory(row, start),
                                 "outcome": OUTCOME_NAMES[int(chunk.outcomes[row])]})
         c.recorded += 1
 
@@ -248,9 +535,7 @@ class Campaign:
             p.next_handle += 1
             c.runs_simulated += len(chunk)
             c.steps_simulated += chunk.steps
-            committed_before = c.committed
             if self._commit(p, chunk):
-                c.runs_dropped += len(chunk) - (c.committed - committed_before)
                 self._end_round()
             else:
                 if p.done == len(p):
@@ -286,6 +571,7 @@ class Campaign:
             self._certify_at_once()
         c.quiet = 0
         c.escaped_in_streak = 0
+        c.streak_start = c.committed
 
     def _experience_replay(self) -> None:
         """The algorithm names its stored runs, the executor screens their states where
@@ -300,7 +586,7 @@ class Campaign:
             self.adversary.end_round(self.counters.committed)
 
     def quiet_needed(self) -> int:
-        """Runs in a row that must change nothing to end the current round."""
+        """Indices in a row that must be resolved and quiet to end the current round."""
         if self.algorithm.certifying:
             return self.settings.certification_quiet(max(self.counters.attempts, 1))
         return self.settings.n_eps
@@ -315,21 +601,37 @@ class Campaign:
             self.counters.attempts = 1
 
     def _drop_in_flight(self) -> None:
+        """Batches in flight and replacements not yet applied are dropped; their indices
+        are drawn again."""
         for q in self.pending:
             for handle in q.handles[q.next_handle :]:
                 self.executor.cancel(handle)
         self.pending.clear()
+        groups = {id(r.group): r.group for r in [*self.replacements, *self._ahead.values()] if r.group is not None}
+        for group in groups.values():
+            for handle in group.handles:
+                self.executor.cancel(handle)
+        self.replacements.clear()
+        self._unsent = []
+        self._ahead.clear()
 
     # -- persistence --------------------------------------------------------------------
     def state(self) -> tuple[dict[str, np.ndarray], dict]:
-        """The driver's state: arrays (the draws not yet committed, so that a resumed
-        campaign re-simulates exactly them) and JSON-able metadata (the counters)."""
+        """The driver's state: arrays (the draws not yet committed and the replacements
+        not yet applied, so that a resumed campaign re-simulates exactly them) and
+        JSON-able metadata (the counters)."""
         arrays = {"pending.count": np.array(len(self.pending))}
         for i, p in enumerate(self.pending):
             arrays[f"pending.{i}.first_index"] = np.array(p.first_index + p.done)
             arrays[f"pending.{i}.starts"] = p.starts[p.done :]
-            arrays[f"pending.{i}.start_ids"] = p.start_ids[p.done :]
-            arrays[f"pending.{i}.version"] = np.array(p.version)
+            arrays[f"pending.{i}.start_ids"] = p.draws.ids[p.done :]
+            arrays[f"pending.{i}.fixed"] = np.array(p.draws.fixed)
+        n = self.algorithm.coverage.n
+        reps = list(self.replacements)
+        arrays["replacements.index"] = np.array([r.index for r in reps], dtype=np.int64)
+        arrays["replacements.start_id"] = np.array([r.draws.ids[0] for r in reps], dtype=np.int64)
+        arrays["replacements.start"] = np.stack([r.start for r in reps]) if reps else np.empty((0, n))
+        arrays["replacements.due"] = np.array([r.due for r in reps], dtype=np.int64)
         meta = {"counters": asdict(self.counters), "final_distribution": self.final_distribution}
         return arrays, meta
 
@@ -337,16 +639,25 @@ class Campaign:
 @dataclass
 class DriverState:
     """A campaign driver's state read back from ``Campaign.state()``'s output, to start a
-    ``Campaign`` where a checkpoint left off."""
+    ``Campaign`` where a checkpoint left off. Draws read back are checked again before
+    they are used (their examined slots are not kept)."""
 
     counters: Counters
     pending: list[Pending]
+    replacements: list[Replacement]
     final_distribution: str = ""
 
     @classmethod
     def read(cls, arrays: dict[str, np.ndarray], meta: dict) -> "DriverState":
         """Raises KeyError, TypeError or ValueError when the checkpoint is damaged."""
-        pending = [Pending(int(arrays[f"pending.{i}.first_index"]), arrays[f"pending.{i}.starts"],
-                           arrays[f"pending.{i}.start_ids"], int(arrays[f"pending.{i}.version"]))
-                   for i in range(int(arrays["pending.count"]))]
-        return cls(Counters(**meta["counters"]), pending, meta.get("final_distribution", ""))
+        pending = []
+        for i in range(int(arrays["pending.count"])):
+            ids = arrays[f"pending.{i}.start_ids"].astype(np.int64)
+            fixed = bool(arrays[f"pending.{i}.fixed"]) if f"pending.{i}.fixed" in arrays else False
+            pending.append(Pending(int(arrays[f"pending.{i}.first_index"]), Draws.unknown(ids, fixed),
+                                   arrays[f"pending.{i}.starts"]))
+        replacements = [Replacement(int(index), Draws.unknown(np.array([start_id], dtype=np.int64)), start, int(due))
+                        for index, start_id, start, due in zip(arrays["replacements.index"],
+                                                               arrays["replacements.start_id"],
+                                                               arrays["replacements.start"], arrays["replacements.due"])]
+        return cls(Counters(**meta["counters"]), pending, replacements, meta.get("final_distribution", ""))

@@ -15,7 +15,8 @@ class CommitLog:
     expanded at ``take``: a campaign shorter than ``farm.checkpoint_every`` holds the log
     of all its runs, so each row holds only what is its own."""
 
-    COLUMNS = ("sample_index", "round", "delta", "start", "outcome", "steps", "changed", "counted")
+    COLUMNS = ("sample_index", "round", "delta", "start", "outcome", "steps", "changed", "counted", "kind")
+    EXACT, DISCARDED, REPLACEMENT = 0, 1, 2  # ``kind``: used as drawn, mispredicted (unseen), a replacement
 
     def __init__(self):
         self.shared: list[tuple[int, int, int, float]] = []  # (first sample index, rows, round, delta)
@@ -24,18 +25,22 @@ class CommitLog:
         self.steps: list[np.ndarray] = []
         self.changed: list[np.ndarray] = []
         self.counted: list[np.ndarray] = []
+        self.kind: list[np.ndarray] = []
 
     def add(self, first_index: int, starts: np.ndarray, chunk: Chunk, rows: np.ndarray, rnd: int, delta: float,
-            changed: np.ndarray, counted: np.ndarray) -> None:
-        """``rows`` are the chunk's first rows, 0..k-1 (a chunk is committed in order)."""
+            changed: np.ndarray, counted: np.ndarray, kind: np.ndarray | None = None) -> None:
+        """Rows ``rows`` of ``chunk`` (``starts``: theirs) hold sample indices
+        ``first_index, first_index + 1, ...`` (a chunk is committed in order; a replacement
+        is a row of its own)."""
         if len(rows) == 0:
             return
         self.shared.append((first_index, len(rows), rnd, delta))
-        self.start.append(starts[rows])
+        self.start.append(starts)
         self.outcome.append(chunk.outcomes[rows].astype(np.int8))
         self.steps.append((chunk.lengths[rows] - 1).astype(np.int32))
         self.changed.append(changed)
         self.counted.append(counted)
+        self.kind.append(np.zeros(len(rows), dtype=np.int8) if kind is None else kind.astype(np.int8))
 
     def take(self) -> dict[str, np.ndarray] | None:
         if not self.shared:

@@ -348,6 +348,41 @@ class Rescreen:
         sc = self.screening
         return ~self._full[rows] & (sc.event[rows] == QUIET) & ~sc.escaped[rows] & (sc.epoch == self.coverage.epoch)
 
+    def witnesses(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The alive centres that cover the states of runs ``rows`` (quiet now) at the
+        current coverage: (len(rows) + 1,) offsets and the ids, run by run. From the
+        screening where its witnesses are current (``trusted``); the other runs are screened
+        again from their visited states, so the answer does not depend on the coverage the
+        runs were screened at (that is, on the executor)."""
+        sc = self.screening
+        trusted = self.trusted(rows)
+        counts = np.zeros(len(rows), dtype=np.int64)
+        counts[trusted] = sc.witness_offsets[rows[trusted] + 1] - sc.witness_offsets[rows[trusted]]
+        again = rows[~trusted]
+        if len(again):
+            states, offsets = self.visited()
+            lengths = offsets[again + 1] - offsets[again]
+            run = np.repeat(np.arange(len(again)), lengths)
+            within = np.arange(int(lengths.sum())) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+            sub_offsets = np.zeros(len(again) + 1, dtype=np.int64)
+            np.cumsum(lengths, out=sub_offsets[1:])
+            fresh = self.coverage.screen(states[offsets[again][run] + within], sub_offsets, self.outcomes[again])
+            counts[~trusted] = np.diff(fresh.witness_offsets)
+        out_offsets = np.zeros(len(rows) + 1, dtype=np.int64)
+        np.cumsum(counts, out=out_offsets[1:])
+        out = np.empty(int(out_offsets[-1]), dtype=np.int32)
+        for mask, source, source_offsets, source_rows in (
+                (trusted, sc.witnesses, sc.witness_offsets, rows[trusted]),
+                (~trusted, fresh.witnesses if len(again) else None,
+                 fresh.witness_offsets if len(again) else None, np.arange(len(again)))):
+            if not mask.any():
+                continue
+            c = counts[mask]
+            run = np.repeat(np.arange(len(c)), c)
+            within = np.arange(int(c.sum())) - np.repeat(np.cumsum(c) - c, c)
+            out[out_offsets[:-1][mask][run] + within] = source[source_offsets[source_rows][run] + within]
+        return out_offsets, out
+
     def candidates(self, row: int) -> np.ndarray:
         """The states of run ``row`` that can be new at the current version, in time
         order: its explore states, or all its visited states if it is re-screened in full."""

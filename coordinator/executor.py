@@ -1,7 +1,9 @@
 """The executor contract: where batches of runs are simulated and screened.
 
-    submit(first_index, starts, screen, actions) -> handles   simulate runs first_index..
-                                                     from ``starts``; one handle per chunk, in
+    submit(first_index, starts, screen, actions, indices) -> handles   simulate runs
+                                                     first_index.. (or the given sample
+                                                     ``indices``: replacements) from
+                                                     ``starts``; one handle per chunk, in
                                                      index order (how a batch is cut
                                                      into chunks is the executor's
                                                      business: results never depend on it);
@@ -28,6 +30,7 @@ leaves them where they were simulated until then.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import dataclasses
 from abc import ABC, abstractmethod
 from typing import Any, Callable
 
@@ -39,7 +42,7 @@ from scenarios.rollout import RunBatch
 
 @dataclass
 class Chunk:
-    first_index: int
+    first_index: int  # the sample index of its first run
     lengths: np.ndarray  # (k,) states per run, start included
     outcomes: np.ndarray  # (k,) FAILURE / TRUNCATED / HORIZON
     last: np.ndarray  # (k, n) terminal states
@@ -47,6 +50,11 @@ class Chunk:
     fetch_visited: Callable[[], tuple[np.ndarray, np.ndarray]] = field(repr=False)
     keep: Callable = field(repr=False, default=None)  # (rows, takes) -> a handle for screen_stored
     _visited: tuple | None = field(default=None, repr=False)
+    indices: np.ndarray | None = None  # (k,) sample indices, when not first_index + row
+
+    def __post_init__(self):
+        if self.indices is None:
+            self.indices = np.arange(self.first_index, self.first_index + len(self.lengths), dtype=np.int64)
 
     def __len__(self) -> int:
         return len(self.lengths)
@@ -65,6 +73,24 @@ class Chunk:
         """A handle on the first ``takes[i]`` visited states of runs ``rows`` that the
         executor can screen later (``screen_stored``) without the coordinator holding them."""
         return self.keep(rows, takes)
+
+    def part(self, lo: int, hi: int) -> "Chunk":
+        """Runs ``lo:hi`` of this chunk, as a chunk of their own."""
+        sc = self.screening
+        if sc is not None:
+            w0, w1, e0, e1 = sc.witness_offsets[lo], sc.witness_offsets[hi], sc.explore_offsets[lo], sc.explore_offsets[hi]
+            sc = dataclasses.replace(sc, event=sc.event[lo:hi], escaped=sc.escaped[lo:hi],
+                                     witness_offsets=sc.witness_offsets[lo : hi + 1] - w0, witnesses=sc.witnesses[w0:w1],
+                                     explore_offsets=sc.explore_offsets[lo : hi + 1] - e0,
+                                     explore_states=sc.explore_states[e0:e1])
+
+        def visited():
+            states, offsets = self.visited()
+            return states[offsets[lo] : offsets[hi]], offsets[lo : hi + 1] - offsets[lo]
+
+        keep = None if self.keep is None else (lambda rows, takes: self.keep(rows + lo, takes))
+        return Chunk(int(self.indices[lo]), self.lengths[lo:hi], self.outcomes[lo:hi], self.last[lo:hi], sc, visited,
+                     keep, indices=self.indices[lo:hi])
 
     def trajectory(self, row: int, start: np.ndarray) -> np.ndarray:
         """(length, n) every state of run ``row``: its start, its visited states and
@@ -85,8 +111,10 @@ class Executor(ABC):
     workers: int = 1
 
     @abstractmethod
-    def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None) -> list:
-        """Simulate runs ``first_index, first_index + 1, ...`` from ``starts``; one handle per chunk."""
+    def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None,
+               indices: np.ndarray | None = None) -> list:
+        """Simulate runs ``first_index, first_index + 1, ...`` (or the sample ``indices``)
+        from ``starts``; one handle per chunk, in index order."""
 
     @abstractmethod
     def result(self, handle) -> Chunk:
@@ -104,6 +132,12 @@ class Executor(ABC):
     def close(self) -> None:
         """End the workers; the executor takes no more work."""
 
+    def batch_size(self, requested: int, pipeline_depth: int) -> int:
+        """Runs per batch that keep every worker busy with ``pipeline_depth`` batches in
+        flight (at least ``requested``). The driver asks only where the batch size cannot
+        change a result (sequential counting)."""
+        return requested
+
 
 def summarize(batch: RunBatch, screen) -> tuple[dict, tuple[np.ndarray, np.ndarray]]:
     """What a worker sends back for a simulated batch: a small per-run summary (with the
@@ -111,13 +145,14 @@ def summarize(batch: RunBatch, screen) -> tuple[dict, tuple[np.ndarray, np.ndarr
     states, offsets = batch.visited()
     screening = None if screen is None else screen.screen(states, offsets, batch.outcomes)
     summary = {"first_index": int(batch.indices[0]) if len(batch) else 0, "lengths": batch.lengths,
-               "outcomes": batch.outcomes, "last": batch.last_states(), "screening": screening}
+               "outcomes": batch.outcomes, "last": batch.last_states(), "screening": screening,
+               "indices": batch.indices.astype(np.int64)}
     return summary, (states, offsets)
 
 
 def chunk_of(summary: dict, fetch_visited: Callable, keep: Callable) -> Chunk:
     return Chunk(summary["first_index"], summary["lengths"], summary["outcomes"], summary["last"],
-                 summary["screening"], fetch_visited, keep)
+                 summary["screening"], fetch_visited, keep, indices=summary["indices"])
 
 
 def screen_piece(simulator, source, piece, coverage) -> tuple[np.ndarray, np.ndarray]:

@@ -88,7 +88,7 @@ class ReplayBuffer:
             self._stored_vertices[parents[keep]] = True
         if keep.any():
             kept = rows[ok[keep]]
-            self.pieces.append(Stored(chunk.keep_visited(kept, takes[keep]), chunk.first_index + kept, kept,
+            self.pieces.append(Stored(chunk.keep_visited(kept, takes[keep]), chunk.indices[kept], kept,
                                       takes[keep], parents[keep], starts[ok[keep]]))
 
     @staticmethod

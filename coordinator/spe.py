@@ -26,7 +26,7 @@ from functools import partial
 
 import numpy as np
 
-from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered, uniform_index, uniform_pick
+from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered
 from coordinator.certificates import Certificates
 from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell, Strict
 from coordinator.lattice import Lattice
@@ -35,8 +35,9 @@ from coordinator.graph import ExplorationForest
 from coordinator.priorities import FailureDistances
 from coordinator.experience_replay import ReplayBuffer
 from coordinator.sampler import PrioritySampler
+from coordinator.stable_sampler import Draws, Law, StableSampler, UniformLaw, WeightedLaw
 from scenarios.base import Scenario
-from scenarios.streams import PURPOSE_START, RunStreams
+from scenarios.streams import RunStreams
 
 ALPHAS = {"identity": lambda x: x, "square": np.square, "sqrt": np.sqrt}
 REPLAY_CHUNK = 4096  # stored states per greedy pass in experience replay
@@ -83,11 +84,10 @@ class SPE(Algorithm):
         self.graph = ExplorationForest()
         self.version = 0
         self.round = 0
+        self._fresh_samplers()
         self._add_roots(self.lattice.box_centres(self.delta))
+        self._stable.restart(self.vertices.count, self.version)
         self.replay = ReplayBuffer(settings.replay_capacity if settings.replay else 0, deterministic, scenario.n)
-        self._dist = FailureDistances(scenario.lower, scenario.upper, track_lowered=settings.prioritized)
-        self._sampler = PrioritySampler(ALPHAS[settings.alpha])
-        self._draw_cache: tuple | None = None
         self.certifying = False
         self.enumeration = Enumeration()  # deterministic certification: the passes over the centres
         self.certificates = Certificates()  # deterministic certification: centres checked
@@ -97,9 +97,25 @@ class SPE(Algorithm):
         return self.coverage.failures
 
     # -- helpers --------------------------------------------------------------------------
+    def _fresh_samplers(self) -> None:
+        """The samplers' bookkeeping, rebuilt from the state (at start and on resume)."""
+        settings = self.settings
+        self._dist = FailureDistances(self.scenario.lower, self.scenario.upper,
+                                      track_lowered=settings.prioritized or settings.boundary)
+        self._sampler = PrioritySampler(ALPHAS[settings.alpha])
+        self._stable = StableSampler()
+        self._law_cache: tuple | None = None
+        self._law_kind: tuple | None = None
+
     def _add_roots(self, centres: np.ndarray) -> None:
-        self.coverage.apply(Insert(centres), self.version)
+        self._insert(centres)
         self.graph.add_roots(len(centres))
+
+    def _insert(self, points: np.ndarray) -> None:
+        """New alive centres (their ids follow the count): their slots move draws."""
+        first = self.vertices.count
+        self.coverage.apply(Insert(points), self.version)
+        self._stable.touch(np.arange(first, self.vertices.count), self.version)
 
     def failure_points(self) -> np.ndarray:
         return self.failures.points[: self.failures.count].copy()
@@ -108,30 +124,17 @@ class SPE(Algorithm):
     def final_round(self) -> bool:
         return self.delta <= self.settings.delta_min * (1 + 1e-12)
 
-    def _weights(self, ids: np.ndarray) -> np.ndarray | None:
-        """Prioritized sampling: rho_i ~ alpha(d* - d_i), d_i = d(sigma_i, PhiBar), over
-        ``ids`` in one array (the sampler's fallback, see ``_distribution``)."""
-        if not self.settings.prioritized or self.failures.count == 0:
-            return None
-        dist = self._failure_distances()[ids]
-        weights = ALPHAS[self.settings.alpha](dist.max() - dist)
-        return weights if weights.sum() > 0 else None  # all equidistant: rho is uniform
-
     def _failure_distances(self) -> np.ndarray:
         """d(sigma_i, PhiBar) for every vertex id, kept up to date incrementally
         (coordinator/priorities.py)."""
         return self._dist.update(self.vertices.points, self.vertices.count, self.failures.points,
                                  self.failures.count)
 
-    def _band(self, ids: np.ndarray) -> np.ndarray:
-        """Theorem 3 for the quantified set: the alive centres whose boxes come within
-        sigma-bar of the set's boundary toward failure. SPE's covering starts as all of
-        Sigma, so that boundary is made of pruned regions (within delta of PhiBar) and
-        of Sigma's failure facets; truncating facets are not of concern."""
-        near = self._near_boundary(ids)
-        return ids[near] if near.any() else ids
-
     def _near_boundary(self, ids: np.ndarray) -> np.ndarray:
+        """Theorem 3 for the quantified set: do the boxes of centres ``ids`` come within
+        sigma-bar of the set's boundary toward failure? SPE's covering starts as all of
+        Sigma, so that boundary is made of pruned regions (within delta of PhiBar) and of
+        Sigma's failure facets; truncating facets are not of concern."""
         reach = self.scenario.step_bound() + self.delta
         pts = self.vertices.points[ids]
         near = np.zeros(len(ids), dtype=bool)
@@ -163,75 +166,107 @@ class SPE(Algorithm):
         return f"start states uniform over {where}"
 
     # -- ask ----------------------------------------------------------------------------
-    def _distribution(self):
-        """The sampling distribution of the state as it is now: ``pick(u) -> vertex ids``
-        for uniform numbers u. Cached per state version: in the long quiet stretches
-        that end a round, many batches are drawn from one version.
+    def _alive(self, ids: np.ndarray) -> np.ndarray:
+        return self.vertices.alive[ids]
 
-        Prioritized sampling keeps its weights up to date where the state changed
-        (coordinator/sampler.py); when they are all zero (every candidate at d*, or no
-        centre in the boundary band) rho is as ``_weights`` says over all candidates."""
-        if self._draw_cache is not None and self._draw_cache[0] == self.version:
-            return self._draw_cache[1]
-        pick = None  # a positive total weight implies an alive centre
-        if self.settings.prioritized and self.failures.count:
-            dist = self._failure_distances()
-            self._sampler.touch(self._dist.take_lowered())
-            if self._sampler.refresh(dist, self.vertices.count, self._candidate) > 0:
-                pick = self._sampler.draw
-        if pick is None:
-            ids = self.vertices.alive_ids()
-            if len(ids) == 0:
-                raise EmptySetError("the safe set is empty: every centre was pruned")
-            if self.settings.boundary:
-                ids = self._band(ids)
-            weights = self._weights(ids)
-            pick = partial(uniform_index, ids) if weights is None else partial(_cumulative_index, ids,
-                                                                                 np.cumsum(weights))
-        self._draw_cache = (self.version, pick)
-        return pick
+    def _law(self) -> Law:
+        """The sampling law of the state as it is now (cached per version): start states
+        are drawn from it by each run's own stream (coordinator/stable_sampler.py). What
+        changed since the last law is stamped for ``moved``: distances that fell move
+        their slots, a new law as a whole (d*, the band emptied, a switch between
+        uniform and weighted) moves every draw."""
+        if self._law_cache is not None and self._law_cache[0] == self.version:
+            return self._law_cache[1]
+        if self.vertices.alive_count == 0:
+            raise EmptySetError("the safe set is empty: every centre was pruned")
+        count = self.vertices.count
+        self._stable.fit(count, self.version)
+        if not self.certifying and self.failures.count and (self.settings.prioritized or self.settings.boundary):
+            self._failure_distances()
+            lowered = self._dist.take_lowered()
+            self._stable.touch(lowered, self.version)
+            self._sampler.touch(lowered)
+        law, kind = self._make_law(count)
+        if kind != self._law_kind:
+            self._stable.touch_all(self.version)
+            self._law_kind = kind
+        self._law_cache = (self.version, law)
+        return law
 
-    def draw(self, streams: RunStreams) -> tuple[np.ndarray, np.ndarray]:
+    def _make_law(self, count: int) -> tuple[Law, tuple]:
+        """-> the law and what identifies it as a whole (a change of it moves every draw).
+
+        Candidates: the alive centres, within the boundary band when ``boundary`` is on
+        and the band holds any. Prioritized, once a failure is known: rho = alpha(d* - d)
+        over the candidates (d* their largest distance), kept up to date where the state
+        changed (coordinator/sampler.py); uniform when every weight is zero."""
         if self.certifying:
-            return self._draw_certification(streams)
-        pick = self._distribution()
-        chosen = pick(streams.uniform(0, PURPOSE_START, 1)[:, 0])
-        return self.vertices.points[chosen].copy(), chosen
+            return UniformLaw(count, self._alive, self.vertices.alive_ids), ("certification",)
+        alpha = ALPHAS[self.settings.alpha]
+        if self.settings.prioritized and self.failures.count:
+            if self._sampler.refresh(self._failure_distances(), count, self._candidate) > 0:
+                d_star = self._sampler.d_star
+                weight = partial(self._weight, d_star, self._failure_distances())
+                return WeightedLaw(count, weight, self._sampler.draw, float(alpha(d_star))), ("weighted", d_star)
+        ids = self.vertices.alive_ids()
+        band = False
+        if self.settings.boundary:
+            near = self._near_boundary(ids)
+            band = bool(near.any())
+            ids = ids[near] if band else ids
+        candidate = self._candidate if band else self._alive
+        if self.settings.prioritized and self.failures.count:  # rare: every band weight zero, or no band
+            dist = self._failure_distances()
+            weights = np.zeros(count)
+            weights[ids] = alpha(dist[ids].max() - dist[ids])
+            if weights.sum() > 0:
+                cdf = np.cumsum(weights[ids])
+                return (WeightedLaw(count, weights.__getitem__, partial(_cumulative_index, ids, cdf),
+                                    float(weights.max())), ("explicit", self.version))
+        return UniformLaw(count, candidate, lambda: ids), ("uniform", band)
 
-    def _draw_certification(self, streams: RunStreams) -> tuple[np.ndarray, np.ndarray]:
-        if self.deterministic:
+    def _weight(self, d_star: float, dist: np.ndarray, ids: np.ndarray) -> np.ndarray:
+        """rho = alpha(d* - d) of candidates ``ids``, zero for the others."""
+        w = np.zeros(len(ids))
+        ok = self._candidate(ids)
+        w[ok] = ALPHAS[self.settings.alpha](d_star - dist[ids[ok]])
+        return w
+
+    def draw(self, streams: RunStreams) -> Draws:
+        if self.certifying and self.deterministic:
             chosen = self.enumeration.next(self.vertices, self.certificates, len(streams))
-        else:
-            ids = self.vertices.alive_ids()
-            if len(ids) == 0:
-                raise EmptySetError("the safe set is empty: every centre was pruned")
-            chosen = uniform_pick(ids, streams)
-        return self.vertices.points[chosen].copy(), chosen
+            return Draws.fixed_at(chosen, self.version)
+        return self._stable.draw(streams, self._law(), self.version)
 
-    def certify_runs(self, chunk, rows: np.ndarray, start_ids: np.ndarray, trusted: np.ndarray) -> int:
-        """Deterministic certification: quiet runs ``rows`` of ``chunk`` (``trusted``: their
-        screening's witnesses are current) certify their start centres. Returns the row
-        after which every alive centre is certified, or -1."""
-        sc = chunk.screening
-        keep = trusted & self.vertices.alive[start_ids]
-        if keep.any():
-            sel = rows[keep]
-            counts = sc.witness_offsets[sel + 1] - sc.witness_offsets[sel]
-            run = np.repeat(np.arange(len(sel)), counts)
-            within = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
-            witnesses = sc.witnesses[sc.witness_offsets[sel][run] + within]
-            offsets = np.zeros(len(sel) + 1, dtype=np.int64)
-            np.cumsum(counts, out=offsets[1:])
-            reached = self.enumeration.record(self.vertices, self.certificates, start_ids[keep], offsets, witnesses)
-            if reached >= 0:  # the row at which the last uncertified centre got its certificate
-                return int(sel[reached])
-        return -1
+    def moved(self, draws: Draws) -> np.ndarray:
+        if draws.fixed:
+            return np.zeros(len(draws), dtype=bool)
+        self._law()  # stamps what changed
+        return self._stable.moved(draws)
+
+    def certify_runs(self, start_ids: np.ndarray, offsets: np.ndarray, witnesses: np.ndarray) -> int:
+        """Deterministic certification: quiet runs from centres ``start_ids`` (their
+        witnesses now: ``witnesses[offsets[i]:offsets[i + 1]]``) certify their centres.
+        Returns the position of the run after which every alive centre is certified, or -1."""
+        keep = self.vertices.alive[start_ids]
+        if not keep.any():
+            return -1
+        sel = np.flatnonzero(keep)
+        counts = offsets[sel + 1] - offsets[sel]
+        run = np.repeat(np.arange(len(sel)), counts)
+        within = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+        kept = witnesses[offsets[sel][run] + within]
+        kept_offsets = np.zeros(len(sel) + 1, dtype=np.int64)
+        np.cumsum(counts, out=kept_offsets[1:])
+        reached = self.enumeration.record(self.vertices, self.certificates, start_ids[sel], kept_offsets, kept)
+        return int(sel[reached]) if reached >= 0 else -1  # the run that certified the last centre
 
     def begin_certification(self) -> None:
         """Check the final set the way validate will (see the module docstring)."""
         self.version += 1
         self.certifying = True
         self.coverage.apply(Strict(True), self.version)
+        self._stable.restart(self.vertices.count, self.version)
 
     # -- tell ---------------------------------------------------------------------------
     def apply(self, event: Event) -> str:
@@ -255,13 +290,14 @@ class SPE(Algorithm):
             self._prune(self.graph.reachable(event.start_id, self.settings.reachable))
             return "escaped"
         kept = candidates[greedy_uncovered(candidates, self.delta)]
-        self.coverage.apply(Insert(kept), self.version)
+        self._insert(kept)
         self.graph.add_children(event.start_id, len(kept))
         return "explored"
 
     def _prune(self, ids: np.ndarray) -> None:
         self.enumeration.before_prune(self.vertices, self.certificates, ids)
         self.coverage.apply(Kill(ids), self.version)
+        self._stable.touch(ids, self.version)
         if self.settings.prioritized:  # the sampler's blocks holding them are summed again
             self._sampler.touch(ids)
         self.enumeration.reopened(self.certificates.invalidate(ids))
@@ -291,6 +327,7 @@ class SPE(Algorithm):
         if len(children):
             children = children[~self.failures.any_within(children, new_delta)]
         self._add_roots(children)
+        self._stable.restart(self.vertices.count, self.version)
         self.round += 1
         return True
 
@@ -315,7 +352,7 @@ class SPE(Algorithm):
                 fresh = ~self.vertices.any_within(part, self.delta)
                 part, part_parents = part[fresh], part_parents[fresh]
             kept = greedy_uncovered(part, self.delta)
-            self.coverage.apply(Insert(part[kept]), self.version)
+            self._insert(part[kept])
             for parent in part_parents[kept]:
                 self.graph.add_children(int(parent), 1)
             added += len(kept)
@@ -345,6 +382,7 @@ class SPE(Algorithm):
         out["certification.drawn"] = np.flatnonzero(self.enumeration.drawn)
         out.update(self.certificates.state())
         out.update(self.replay.state())
+        out.update(self._stable.state())
         return out
 
     def load_state(self, state: dict) -> None:
@@ -358,7 +396,5 @@ class SPE(Algorithm):
         self.enumeration = Enumeration(drawn)
         self.certificates = Certificates.from_state(state)
         self.replay.load_state(state)
-        self._dist = FailureDistances(self.scenario.lower, self.scenario.upper,
-                                      track_lowered=self.settings.prioritized)
-        self._sampler = PrioritySampler(ALPHAS[self.settings.alpha])
-        self._draw_cache = None
+        self._fresh_samplers()
+        self._stable.load_state(state, self.vertices.count, self.version)

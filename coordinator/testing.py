@@ -65,26 +65,35 @@ def check_draw(make: MakeAlgorithm, scenario, runs: int = 256) -> None:
     name = _name(algo)
     streams = RunStreams.of(11, np.arange(1000, 1000 + runs, dtype=np.uint64))
     version, seq = algo.version, algo.coverage.seq
-    starts, ids = algo.draw(streams)
-    assert starts.shape[1] == scenario.n and len(starts) == len(ids) <= runs, f"{name}: draw shapes"
-    assert len(starts) > 0, f"{name}: a fresh algorithm drew no start state"
+    draws = algo.draw(streams)
+    ids = draws.ids
+    starts = algo.vertices.points[ids]
+    assert 0 < len(ids) <= runs and np.all(draws.versions == version), f"{name}: draw shapes or versions"
     assert np.all(algo.vertices.alive[ids]), f"{name}: a drawn vertex is not alive"
-    assert np.array_equal(starts, algo.vertices.points[ids]), f"{name}: starts are not their vertices' points"
     assert np.all((starts >= scenario.lower - 1e-9) & (starts <= scenario.upper + 1e-9)), f"{name}: start outside Sigma"
-    again, again_ids = algo.draw(RunStreams.of(11, np.arange(1000, 1000 + runs, dtype=np.uint64)))
-    assert np.array_equal(again, starts) and np.array_equal(again_ids, ids), f"{name}: a draw is not reproducible"
+    again = algo.draw(RunStreams.of(11, np.arange(1000, 1000 + runs, dtype=np.uint64)))
+    assert np.array_equal(again.ids, ids), f"{name}: a draw is not reproducible"
     assert (algo.version, algo.coverage.seq) == (version, seq), f"{name}: drawing changed the state"
+    assert not algo.moved(draws).any(), f"{name}: a draw moved while nothing changed"
+    # each run's draw is its own: the same stream draws the same vertex in any batch
+    alone = algo.draw(RunStreams.of(11, np.arange(1000 + runs - 1, 999, -1, dtype=np.uint64)[:7]))
+    assert np.array_equal(alone.ids, ids[::-1][:7]), f"{name}: a run's draw depends on its batch"
 
 
 def check_apply(make: MakeAlgorithm, scenario) -> None:
     algo = make()
     name = _name(algo)
-    starts, ids = algo.draw(RunStreams.of(3, np.arange(4, dtype=np.uint64)))
+    draws = algo.draw(RunStreams.of(3, np.arange(64, dtype=np.uint64)))
+    ids = draws.ids
     # a failing run from the first start: every algorithm changes its state on a failure
     version, seq = algo.version, algo.coverage.seq
-    algo.apply(Event(0, starts[0], int(ids[0]), True, np.empty((0, scenario.n))))
+    algo.apply(Event(0, algo.vertices.points[ids[0]], int(ids[0]), True, np.empty((0, scenario.n))))
     assert algo.version > version, f"{name}: apply did not bump the version"
     assert algo.coverage.seq > seq, f"{name}: apply changed no coverage (mirrors could not follow)"
+    # a draw the change moved is flagged: ``moved`` may over-flag, never miss
+    now = algo.draw(RunStreams.of(3, np.arange(64, dtype=np.uint64)))
+    changed = now.ids != ids
+    assert np.all(algo.moved(draws)[changed]), f"{name}: moved missed a draw that the change moved"
 
 
 def check_rounds(make: MakeAlgorithm) -> None:

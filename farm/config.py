@@ -139,17 +139,31 @@ class QuantifyConfig(Section):
                            replay_capacity=self.replay_capacity, reachable=self.reachable, boundary=self.boundary)
 
 
+class VirtualConfig(Section):
+    """[farm.virtual]: the simulated clock of the virtual farm (farm.executor = "virtual")."""
+
+    run_time: Annotated[float, Field(gt=0.0, le=1e5, description="mean seconds of a full-horizon run")] = 1.0
+    jitter: Annotated[float, Field(ge=0.0, le=5.0, description="lognormal sigma of a run's duration")] = 0.0
+    call_cost: Annotated[float, Field(ge=0.0, le=60.0, description="seconds a chunk's call costs the "
+                                                                    "coordinator and its worker")] = 0.001
+
+
 class FarmConfig(Section):
     """[farm]: where and how runs are simulated."""
 
-    executor: Annotated[Literal["ray", "local"], Field(**_fixed())] = "local"
+    executor: Annotated[Literal["ray", "local", "virtual"], Field(**_fixed())] = "local"
     workers: Annotated[int, Field(ge=1, le=4096, **_fixed("Ray actors"))] = 2
     address: Annotated[str, Field(min_length=1, **_fixed("'local' or a Ray address ('auto')"))] = "local"
     batch_size: Annotated[int, Field(ge=1, le=10_000_000, description="runs per drawn batch")] = 1024
     pipeline_depth: Annotated[int, Field(ge=1, le=64, description="batches drawn ahead")] = 2
+    counting: Annotated[Literal["sequential", "deferred"], Field(description=(
+        "coupled counting: a mispredicted run's replacement is waited for at the head (sequential: the "
+        "one-run-at-a-time campaign's result at any batch_size and pipeline_depth) or applied "
+        "batch_size x pipeline_depth indices later (deferred: no waiting)"))] = "deferred"
     seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = 0
     checkpoint_every: Annotated[float, Field(ge=0.0, le=1e9, **_fixed("seconds"))] = 30.0
     max_retries: Annotated[int, Field(ge=0, le=100, **_fixed())] = 3
+    virtual: Annotated[VirtualConfig, Field(**_fixed("the virtual farm's clock"))] = VirtualConfig()
     max_memory_gb: Annotated[float | None, Field(gt=0.0, le=1e6, **_fixed(
         "refuse a campaign whose worst-case memory estimate exceeds this (default: 3/4 of this machine's "
         "memory)"))] = None
@@ -258,12 +272,20 @@ def _toml_value(value) -> str:
 
 
 # -- hashing and resume --------------------------------------------------------------------------
+WINDOW = ("batch_size", "pipeline_depth")  # the runs in flight: result-relevant only for deferred counting
+
+
 def result_view(cfg: Config) -> dict:
-    """The part of a config that can change a result (hash input, resume check)."""
+    """The part of a config that can change a result (hash input, resume check). With
+    sequential counting the runs in flight change no result (the committed sequence is
+    the one-run-at-a-time campaign's), so resume may change them."""
     out = {}
     for section, values in cfg.model_dump(mode="json").items():
         fields = type(getattr(cfg, section)).model_fields
         out[section] = {k: v for k, v in values.items() if _affects_result(fields.get(k))}
+    if cfg.farm.counting == "sequential":
+        for key in WINDOW:
+            out["farm"].pop(key)
     return out
 
 

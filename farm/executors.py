@@ -1,7 +1,8 @@
 """The executors, by the config's ``farm.executor`` (the contract is coordinator/executor.py):
 
 - ``local``: in-process (farm/local_executor.py);
-- ``ray``: stateless Ray actors on a local Ray or a cluster (farm/ray_executor.py).
+- ``ray``: stateless Ray actors on a local Ray or a cluster (farm/ray_executor.py);
+- ``virtual``: in-process on a simulated clock of many workers (farm/virtual_executor.py).
 
 Each is imported only when chosen (Ray takes seconds to import and start).
 """
@@ -20,6 +21,12 @@ def make_executor(farm_cfg, spec: SimSpec, check_step_bound: bool = False) -> Ex
 
         return RayExecutor(spec, farm_cfg.workers, farm_cfg.address, farm_cfg.max_retries, check_step_bound,
                            farm_cfg.pipeline_depth)
+    if farm_cfg.executor == "virtual":
+        from farm.virtual_executor import VirtualExecutor
+
+        v = farm_cfg.virtual
+        return VirtualExecutor(spec, farm_cfg.workers, v.run_time, v.jitter, v.call_cost, farm_cfg.pipeline_depth,
+                               check_step_bound)
     from farm.local_executor import LocalExecutor
 
     return LocalExecutor(spec, check_step_bound)

@@ -24,7 +24,7 @@ from farm.files import atomic_write, sha256_file
 from farm.storage import CampaignError
 from scenarios.version import __version__
 
-CHECKPOINT_FORMAT = 2
+CHECKPOINT_FORMAT = 3  # 3: coupled counting (replacements, the stable sampler)
 SEGMENT = re.compile(r"segment-(\d{6})\.npz$")
 
 

@@ -29,15 +29,16 @@ class LocalExecutor(Executor):
         self._jobs: dict[int, tuple[int, np.ndarray, object]] = {}
         self._next = 0
 
-    def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None) -> list[int]:
+    def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None,
+               indices: np.ndarray | None = None) -> list[int]:
         handle = self._next
         self._next += 1
-        self._jobs[handle] = (first_index, starts, screen, actions)
+        self._jobs[handle] = (first_index, starts, screen, actions, indices)
         return [handle]
 
     def result(self, handle: int) -> Chunk:
-        first_index, starts, screen, actions = self._jobs.pop(handle)
-        batch = self.simulator.simulate(first_index, starts, actions=actions)
+        first_index, starts, screen, actions, indices = self._jobs.pop(handle)
+        batch = self.simulator.simulate(first_index, starts, indices=indices, actions=actions)
         summary, visited = summarize(batch, screen)
         return chunk_of(summary, lambda: visited, lambda rows, takes: _compact(visited, rows, takes))
 

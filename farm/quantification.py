@@ -84,8 +84,9 @@ def _refuse_a_changed_config(directory: CampaignDir, cfg: Config) -> None:
     changed = config_mod.changed_fields(directory.frozen_config(), cfg)
     if changed:
         raise CampaignError(f"{directory.path}: the config differs from the campaign's frozen config in "
-                            f"{', '.join(changed)}; only farm.workers, farm.executor and farm.address may "
-                            f"change on resume")
+                            f"{', '.join(changed)}; only settings that cannot change a result may change on "
+                            f"resume (farm.workers, farm.executor, farm.address, and with sequential counting "
+                            f"farm.batch_size and farm.pipeline_depth)")
 
 
 def guarantee_of(cfg: Config, part: FacetCampaign, delta: float):
@@ -131,6 +132,8 @@ def finish(cfg: Config, out: Path, parts: dict[str, FacetCampaign]) -> dict:
         "runs_committed": sum(k.committed for k in counters),
         "runs_simulated": sum(k.runs_simulated for k in counters),
         "runs_dropped": sum(k.runs_dropped for k in counters),
+        "runs_replaced": sum(k.runs_replaced for k in counters),
+        "runs_discarded": sum(k.runs_discarded for k in counters),
         "steps_simulated": sum(k.steps_simulated for k in counters),
         "boxes": int(len(centres)),
         "volume_union": union_volume(centres, h, bounds=bounds),

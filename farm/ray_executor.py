@@ -89,12 +89,12 @@ def _actor_class():
             self.tasks = 0
 
         @ray.method(num_returns=2)
-        def run(self, first_index: int, starts: np.ndarray, message, actions=None):
+        def run(self, first_index: int, starts: np.ndarray, message, actions=None, indices=None):
             t0 = time.perf_counter()
             screen = self._screen(message)
             if screen is RESYNC:
                 return RESYNC, None
-            batch = self.simulator.simulate(first_index, starts, actions=actions)
+            batch = self.simulator.simulate(first_index, starts, indices=indices, actions=actions)
             summary, visited = summarize(batch, screen)
             self.busy_s += time.perf_counter() - t0
             self.tasks += 1
@@ -165,6 +165,7 @@ class _InFlight:
     actions: dict | None = None  # the policy's adaptive state for this chunk
     sent: tuple | None = None  # the coverage (id, epoch, seq) its message brings the actor to
     tries: int = 0
+    indices: np.ndarray | None = None  # its runs' sample indices, when not first, first + 1, ...
 
 
 class RayExecutor(Executor):
@@ -251,7 +252,8 @@ class RayExecutor(Executor):
             screen.trim_log(min(c[2] for c in holding))
 
     # -- the contract -------------------------------------------------------------------
-    def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None) -> list[int]:
+    def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None,
+               indices: np.ndarray | None = None) -> list[int]:
         # the policy's adaptive state goes with every chunk (a few numbers): an actor that
         # Ray restarted from its constructor needs nothing else
         self._actions = actions
@@ -260,8 +262,9 @@ class RayExecutor(Executor):
             if len(rows) == 0:
                 continue
             actor = int(np.argmin(self._queued))
-            first = first_index + int(rows[0])
-            job = _InFlight(None, None, actor, first, starts[rows], screen, actions)
+            first = first_index + int(rows[0]) if indices is None else int(indices[rows[0]])
+            job = _InFlight(None, None, actor, first, starts[rows], screen, actions,
+                            indices=None if indices is None else indices[rows])
             self._launch(job)
             self._jobs[self._next] = job
             handles.append(self._next)
@@ -281,7 +284,8 @@ class RayExecutor(Executor):
         self._queued[job.actor] += 1
         message = self._message(job.actor, job.screen, fresh)
         job.sent = self._synced[job.actor]
-        job.ref, job.visited_ref = self.actors[job.actor].run.remote(job.first, job.starts, message, job.actions)
+        job.ref, job.visited_ref = self.actors[job.actor].run.remote(job.first, job.starts, message, job.actions,
+                                                                     job.indices)
 
     def result(self, handle: int) -> Chunk:
         job = self._jobs.pop(handle)

@@ -78,6 +78,7 @@ def replay(directory: Path, index: int) -> tuple[bool, str]:
     if not 0 <= index < 2**63:
         raise ValueError(f"--sample: {index} is out of range; allowed [0, 2**63)")
     rows = ds.dataset(directory / "ledger").to_table(filter=ds.field("sample_index") == index).to_pylist()
+    rows = [r for r in rows if not r.get("discarded")]  # the run used at this index (a replacement, if any)
     if not rows:
         raise ValueError(f"{directory}: sample {index} is not in the ledger (not committed)")
     row = rows[0]

@@ -30,6 +30,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from coordinator.commit_log import CommitLog
 from farm.files import TEMP_MARK, atomic_write, sha256_file, write_json
 from scenarios.version import __version__
 
@@ -213,7 +214,7 @@ class CampaignDir:
 
 class Ledger:
     """Committed runs as Parquet segments: sample_index, round, delta, one column per
-    state variable (the start state), outcome, steps, changed, counted. Each segment's
+    state variable (the start state), outcome, steps, changed, counted, discarded, replacement. Each segment's
     sha256 goes into the checkpoint, so a changed or swapped segment is noticed."""
 
     def __init__(self, directory: Path, state_names):
@@ -237,7 +238,8 @@ class Ledger:
             cols[name] = log["start"][:, i]
         names = np.array([OUTCOME_NAMES[o] for o in range(1, 4)])
         cols["outcome"] = names[log["outcome"] - 1]
-        cols.update(steps=log["steps"], changed=log["changed"], counted=log["counted"])
+        cols.update(steps=log["steps"], changed=log["changed"], counted=log["counted"],
+                    discarded=log["kind"] == CommitLog.DISCARDED, replacement=log["kind"] == CommitLog.REPLACEMENT)
         path = self.dir / f"segment-{self.segments:06d}.parquet"
         atomic_write(path, lambda fh: pq.write_table(pa.table(cols), fh))
         self.digests.append(sha256_file(path))

@@ -88,7 +88,7 @@ def test_n_eps_rule_is_exact_in_the_committed_record(reference, tmp_path):
     # while older draws are still being committed
     assert not counted[np.nonzero(changed)[0] + 1].all()
     # runs dropped at round ends were simulated and are accounted
-    assert summary["runs_simulated"] == summary["runs_committed"] + summary["runs_dropped"]
+    assert summary["runs_simulated"] == summary["runs_committed"] + summary["runs_replaced"] + summary["runs_dropped"]
 
 
 def test_a_killed_worker_costs_time_not_results(ray_local, reference, tmp_path, monkeypatch):

@@ -1,0 +1,230 @@
+"""Start states drawn from each run's own stream, so that a change of state moves only
+the draws it touches (coupled counting: shared/spec/scaling.md, algorithms.md point 3).
+
+Run i's start is the first acceptable candidate of its start stream: candidate k is slot
+``floor(u_k * cap)`` of the vertex id space (``cap`` a power of two above the vertex
+count: twice the round's first count, doubled when the count outgrows it), acceptable if the law accepts that slot with
+``v_k``: the vertex exists, is alive and a candidate of the law, and, for a weighted law
+(prioritized sampling, rho = alpha(d* - d)), ``v_k * bound < rho(slot)`` with ``bound``
+at least the largest rho. Each accepted candidate is exactly distributed as the law (a
+slot is accepted with probability rho(slot) / (cap * bound) at every try); after
+``MAX_TRIES`` rejections the run draws directly from the law with one more uniform, so
+the draw is exact whatever the acceptance rate.
+
+A draw depends on the state only through the slots it examined. Each slot carries the
+version of the last change that may have moved its acceptance (``stamp``): a kill, an
+insert, a distance that fell. A change of the law as a whole (d*, the bound, the cap, a
+switch between uniform and weighted, a new round) moves every draw (``everything``). So
+``moved`` answers "is this draw still what its stream draws now?" without redrawing
+runs whose examined slots nothing touched; a run it flags is drawn again and compared.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Protocol
+
+import numpy as np
+
+from scenarios.streams import PURPOSE_START, RunStreams
+
+MAX_TRIES = 64  # candidates a run examines before it draws directly from the law
+TRY_BLOCK = 8  # tries drawn at once for the runs still searching
+TRACKED = 16  # examined slots kept per run (a run that examined more may move with any change)
+
+
+class Law(Protocol):
+    """A sampling law over vertex ids, as the sampler needs it."""
+
+    count: int  # vertex ids [0, count) exist
+    bound: float  # >= the largest weight (1.0 for a uniform law)
+
+    def accept(self, slots: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """(k,) bool: slot exists and is a candidate, and v * bound < weight(slot)."""
+
+    def direct(self, u: np.ndarray) -> np.ndarray:
+        """Vertex ids for uniform numbers u in [0, 1), exactly by the law."""
+
+
+@dataclass(frozen=True)
+class UniformLaw:
+    """Uniform over the vertices ``candidate(ids)`` accepts among ids [0, count)."""
+
+    count: int
+    candidate: Callable[[np.ndarray], np.ndarray]
+    ids: Callable[[], np.ndarray]  # the candidate ids, in id order (for the direct draw)
+    bound: float = 1.0
+
+    def accept(self, slots: np.ndarray, v: np.ndarray) -> np.ndarray:
+        ok = slots < self.count
+        ok[ok] = self.candidate(slots[ok])
+        return ok
+
+    def direct(self, u: np.ndarray) -> np.ndarray:
+        ids = self.ids()
+        return ids[np.minimum((u * len(ids)).astype(np.int64), len(ids) - 1)]
+
+
+@dataclass(frozen=True)
+class WeightedLaw:
+    """rho(id) = ``weight(ids)`` (zero for a non-candidate) over ids [0, count)."""
+
+    count: int
+    weight: Callable[[np.ndarray], np.ndarray]
+    direct: Callable[[np.ndarray], np.ndarray]
+    bound: float
+
+    def accept(self, slots: np.ndarray, v: np.ndarray) -> np.ndarray:
+        ok = slots < self.count
+        ok[ok] = v[ok] * self.bound < self.weight(slots[ok])
+        return ok
+
+
+@dataclass
+class Draws:
+    """A batch of stable draws: per run its vertex id, and the slots it examined (up to
+    ``TRACKED``; a run that examined more, or drew directly, may move with any change)."""
+
+    ids: np.ndarray  # (B,) vertex ids
+    versions: np.ndarray  # (B,) int64: the state version each was drawn at (-1: unknown)
+    slots: np.ndarray  # (B, TRACKED) int64: the slots examined, -1 past the last
+    untracked: np.ndarray  # (B,) bool: examined more slots than tracked, or drew directly
+    fixed: bool = False  # no change moves them (an enumeration's centres)
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def rows(self, rows) -> "Draws":
+        """The draws of ``rows`` (an index array or a slice), as a batch of their own."""
+        return Draws(self.ids[rows], self.versions[rows], self.slots[rows], self.untracked[rows], self.fixed)
+
+    def span(self, lo: int, hi: int) -> "Draws":
+        """The draws of rows ``lo:hi`` (views, no copy)."""
+        return self.rows(slice(lo, hi))
+
+    def replace_rows(self, rows: np.ndarray, fresh: "Draws") -> None:
+        """Rows ``rows`` drawn again (``fresh``, one per row, in order), in place."""
+        self.ids[rows], self.versions[rows] = fresh.ids, fresh.versions
+        self.slots[rows], self.untracked[rows] = fresh.slots, fresh.untracked
+
+    @classmethod
+    def fixed_at(cls, ids: np.ndarray, version: int) -> "Draws":
+        """Draws no change can move (e.g. an enumeration's next centres)."""
+        return cls(ids, np.full(len(ids), version, dtype=np.int64), np.full((len(ids), TRACKED), -1, dtype=np.int64),
+                   np.zeros(len(ids), dtype=bool), fixed=True)
+
+    @classmethod
+    def unknown(cls, ids: np.ndarray, fixed: bool = False) -> "Draws":
+        """Draws whose examined slots are not known (read back from a checkpoint): each
+        is drawn again before it is used."""
+        return cls(ids, np.full(len(ids), -1, dtype=np.int64), np.full((len(ids), TRACKED), -1, dtype=np.int64),
+                   np.ones(len(ids), dtype=bool), fixed)
+
+
+class StableSampler:
+    """Draws keyed on each run's stream, and which draws a change may have moved."""
+
+    def __init__(self):
+        self.base = 1  # vertex ids when the round started
+        self.cap = 0
+        self.stamp = np.zeros(0, dtype=np.int64)  # per slot: last version that may have moved it
+        self.everything = 0  # last version that may have moved every draw
+        self.last = 0  # last version that may have moved any draw
+
+    # -- what changed ----------------------------------------------------------------------
+    def touch(self, ids: np.ndarray, version: int) -> None:
+        """Changes at ``version`` may have moved the acceptance of slots ``ids``."""
+        ids = np.asarray(ids, dtype=np.int64)
+        if len(ids):
+            self._grow(int(ids.max()) + 1)
+            self.stamp[ids] = version
+            self.last = max(self.last, version)
+
+    def touch_all(self, version: int) -> None:
+        """The law as a whole changed at ``version``: every draw may have moved."""
+        self.everything = version
+        self.last = max(self.last, version)
+
+    def restart(self, base: int, version: int) -> None:
+        """A new round (or a new law for good, e.g. certification) with ``base`` vertex
+        ids: the cap starts at twice that, room for the ids the round adds."""
+        self.base = max(int(base), 1)
+        self.cap = 0
+        self.fit(base, version)
+
+    def fit(self, count: int, version: int) -> None:
+        """The cap for ``count`` vertex ids: the smallest power of two of at least twice
+        the round's base and at least ``count`` (a function of the state alone, whenever
+        it is asked); a new cap moves every draw."""
+        cap = 1 << int(np.ceil(np.log2(max(2 * self.base, count, 2))))
+        if cap != self.cap:
+            self.cap = cap
+            self.touch_all(version)
+
+    # -- drawing -----------------------------------------------------------------------------
+    def draw(self, streams: RunStreams, law: Law, version: int) -> Draws:
+        """Each run's first acceptable candidate (or its direct draw after MAX_TRIES)."""
+        b = len(streams)
+        ids = np.full(b, -1, dtype=np.int64)
+        tries = np.zeros(b, dtype=np.int64)  # candidates examined, the accepted one included
+        slots = np.zeros((b, MAX_TRIES), dtype=np.int64)
+        searching = np.arange(b)
+        for first in range(0, MAX_TRIES, TRY_BLOCK):
+            if len(searching) == 0:
+                break
+            k = min(TRY_BLOCK, MAX_TRIES - first)
+            sub = streams.subset(np.repeat(searching, k))
+            counters = np.tile(np.arange(first + 1, first + k + 1, dtype=np.uint64), len(searching))
+            u = sub.uniform_at(counters, PURPOSE_START, 0).reshape(-1, k)
+            v = sub.uniform_at(counters, PURPOSE_START, 1).reshape(-1, k)
+            cand = np.minimum((u * self.cap).astype(np.int64), self.cap - 1)
+            ok = law.accept(cand.ravel(), v.ravel()).reshape(-1, k)
+            slots[searching, first : first + k] = cand
+            found = ok.any(axis=1)
+            at = np.argmax(ok, axis=1)
+            hit = searching[found]
+            ids[hit] = cand[found, at[found]]
+            tries[hit] = first + at[found] + 1
+            tries[searching[~found]] = first + k
+            searching = searching[~found]
+        untracked = tries > TRACKED
+        if len(searching):
+            untracked[searching] = True
+            u = streams.subset(searching).uniform_at(np.full(len(searching), MAX_TRIES + 1, dtype=np.uint64),
+                                                     PURPOSE_START, 0)
+            ids[searching] = law.direct(u)
+        examined = slots[:, :TRACKED].copy()
+        examined[np.arange(TRACKED)[None, :] >= tries[:, None]] = -1
+        return Draws(ids, np.full(b, version, dtype=np.int64), examined, untracked)
+
+    def moved(self, draws: Draws) -> np.ndarray:
+        """(B,) bool: draws a change since they were drawn may have moved (a flagged draw
+        may still stand: draw it again to know)."""
+        if draws.fixed:
+            return np.zeros(len(draws), dtype=bool)
+        out = draws.versions < self.everything
+        out |= draws.untracked & (draws.versions < self.last)
+        if len(draws):
+            slots = draws.slots
+            self._grow(int(slots.max()) + 1)
+            latest = np.where(slots >= 0, self.stamp[np.maximum(slots, 0)], -1).max(axis=1)
+            out |= latest > draws.versions
+        return out
+
+    # -- persistence ---------------------------------------------------------------------------
+    def state(self) -> dict[str, np.ndarray]:
+        return {"stable.base": np.array(self.base, dtype=np.int64)}
+
+    def load_state(self, state: dict[str, np.ndarray], count: int, version: int) -> None:
+        """The round's base as it was; every draw made before is unknown (stamps are not kept)."""
+        self.base = int(state["stable.base"])
+        self.stamp = np.zeros(0, dtype=np.int64)
+        self.last = version
+        self.cap = 0
+        self.fit(count, version)
+
+    def _grow(self, size: int) -> None:
+        if size > len(self.stamp):
+            grown = np.zeros(max(size, 2 * len(self.stamp), 1024), dtype=np.int64)
+            grown[: len(self.stamp)] = self.stamp
+            self.stamp = grown

@@ -1,0 +1,193 @@
+"""The virtual farm: the real coordinator on a simulated clock (farm.executor = "virtual").
+
+Runs are simulated in this process by the in-process executor, so every result, the
+committed sequence included, is a real run's (results never depend on the executor).
+Only time is modelled, to plan clusters of hundreds to thousands of workers for a slow
+simulator (shared/spec/scaling.md):
+
+- ``workers`` simulated workers take chunks in submission order, each as soon as one is
+  free; batches are cut into chunks as farm/chunking.py says for ``run_time`` and
+  ``call_cost``;
+- a run takes ``run_time * steps / (horizon - 1)`` (a run that ends early takes its
+  share) times a lognormal jitter of sigma ``jitter`` (mean 1), drawn from the run's own
+  key, so the timing is reproducible too;
+- a chunk's call costs ``call_cost`` twice: the coordinator's (it sends and reads the
+  chunk) and its worker's;
+- the coordinator's own CPU time between executor calls is charged to the clock (its
+  thread time, the in-process simulation excluded): a driver that cannot keep up shows;
+- a chunk cancelled before a worker took it never runs; experience replay's screening
+  is shared by the workers.
+
+``clock`` is the simulated time to the result; ``utilisation`` the share of worker time
+spent on runs.
+"""
+
+from __future__ import annotations
+
+import heapq
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from coordinator.executor import Chunk, Executor
+from farm.chunking import chunk_rows, chunk_size
+from farm.local_executor import LocalExecutor
+from scenarios.simulator import SimSpec
+from scenarios.streams import RunStreams
+
+PURPOSE_TIMING = 7  # the stream purpose of a run's modelled duration (no simulation draws from it)
+
+
+@dataclass
+class _Batch:
+    """A submitted batch: simulated in-process at once, when a worker takes its first chunk."""
+
+    local: int  # the in-process executor's handle
+    chunk: Chunk | None = None
+    waiting: int = 0  # its chunks no worker has taken yet
+
+
+@dataclass
+class _Job:
+    batch: _Batch
+    rows: tuple[int, int]  # its rows of the batch
+    submitted: float
+    start: float = -1.0  # when a worker took it (-1: queued)
+    end: float = 0.0
+    chunk: Chunk | None = None
+
+
+class VirtualExecutor(Executor):
+    name = "virtual"
+
+    def __init__(self, spec: SimSpec, workers: int, run_time: float, jitter: float = 0.0, call_cost: float = 0.001,
+                 pipeline_depth: int = 2, check_step_bound: bool = False):
+        self.spec = spec
+        self.local = LocalExecutor(spec, check_step_bound)
+        self.workers = workers
+        self.run_time, self.jitter, self.call_cost = float(run_time), float(jitter), float(call_cost)
+        self.pipeline_depth = pipeline_depth
+        self.clock = 0.0  # simulated seconds since the executor started
+        self._runs: list[tuple[float, float]] = []  # (from, to) of each chunk's runs on its worker
+        self.chunks = 0
+        self.coordinator_s = 0.0  # the coordinator's CPU charged to the clock
+        self.waited_s = 0.0  # the clock's time spent waiting for a chunk
+        self._free: list[float] = [0.0] * workers  # a heap of the workers' free times
+        self._queue: deque[int] = deque()  # handles no worker has taken yet, in order
+        self._jobs: dict[int, _Job] = {}
+        self._next = 0
+        self._mark = time.thread_time()  # the coordinator's CPU time charged up to here
+
+    # -- the clock ------------------------------------------------------------------------
+    def _enter(self) -> None:
+        """Charge the coordinator's CPU since it last called the executor."""
+        now = time.thread_time()
+        self.clock += now - self._mark
+        self.coordinator_s += now - self._mark
+        self._mark = now
+
+    def _leave(self) -> None:
+        self._mark = time.thread_time()  # what the executor did in-process is the workers' work
+
+    def _dispatch(self, until: float, handle: int | None = None) -> None:
+        """Workers take queued chunks in order: every one that starts by ``until``, and
+        those up to ``handle`` whatever their start."""
+        while self._queue:
+            key = self._queue[0]
+            job = self._jobs[key]
+            start = max(job.submitted, self._free[0])
+            if start > until and (handle is None or self._jobs[handle].start >= 0):
+                break
+            self._queue.popleft()
+            job.start = start
+            batch = job.batch
+            if batch.chunk is None:  # one in-process call per batch, whatever its chunks
+                batch.chunk = self.local.result(batch.local)
+            batch.waiting -= 1
+            job.chunk = batch.chunk.part(*job.rows)
+            duration = self._duration(job.chunk)
+            job.end = start + self.call_cost + duration
+            self._runs.append((start + self.call_cost, job.end))
+            heapq.heapreplace(self._free, job.end)
+            if key == handle:
+                break
+
+    def _duration(self, chunk: Chunk) -> float:
+        share = (chunk.lengths.astype(float) - 1) / max(self.spec.horizon - 1, 1)
+        if self.jitter > 0:
+            u = RunStreams.of(self.spec.seed, chunk.indices).uniform(0, PURPOSE_TIMING, 2)
+            z = np.sqrt(-2.0 * np.log1p(-u[:, 0])) * np.cos(2 * np.pi * u[:, 1])  # Box-Muller
+            share = share * np.exp(self.jitter * z - self.jitter**2 / 2)
+        return float(self.run_time * share.sum())
+
+    # -- the contract -------------------------------------------------------------------
+    def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None,
+               indices: np.ndarray | None = None) -> list[int]:
+        self._enter()
+        handles = []
+        (local,) = self.local.submit(first_index, starts, screen, actions, indices)
+        batch = _Batch(local)
+        for rows in chunk_rows(len(starts), self.workers, self.pipeline_depth, self.run_time, self.call_cost,
+                               urgent=indices is not None):
+            self.clock += self.call_cost  # the coordinator sends it (and reads it back)
+            batch.waiting += 1
+            self._jobs[self._next] = _Job(batch, (int(rows[0]), int(rows[-1]) + 1), self.clock)
+            handles.append(self._next)
+            self._next += 1
+            self.chunks += 1
+        if indices is None:
+            self._queue.extend(handles)
+        else:  # replacements: the next free worker takes them first
+            self._queue.extendleft(reversed(handles))
+        self._dispatch(self.clock)
+        self._leave()
+        return handles
+
+    def result(self, handle: int) -> Chunk:
+        self._enter()
+        self._dispatch(self.clock, handle)
+        job = self._jobs.pop(handle)
+        self.waited_s += max(0.0, job.end - self.clock)
+        self.clock = max(self.clock, job.end)
+        self._leave()
+        return job.chunk
+
+    def cancel(self, handle: int) -> None:
+        self._enter()
+        self._dispatch(self.clock)
+        job = self._jobs.pop(handle, None)
+        if job is not None and job.start < 0:  # no worker took it: it never runs
+            self._queue.remove(handle)
+            job.batch.waiting -= 1
+            if job.batch.waiting == 0 and job.batch.chunk is None:
+                self.local.cancel(job.batch.local)
+        self._leave()
+
+    def screen_stored(self, pieces, screen):
+        self._enter()
+        t0 = time.thread_time()
+        found = self.local.screen_stored(pieces, screen)
+        self.clock += self.call_cost + (time.thread_time() - t0) / self.workers
+        self._leave()
+        return found
+
+    def batch_size(self, requested: int, pipeline_depth: int) -> int:
+        # a chunk per worker from each batch: the chunks the call cost asks for
+        size = chunk_size(requested, self.workers, pipeline_depth, self.run_time, self.call_cost)
+        return max(requested, self.workers * size)
+
+    def close(self) -> None:
+        self._jobs.clear()
+        self._queue.clear()
+        self.local.close()
+
+    @property
+    def utilisation(self) -> float:
+        """The share of the workers' time up to now spent on runs."""
+        if self.clock <= 0 or not self._runs:
+            return 0.0
+        spans = np.array(self._runs)
+        busy = np.clip(np.minimum(spans[:, 1], self.clock) - spans[:, 0], 0, None).sum()
+        return float(busy / (self.workers * self.clock))
