@@ -69,7 +69,7 @@ class CampaignSettings:
     seed: int = 0
     certify: bool = False
     record_limit: int = 0  # state-changing failures kept for the MCAP recording
-    counting: str = "deferred"
+    counting: str = "sequential"
 
     def __post_init__(self):
         if self.counting not in COUNTING:
