@@ -33,7 +33,6 @@ def run_campaign(cfg):
     from coordinator.baselines import make_algorithm
     from coordinator.campaign import Campaign
     from coordinator.sample_size import n_eps
-    from coordinator.results import result_hash
     from farm.executors import build_simulator
     from farm.quantification import spec_of
     from farm.ray_executor import make_executor
@@ -51,7 +50,7 @@ def run_campaign(cfg):
     wall = time.perf_counter() - t0
     stats = ex.worker_stats() if hasattr(ex, "worker_stats") else None
     ex.close()
-    return c, wall, stats, result_hash(*algo.result())
+    return c, wall, stats, algo.result().result_hash
 
 
 def idle(stats, wall) -> str:

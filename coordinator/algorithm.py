@@ -25,6 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.coverage import Coverage, Rescreen
+from coordinator.safe_set import SafeSet
+from scenarios.base import Scenario
 from scenarios.streams import PURPOSE_START, RunStreams
 
 
@@ -50,6 +52,7 @@ class Event:
 
 class Algorithm(ABC):
     name: str = ""
+    scenario: Scenario
     decays: bool = True  # delta shrinks round by round (False: a single round)
     coverage: Coverage
     version: int = 0
@@ -115,9 +118,9 @@ class Algorithm(ABC):
         its checkpoints need, before the result files and plots are made. ``result``,
         ``counts`` and ``failure_points`` still answer; ``state`` need not."""
 
-    def result(self) -> tuple[np.ndarray, float]:
-        """The quantified set: (M, n) alive centres and the half-width."""
-        return self.vertices.alive_points(), self.delta
+    def result(self) -> SafeSet:
+        """The quantified set: a box of half-width delta around every alive centre."""
+        return SafeSet.uniform(self.vertices.alive_points(), self.delta, self.scenario.state_names)
 
     def failure_points(self) -> np.ndarray:
         """(F, n) start states of runs that failed and pruned (PhiBar), if kept."""

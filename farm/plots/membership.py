@@ -7,13 +7,26 @@ import numpy as np
 from coordinator.spatial import TOLERANCE, PointIndex
 
 
-def _member(centres: np.ndarray, h: float, lower, upper=None) -> callable:
-    """Membership in the union of boxes, (G, n) -> (G,) bool. With ``upper`` the index
-    uses its dense fast path (Sigma as bounds)."""
-    centres = np.asarray(centres, dtype=float).reshape(-1, len(lower))
-    if not len(centres) or h <= 0:  # an empty set (a zero cell would break the index)
-        return lambda pts: np.zeros(len(pts), dtype=bool)
-    return _Membership(centres, h, lower, upper)
+def _member(centres: np.ndarray, half_widths, n: int, lower=None, upper=None, distinct: bool = False) -> callable:
+    """Membership in the union of boxes centre +- half-width (``half_widths``: one per
+    box, or one for all), (G, n) -> (G,) bool: one index per half-width, anchored at
+    ``lower`` (default: the lowest centre of that size). With ``upper`` too the index
+    uses its dense fast path (Sigma as bounds). ``distinct``: drop repeated boxes."""
+    centres = np.asarray(centres, dtype=float).reshape(-1, n)
+    widths = np.broadcast_to(np.asarray(half_widths, dtype=float), (len(centres),))
+    members = []
+    for width in np.unique(widths[widths > 0]):  # an empty size would need a zero cell
+        group = centres if (widths == width).all() else centres[widths == width]
+        members.append(_Membership(group, float(width), group.min(axis=0) if lower is None else lower, upper,
+                                   distinct))
+    if len(members) == 1:
+        return members[0]
+    return lambda pts: np.logical_or.reduce([m(pts) for m in members] + [np.zeros(len(pts), dtype=bool)])
+
+
+def _set_member(scenario, safe_set) -> callable:
+    """Membership in a safe set, indexed over Sigma."""
+    return _member(safe_set.centres, safe_set.half_widths, scenario.n, scenario.lower, scenario.upper)
 
 
 class _Membership:

@@ -7,7 +7,6 @@ import pytest
 from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign
 from coordinator.sample_size import n_eps
-from coordinator.spatial import PointIndex
 from coordinator.spe import SPESettings
 from farm.executors import LocalExecutor
 from scenarios.simulator import SimSpec
@@ -27,10 +26,8 @@ def quantify(algorithm, seed, delta0=1.0, delta_min=0.25):
     counters = Campaign(algo, executor, n_eps=n_eps(0.01, 0.1), budget=400_000, batch_size=256,
                         pipeline_depth=2, seed=seed).run()
     assert counters.converged
-    centres, h = algo.result()
-    index = PointIndex(2, 2 * h, np.zeros(2))
-    index.insert(centres)
-    return index.any_within(GRID, h), centres, h
+    safe_set = algo.result()
+    return safe_set.contains(GRID), safe_set.centres, safe_set.half_width
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
