@@ -1,11 +1,11 @@
 """Volumes of a quantified set: the union of l-inf boxes centre +- half-width, each box
 with its own half-width.
 
-``union_volume`` is exact. Space is cut into cells of side 2h, h the smallest
+``union_volume`` is exact. Space is cut into cells of side 2f, f the smallest
 half-width, aligned with the boxes' most common lattice; a box whose faces lie on cell
-faces fills whole cells (one cell for a box of half-width h, k^n for one of k h), every
+faces fills whole cells (one cell for a box of half-width f, k^n for one of k f), every
 other cell is resolved by coordinate compression over the few box pieces that reach into
-it (a box of half-width w meets at most (ceil(w / h) + 1)^n cells, and pieces in one
+it (a box of half-width w meets at most (ceil(w / f) + 1)^n cells, and pieces in one
 cell share most of their coordinates).
 
 ``hull_volume`` is the volume of the convex hull of the union (the paper's
@@ -48,10 +48,10 @@ def union_volume(centres: np.ndarray, half_widths, origin=None, bounds=None) -> 
         return 0.0
     n = centres.shape[1]
     widths = _widths(centres, half_widths)
-    h = float(widths.min())
-    side = 2 * h
-    # a box spans ratio = w / h cells per axis when its faces are on cell faces
-    ratio = widths / h
+    finest = float(widths.min())
+    side = 2 * finest
+    # a box spans ratio = w / f cells per axis when its faces are on cell faces
+    ratio = widths / finest
     whole = np.round(ratio).astype(np.int64)
     integral = np.abs(ratio - whole) < 1e-9
     lower = centres - widths[:, None]

@@ -304,13 +304,14 @@ def is_user_error(exc: BaseException) -> bool:
     """Errors that say what is wrong with the input, the directory or the environment."""
     from coordinator.algorithm import EmptySetError
     from coordinator.domain import DomainError
+    from coordinator.safe_set import SafeSetError
     from farm.config import ConfigError
     from farm.ray_executor import WorkerError
     from farm.storage import CampaignError
     from scenarios.base import ScenarioError
 
-    known = (ConfigError, DomainError, CampaignError, ScenarioError, WorkerError, EmptySetError, FileExistsError,
-             ValueError)
+    known = (ConfigError, DomainError, CampaignError, ScenarioError, WorkerError, EmptySetError, SafeSetError,
+             FileExistsError, ValueError)
     if isinstance(exc, known):
         return True
     # a full disk, a read-only place, a missing file: the environment, named in the message

@@ -27,7 +27,7 @@ def _settings(scenario, held: dict[int, float]) -> str:
 
 
 def _title(scenario, safe_set, summary=None) -> str:
-    """"<scenario> / <SV policy> / <algorithm>: <M> boxes, half-width <h>"; ``summary``
+    """"<scenario> / <SV policy> / <algorithm>: <M> boxes, half-width <w>"; ``summary``
     (farm.summary.Summary, optional) names them as the campaign did."""
     parts = [summary.scenario if summary else scenario.name,
              (summary.sv_policy if summary else "") or getattr(scenario, "sv_policy_name", None),

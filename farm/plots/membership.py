@@ -33,13 +33,13 @@ class _Membership:
     """Membership in a union of equal boxes, indexing only the boxes a query can meet.
 
     A figure's query holds some coordinates at one value (a slice holds all but two):
-    only boxes within h of those values can contain its points, often a few percent of
+    only boxes within a half-width of those values can contain its points, often a few percent of
     a large set. The index over them is built on first use and kept per held values;
     a full index (one over every box, ~130 bytes per box) is built only for a query that
     holds nothing. The answers are those of one index over all boxes."""
 
-    def __init__(self, centres: np.ndarray, h: float, lower, upper=None, distinct: bool = False):
-        self.centres, self.h, self.distinct = centres, float(h), distinct
+    def __init__(self, centres: np.ndarray, half_width: float, lower, upper=None, distinct: bool = False):
+        self.centres, self.half_width, self.distinct = centres, float(half_width), distinct
         self.lower = np.asarray(lower, float)
         self.bounds = None if upper is None else (self.lower, np.asarray(upper, float))
         self._indexes: dict[tuple, PointIndex | None] = {}
@@ -54,18 +54,18 @@ class _Membership:
         if held not in self._indexes:
             self._indexes[held] = self._index(held)
         index = self._indexes[held]
-        return index.any_within(pts, self.h) if index is not None else np.zeros(len(pts), dtype=bool)
+        return index.any_within(pts, self.half_width) if index is not None else np.zeros(len(pts), dtype=bool)
 
     def _index(self, held: tuple) -> PointIndex | None:
         near = np.ones(len(self.centres), dtype=bool)
         for axis, value in held:
-            near &= np.abs(self.centres[:, axis] - value) <= self.h + TOLERANCE
+            near &= np.abs(self.centres[:, axis] - value) <= self.half_width + TOLERANCE
         group = self.centres if near.all() else self.centres[near]
         if self.distinct:
             group = _distinct_rows(group)
         if not len(group):
             return None
-        index = PointIndex(group.shape[1], 2 * self.h, self.lower, capacity=len(group), bounds=self.bounds)
+        index = PointIndex(group.shape[1], 2 * self.half_width, self.lower, capacity=len(group), bounds=self.bounds)
         index.insert(group)
         return index
 
