@@ -9,12 +9,11 @@ the parameters the algorithm used (VAL^eps has no ``delta``, VAL^delta no ``epsi
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
+from typing import ClassVar
 
 from farm import config as config_mod
 from farm.config import Config
-from farm.files import write_json
-from farm.json_record import read_json, record_from_json, record_to_json
+from farm.json_record import JsonFile, record_from_json, record_to_json
 from scenarios.version import __version__
 
 FILE = "certificate.json"
@@ -23,10 +22,13 @@ PARAMETERS = {"delta": ("delta",), "eps": ("epsilon", "beta"), "eps-delta": ("ep
 
 
 @dataclass(frozen=True, kw_only=True)
-class Certificate:
+class Certificate(JsonFile):
     """The answer of a validation: certified, or the first counterexample; one field
     per key of certificate.json, in the file's order (``statement`` is
     ``guarantee_formal``). Keys this reader does not know are kept in ``extra``."""
+
+    FILE: ClassVar[str] = FILE
+    MISSING: ClassVar[str] = "{directory}: no {file} (not a validation directory)"
 
     verdict: str
     guarantee: str
@@ -85,20 +87,6 @@ class Certificate:
             data.setdefault("guarantee_formal", statement)  # the older name of the same words
         return record_from_json(cls, data, source, REQUIRED)
 
-    @classmethod
-    def read(cls, directory) -> "Certificate":
-        directory = Path(directory)
-        return cls.from_json(read_json(directory / FILE, f"{directory}: no {FILE} (not a validation directory)"),
-                             str(directory / FILE))
-
-    def write(self, directory) -> Path:
-        path = Path(directory) / FILE
-        write_json(path, self.to_json())
-        return path
-
-    def __getitem__(self, key: str):
-        """The value of certificate.json's ``key`` (for code written against the JSON)."""
-        return self.to_json()[key]
 
 
 def certificate_of(cfg: Config, plan, result: dict, guarantee, scenario, policy, domain) -> Certificate:

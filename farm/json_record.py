@@ -13,7 +13,9 @@ import dataclasses
 import json
 import typing
 from pathlib import Path
+from typing import ClassVar
 
+from farm.files import write_json
 from farm.storage import CampaignError
 
 _JSON_TYPES = {bool: (bool,), int: (int,), float: (int, float), str: (str,), list: (list,), dict: (dict,)}
@@ -70,6 +72,36 @@ def _allowed(hint) -> tuple[type, ...]:
     options = [a for a in typing.get_args(hint) if a is not type(None)] if _optional(hint) else [hint]
     allowed = [t for option in options for t in _JSON_TYPES.get(typing.get_origin(option) or option, (object,))]
     return tuple(dict.fromkeys(allowed))
+
+
+class JsonFile:
+    """A record stored as ``FILE`` in a directory: ``read``, ``write``, and the value of a
+    JSON key by ``record[key]`` (for code written against the JSON)."""
+
+    FILE: ClassVar[str]
+    MISSING: ClassVar[str]  # the message when there is no file ({directory}, {file})
+
+    def to_json(self) -> dict:
+        raise NotImplementedError
+
+    @classmethod
+    def from_json(cls, data, source: str):
+        raise NotImplementedError
+
+    @classmethod
+    def read(cls, directory):
+        """The record in ``directory``; a one-line CampaignError when the file is absent,
+        unreadable or not such a record."""
+        path = Path(directory) / cls.FILE
+        return cls.from_json(read_json(path, cls.MISSING.format(directory=directory, file=cls.FILE)), str(path))
+
+    def write(self, directory) -> Path:
+        path = Path(directory) / self.FILE
+        write_json(path, self.to_json())
+        return path
+
+    def __getitem__(self, key: str):
+        return self.to_json()[key]
 
 
 def read_json(path: Path, missing: str) -> dict:

@@ -9,13 +9,12 @@ adds, per side, ``volume_<side>_side``, ``volume_hull_<side>_side``,
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
+from typing import ClassVar
 
 from coordinator.safe_set import SafeSet
 from farm import config as config_mod
 from farm.config import Config
-from farm.files import write_json
-from farm.json_record import read_json, record_from_json, record_to_json
+from farm.json_record import JsonFile, record_from_json, record_to_json
 from scenarios.version import __version__
 
 FILE = "summary.json"
@@ -41,10 +40,14 @@ class SideSummary:
 
 
 @dataclass(frozen=True, kw_only=True)
-class Summary:
+class Summary(JsonFile):
     """The content of summary.json, one field per key, in the file's order. Fields an
     older writer did not write keep their defaults; keys this reader does not know are
     kept in ``extra``."""
+
+    FILE: ClassVar[str] = FILE
+    MISSING: ClassVar[str] = "{directory}: the campaign has not finished (no {file}); see `scenario-farm status " \
+                             "{directory}`"
 
     scenario: str
     sv_policy: str = ""
@@ -104,23 +107,6 @@ class Summary:
             sides[label] = record_from_json(SideSummary, present, f"{source} (side {label!r})", SIDE_KEYS[:4])
         return record_from_json(cls, data, source, REQUIRED, sides=sides)
 
-    @classmethod
-    def read(cls, directory) -> "Summary":
-        """The summary of the campaign in ``directory``; a CampaignError if it has not
-        finished or the file is not a summary."""
-        directory = Path(directory)
-        data = read_json(directory / FILE, f"{directory}: the campaign has not finished (no {FILE}); see "
-                                           f"`scenario-farm status {directory}`")
-        return cls.from_json(data, str(directory / FILE))
-
-    def write(self, directory) -> Path:
-        path = Path(directory) / FILE
-        write_json(path, self.to_json())
-        return path
-
-    def __getitem__(self, key: str):
-        """The value of summary.json's ``key`` (for code written against the JSON)."""
-        return self.to_json()[key]
 
 
 def summarize(cfg: Config, parts: dict, safe_sets: dict[str, SafeSet], guarantees: dict) -> Summary:
