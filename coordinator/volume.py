@@ -49,11 +49,12 @@ def union_volume(centres: np.ndarray, half_widths, origin=None, bounds=None) -> 
     n = centres.shape[1]
     widths = _widths(centres, half_widths)
     finest = float(widths.min())
+    uniform = float(widths.max()) == finest  # every box one cell: no sizes to tell apart
     side = 2 * finest
     # a box spans ratio = w / f cells per axis when its faces are on cell faces
     ratio = widths / finest
     whole = np.round(ratio).astype(np.int64)
-    integral = np.abs(ratio - whole) < 1e-9
+    integral = None if uniform else np.abs(ratio - whole) < 1e-9
     lower = centres - widths[:, None]
     origin = _origin(lower, side) if origin is None else np.asarray(origin, dtype=float)
     blo, bhi = (None, None) if bounds is None else (np.asarray(b, dtype=float) for b in bounds)
@@ -67,12 +68,18 @@ def union_volume(centres: np.ndarray, half_widths, origin=None, bounds=None) -> 
     for first in range(0, len(centres), CHUNK):
         lo = lower[first : first + CHUNK]
         rel = (lo - origin) / side
-        aligned = (np.abs(rel - np.round(rel)) < 1e-9).all(axis=1) & integral[first : first + CHUNK]
+        aligned = (np.abs(rel - np.round(rel)) < 1e-9).all(axis=1)
+        if not uniform:
+            aligned &= integral[first : first + CHUNK]
         if bounds is not None:  # only unclipped boxes fill their cells
             aligned &= ((lo >= blo - 1e-12) & (lo + 2 * widths[first : first + CHUNK, None] <= bhi + 1e-12)).all(axis=1)
-        cells, k = np.round(rel[aligned]).astype(np.int64), whole[first : first + CHUNK][aligned]
-        for size in np.unique(k):
-            full_keys += _spanned_keys(keys, cells[k == size], int(size))
+        cells = np.round(rel[aligned]).astype(np.int64)
+        if uniform:
+            full_keys.append(keys(cells))
+        else:
+            k = whole[first : first + CHUNK][aligned]
+            for size in np.unique(k):
+                full_keys += _spanned_keys(keys, cells[k == size], int(size))
         ragged.append(first + np.flatnonzero(~aligned))
     full_keys = np.sort(np.concatenate(full_keys)) if full_keys else np.zeros(0, dtype=np.int64)
     full_keys = full_keys[np.r_[True, full_keys[1:] != full_keys[:-1]]] if len(full_keys) else full_keys
