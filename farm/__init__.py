@@ -8,11 +8,16 @@ scenario sampling, on a Ray farm. The Python API (``farm.api``):
     overlay([dir1, dir2], path)      -> Path             campaigns on the same slices
     load_config(source, **overrides) -> Config           TOML path or string, dict
 
+Results: ``SafeSet`` (the boxes: contains, volumes, result_hash, Parquet), ``Summary``
+(summary.json) and ``Certificate`` (certificate.json), frozen dataclasses.
+
 Runtime pieces: config, executors (in-process and Ray), campaign storage, CLI.
 """
 
+from coordinator.safe_set import SafeSet
 from farm.api import Certificate, QuantifyResult, compare, load_config, open_campaign, overlay, quantify, validate
+from farm.summary import Summary
 from scenarios.version import __version__
 
-__all__ = ["Certificate", "QuantifyResult", "__version__", "compare", "load_config", "open_campaign", "quantify",
-           "overlay", "validate"]
+__all__ = ["Certificate", "QuantifyResult", "SafeSet", "Summary", "__version__", "compare", "load_config",
+           "open_campaign", "quantify", "overlay", "validate"]

@@ -11,8 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from coordinator.reference import claimed, compare_boxes, falsify, grid, reference_safe
-from farm.files import read_safe_set, write_json
+from coordinator.reference import compare_boxes, falsify, grid, reference_safe
+from coordinator.safe_set import SafeSet
+from farm.files import write_json
 from farm.simulators import build_simulator
 from farm.storage import CampaignDir
 
@@ -40,7 +41,7 @@ def compare(directory: Path, grid: int | None = None, progress=None) -> dict:
         grid = 24  # every grid point is a 40 s simulation
     backend = build_simulator(spec_of(cfg)).backend
     scenario = backend.scenario
-    centres, h = read_safe_set(directory / "safe_set.parquet", scenario.state_names)
+    safe_set = SafeSet.from_parquet(directory / "safe_set.parquet", scenario.state_names)
     points = _grid(scenario, grid)
     reference_safe(backend, points[:1])  # no reference at all: say so before any work
     t0 = time.monotonic()
@@ -48,7 +49,7 @@ def compare(directory: Path, grid: int | None = None, progress=None) -> dict:
         f"({'simulated under Gamma*' if simulated or scenario.reference_safe(points[:1]) is None else 'model'})")
     truth = reference_safe(backend, points)
     say(f"compare: reference done in {time.monotonic() - t0:.1f} s; measuring the claimed set")
-    metrics = compare_boxes(backend, centres, h, truth=truth, grid_points_per_axis=_k(scenario, grid))
+    metrics = compare_boxes(backend, safe_set, truth=truth, grid_points_per_axis=_k(scenario, grid))
     notes = []
     if cfg.actions.mode != "adversarial" and scenario.name != "toy" and scenario.sv_policy_name != "brake":
         sample = points[truth][:: max(1, int(truth.sum()) // 20000)]
@@ -58,10 +59,10 @@ def compare(directory: Path, grid: int | None = None, progress=None) -> dict:
         notes.append(f"reference = worst case under Gamma*; random action sequences broke {broken} of "
                      f"{len(sample)} sampled reference-safe points")
     metrics["reference"] = ("simulated under Gamma* (black-box SV)" if simulated else "model-based")
-    metrics["boxes"], metrics["half_width"] = int(len(centres)), h
+    metrics["boxes"], metrics["half_width"] = len(safe_set), safe_set.finest
     metrics["notes"] = notes
     write_json(directory / "compare.json", metrics)
-    _plot(directory / "plots" / "compare.png", backend, centres, h, cfg)
+    _plot(directory / "plots" / "compare.png", backend, safe_set, cfg)
     return metrics
 
 
@@ -88,7 +89,7 @@ def _grid(scenario, k):
     return grid(scenario, _k(scenario, k))
 
 
-def _plot(path: Path, backend, centres, h, cfg) -> None:
+def _plot(path: Path, backend, safe_set: SafeSet, cfg) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -110,7 +111,7 @@ def _plot(path: Path, backend, centres, h, cfg) -> None:
         if varied is not None:
             pts[:, varied] = level
         truth = reference_safe(backend, pts).reshape(gx.shape)
-        got = claimed(scenario, centres, h, pts).reshape(gx.shape)
+        got = safe_set.contains(pts).reshape(gx.shape)
         img = np.zeros(gx.shape + (3,)) + 1.0
         img[truth & got] = (0.75, 0.9, 0.75)
         img[got & ~truth] = (0.85, 0.1, 0.1)
