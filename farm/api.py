@@ -249,8 +249,10 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
     spec = SimSpec(cfg.scenario.model_dump(), cfg.actions.model_dump(), v.horizon, farm_cfg.seed)
     simulator = build_simulator(spec)
     scenario, policy = simulator.scenario, simulator.policy
+    from farm.openscenario.ranges import validate_section
+
     set_boxes = read_safe_set(v.domain_set, scenario.state_names) if v.domain_set else None
-    domain = Domain.from_config(scenario, v.model_dump(), set_boxes)
+    domain = Domain.from_config(scenario, validate_section(v, scenario), set_boxes)
     check_validate(cfg, domain.lo, domain.hi, domain.is_set)
     p = plan(domain, v.algorithm, v.epsilon, v.beta, v.delta, v.boundary, simulator.deterministic)
     directory = CampaignDir(out) if out is not None else None
@@ -324,6 +326,20 @@ def compare(target, *, grid: int | None = None, progress=None) -> dict:
 
     directory = target.directory if isinstance(target, QuantifyResult) else Path(target)
     return run_compare(directory, grid=grid, progress=progress)
+
+
+def export_openscenario(target, *, force: bool = False) -> dict:
+    """A campaign's failing runs and certified set as ASAM OpenSCENARIO files in
+    DIR/openscenario/ (farm/openscenario/export.py): each recorded failing run or
+    validation counterexample as a concrete scenario (``run-<index>.xosc``,
+    ``counterexample-<index>.xosc``, OpenSCENARIO 1.0) on ``road.xodr`` (OpenDRIVE 1.5),
+    and the certified set as a ParameterValueDistribution (``safe_set.xosc`` or
+    ``certified_domain.xosc``, 1.2) over ``logical_scenario.xosc``. Returns
+    {"directory", "files", "runs", "notes"}; ``force`` replaces an earlier export."""
+    from farm.openscenario.export import export_openscenario as run_export
+
+    directory = target.directory if isinstance(target, QuantifyResult) else Path(target)
+    return run_export(directory, force=force)
 
 
 def falsify(target, *, gamma_star=None, points: int = 10_000, tries: int = 4, seed: int | None = None,

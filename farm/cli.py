@@ -170,6 +170,16 @@ def cmd_falsify(args) -> int:
     return EXIT_COUNTEREXAMPLE if report["refuted"] else EXIT_OK
 
 
+def cmd_export(args) -> int:
+    from farm import api
+    from farm.openscenario.export import describe
+
+    if not args.xosc:
+        raise ValueError("export: choose a format; allowed: --xosc (ASAM OpenSCENARIO and OpenDRIVE)")
+    print(describe(api.export_openscenario(args.dir, force=args.force)))
+    return EXIT_OK
+
+
 def cmd_schema(args) -> int:
     from farm.config import schema
 
@@ -245,6 +255,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=None, help="default: the campaign's farm.seed")
     _add_output_flags(p)
     p.set_defaults(func=cmd_falsify)
+
+    p = sub.add_parser("export", help="write a campaign's failing runs and certified set for other tools")
+    p.add_argument("dir")
+    p.add_argument("--xosc", action="store_true", help="as ASAM OpenSCENARIO (.xosc) with OpenDRIVE roads (.xodr), "
+                                                       "into DIR/openscenario/")
+    p.add_argument("--force", action="store_true", help="replace an earlier export in DIR/openscenario/")
+    p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("schema", help="print the JSON Schema of the config (for editors)")
     p.set_defaults(func=cmd_schema)
