@@ -319,13 +319,19 @@ def overlay(results, path) -> Path:
     return draw_overlay(Path(path), results[0]._scenario(), [(r.centres, r.half_width) for r in results], labels)
 
 
-def compare(target, *, grid: int | None = None, progress=None) -> dict:
+def compare(target, *, grid: int | None = None, grid_total: int | None = None, estimate_only: bool = False,
+            progress=None) -> dict:
     """A finished campaign (directory or QuantifyResult) against the reference safe set:
-    IoU, precision, recall, Hausdorff; writes compare.json and plots/compare.png."""
+    IoU, precision, recall, Hausdorff; writes compare.json and plots/compare.png. The
+    reference grid: ``grid`` points per axis or ``grid_total`` points in all (default
+    ~1.5e6 for a model reference, 24^3 for one simulated with a black-box back end).
+    ``progress`` (a farm.progress.Progress) is told the runs it will take and the time
+    estimated from a first batch before the rest; ``estimate_only`` returns that plan
+    ({"reference_runs", "figure_runs", "estimated_s", ...}) and writes nothing."""
     from farm.compare import compare as run_compare
 
     directory = target.directory if isinstance(target, QuantifyResult) else Path(target)
-    return run_compare(directory, grid=grid, progress=progress)
+    return run_compare(directory, grid=grid, grid_total=grid_total, estimate_only=estimate_only, progress=progress)
 
 
 def export_openscenario(target, *, force: bool = False) -> dict:

@@ -154,7 +154,14 @@ def cmd_compare(args) -> int:
 
     from farm.progress import Progress
 
-    metrics = api.compare(args.dir, grid=args.grid, progress=Progress(mode=_mode(args)))
+    progress = Progress(mode=_mode(args))
+    if args.estimate:
+        from farm.compare import describe_estimate
+
+        plan = api.compare(args.dir, grid=args.grid, grid_total=args.grid_total, estimate_only=True, progress=progress)
+        print(describe_estimate(Path(args.dir), plan))
+        return EXIT_OK
+    metrics = api.compare(args.dir, grid=args.grid, grid_total=args.grid_total, progress=progress)
     print(describe(Path(args.dir), metrics))
     return EXIT_OK
 
@@ -242,7 +249,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("compare", help="compare a quantified set with the reference safe set")
     p.add_argument("dir")
-    p.add_argument("--grid", type=int, default=None, help="reference grid points per axis")
+    p.add_argument("--grid", type=int, default=None, help="reference grid points per axis (default: ~1.5e6 points "
+                                                          "for a model reference, 24^3 for a simulated one)")
+    p.add_argument("--grid-total", type=int, default=None, help="reference grid points in all (the most points per "
+                                                                "axis that fit)")
+    p.add_argument("--estimate", action="store_true", help="say how many runs the reference takes and how long "
+                                                           "(from a timed first batch), then stop")
     _add_output_flags(p)
     p.set_defaults(func=cmd_compare)
 
