@@ -16,7 +16,6 @@ from scenarios.lead_follow import LeadFollow
 from small_campaign import lead_follow_toml
 from xosc_reading import odr15, osc10, osc12, play, schema_errors
 
-pytest.importorskip("xmlschema")
 DT = 0.1
 
 
