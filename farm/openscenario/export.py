@@ -44,10 +44,11 @@ def export_openscenario(directory, *, force: bool = False) -> dict:
     cfg = load_frozen_config(directory)
     scenario, sv_policy = _scenario(cfg)
     layout = layout_of(scenario)
+    notes: list[str] = []
     if kind == "quantify":
         horizon = cfg.quantify.horizon
         summary = _json(directory / "summary.json", "the campaign has not finished")
-        runs = _recorded_runs(directory)
+        runs = _recorded_runs(directory, scenario, sv_policy, notes)
     elif kind == "validate":
         horizon = cfg.validate.horizon
         summary = _json(directory / "certificate.json", "the validation wrote no certificate")
@@ -65,16 +66,17 @@ def export_openscenario(directory, *, force: bool = False) -> dict:
         files.append(write_xml(out / name, concrete_scenario(layout, trajectory, horizon=horizon,
                                                               description=description, road_file=ROAD,
                                                               sv_policy=sv_policy)))
-    notes: list[str] = []
     dist = _certified(directory, kind, cfg, scenario, summary, notes)
     if dist is not None:
         file_name, root = dist
-        actions = np.asarray(cfg.actions.value if cfg.actions.mode == "constant" else scenario.adversarial_actions[0],
+        constant = cfg.actions.mode == "constant"
+        actions = np.asarray(cfg.actions.value if constant else scenario.adversarial_actions[0],
                              dtype=float).reshape(-1)
         held = ", ".join(f"{scenario.action_words.get(a, a)} {u:g} {scenario.action_units.get(a, '')}".strip()
                          for a, u in zip(scenario.action_names, actions))
         description = (f"scenario-farm {scenario.name} / {sv_policy}: logical scenario; parameters "
-                       f"{', '.join(scenario.state_names)} are the start state; held from t = 0: {held}")
+                       f"{', '.join(scenario.state_names)} are the start state; held from t = 0: {held} "
+                       f"({'the configured constant action' if constant else 'Gamma*, the worst case'})")
         defaults = (scenario.lower + scenario.upper) / 2
         files.append(write_xml(out / LOGICAL, logical_scenario(layout, horizon=horizon, description=description,
                                                                road_file=ROAD, sv_policy=sv_policy,
@@ -112,19 +114,24 @@ def _json(path: Path, missing: str) -> dict:
         raise CampaignError(f"{path}: unreadable ({exc})") from None
 
 
-def _recorded_runs(directory: Path) -> list[tuple[str, np.ndarray, str]]:
+def _recorded_runs(directory: Path, scenario, sv_policy: str, notes: list) -> list[tuple[str, np.ndarray, str]]:
+    """A damaged recording is left out with a note: it must not hide the others."""
     from farm.recording import read_recording
 
     runs = []
     for path in sorted((directory / "recordings").glob("*.mcap")):
-        rec = read_recording(path)
+        try:
+            rec = read_recording(path)
+        except ValueError as exc:
+            notes.append(f"skipped {exc}")
+            continue
         meta = rec["metadata"]
         for index, run in sorted(rec["runs"].items()):
             traj = run["trajectory"]
-            description = (f"scenario-farm {rec['topic'].split('/')[2]}: recorded {run['outcome']} run, sample "
-                           f"{index} of {directory.name} (stream key seed={meta.get('seed')}, index={index}; "
-                           f"{len(traj) - 1} steps of 0.1 s; config {meta.get('config_hash')}); sv is the "
-                           f"controller under test")
+            description = (f"scenario-farm {scenario.name} / {sv_policy}: a recorded {run['outcome']}, sample {index} "
+                           f"of {directory.name} (stream key seed={meta.get('seed')}, index={index}; {len(traj) - 1} "
+                           f"steps of {scenario.dt:g} s; config {meta.get('config_hash')}); sv is the controller "
+                           f"under test")
             runs.append((f"run-{index}.xosc", traj, description))
     return runs
 

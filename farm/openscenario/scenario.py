@@ -35,7 +35,7 @@ from farm.openscenario.road import LANE_ID, ROAD_ID
 
 SV = "sv"
 SV_DRIVER = "SvDriver"
-UNDER_TEST, RECORDED, NONE = "controller_under_test", "recorded", "none"
+UNDER_TEST, RECORDED = "controller_under_test", "recorded"  # SvDriver values ("none": neither)
 CONTROLLER = "controller_under_test"
 EARLY = 1e-3  # [s] time conditions fire this much before k dt, so a tool's float clock never delays them a frame
 MAX_SPEED = 70.0  # [m/s] the vehicles' declared performance

@@ -164,6 +164,19 @@ def test_a_second_export_needs_force_and_bad_requests_are_one_line_errors(lead_f
     assert cli("export", lead_follow, "--xosc", "--force").returncode == 0
 
 
+def test_a_damaged_recording_is_left_out_with_a_note(lead_follow, tmp_path):
+    import shutil
+
+    copy = tmp_path / "copy"
+    shutil.copytree(lead_follow, copy)
+    shutil.rmtree(copy / "openscenario")
+    (copy / "recordings" / "runs-999999.mcap").write_bytes(b"not mcap")
+    r = cli("export", copy, "--xosc")
+    assert r.returncode == 0, r.stderr
+    assert "note: skipped" in r.stdout and "runs-999999.mcap" in r.stdout
+    assert len(list((copy / "openscenario").glob("run-*.xosc"))) == len(recorded(lead_follow))
+
+
 def test_a_scenario_without_vehicles_on_a_lane_is_refused(tmp_path):
     (tmp_path / "t.toml").write_text('[scenario]\nname = "toy"\n[quantify]\ndelta0 = 0.5\ndelta_min = 0.5\n'
                                      '[farm]\nexecutor = "local"\n')
