@@ -52,14 +52,25 @@ def reference_safe(backend, points: np.ndarray) -> np.ndarray:
 
 def falsify(backend, safe_points: np.ndarray, tries: int = 4, horizon: int = 200, seed: int = 0) -> int:
     """How many reference-safe points fail under some random action sequence."""
-    if len(safe_points) == 0:
-        return 0
-    broken = np.zeros(len(safe_points), dtype=bool)
+    return int(falsified(backend, safe_points, slice(None), tries, horizon, seed).sum())
+
+
+def falsified(backend, safe_points: np.ndarray, rows, tries: int = 4, horizon: int = 200,
+              seed: int = 0) -> np.ndarray:
+    """Which of ``safe_points[rows]`` (a slice or index array) fail under one of
+    ``tries`` random action sequences. Try k of point i is run (seed, k *
+    len(safe_points) + i), so any split of the points into ``rows`` gives the answer of
+    the whole (a first part can be timed for an estimate)."""
+    total = len(safe_points)
+    index = np.arange(total)[rows]
+    points = safe_points[rows]
+    broken = np.zeros(len(points), dtype=bool)
+    if len(points) == 0:
+        return broken
     for k in range(tries):
-        idx = np.arange(k * len(safe_points), (k + 1) * len(safe_points))
-        batch = run_scenario(backend, safe_points, horizon, UniformActions(), RunStreams.of(seed, idx))
+        batch = run_scenario(backend, points, horizon, UniformActions(), RunStreams.of(seed, k * total + index))
         broken |= batch.outcomes == FAILURE
-    return int(broken.sum())
+    return broken
 
 
 def grid(scenario: Scenario, points_per_axis: int | None = None) -> np.ndarray:

@@ -212,8 +212,10 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
     spec = SimSpec(cfg.scenario.model_dump(), cfg.actions.model_dump(), v.horizon, farm_cfg.seed)
     simulator = build_simulator(spec)
     scenario, policy = simulator.scenario, simulator.policy
+    from farm.openscenario.ranges import validate_section
+
     safe_set = SafeSet.from_parquet(v.domain_set, scenario.state_names) if v.domain_set else None
-    domain = Domain.from_config(scenario, v.model_dump(), safe_set)
+    domain = Domain.from_config(scenario, validate_section(v, scenario), safe_set)
     check_validate(cfg, domain.lo, domain.hi, domain.is_set)
     p = plan(domain, v.algorithm, v.epsilon, v.beta, v.delta, v.boundary, simulator.deterministic)
     directory = CampaignDir(out) if out is not None else None
@@ -269,13 +271,33 @@ def overlay(results, path) -> Path:
     return draw_overlay(Path(path), results[0]._scenario(), [r.safe_set for r in results], labels)
 
 
-def compare(target, *, grid: int | None = None, progress=None) -> dict:
+def compare(target, *, grid: int | None = None, grid_total: int | None = None, estimate_only: bool = False,
+            progress=None) -> dict:
     """A finished campaign (directory or QuantifyResult) against the reference safe set:
-    IoU, precision, recall, Hausdorff; writes compare.json and plots/compare.png."""
+    IoU, precision, recall, Hausdorff; writes compare.json and plots/compare.png. The
+    reference grid: ``grid`` points per axis or ``grid_total`` points in all (default
+    ~1.5e6 for a model reference, 24^3 for one simulated with a black-box back end).
+    ``progress`` (a farm.progress.Progress) is told the runs it will take and the time
+    estimated from a first batch before the rest; ``estimate_only`` returns that plan
+    ({"reference_runs", "figure_runs", "estimated_s", ...}) and writes nothing."""
     from farm.compare import compare as run_compare
 
     directory = target.directory if isinstance(target, QuantifyResult) else Path(target)
-    return run_compare(directory, grid=grid, progress=progress)
+    return run_compare(directory, grid=grid, grid_total=grid_total, estimate_only=estimate_only, progress=progress)
+
+
+def export_openscenario(target, *, force: bool = False) -> dict:
+    """A campaign's failing runs and certified set as ASAM OpenSCENARIO files in
+    DIR/openscenario/ (farm/openscenario/export.py): each recorded failing run or
+    validation counterexample as a concrete scenario (``run-<index>.xosc``,
+    ``counterexample-<index>.xosc``, OpenSCENARIO 1.0) on ``road.xodr`` (OpenDRIVE 1.5),
+    and the certified set as a ParameterValueDistribution (``safe_set.xosc`` or
+    ``certified_domain.xosc``, 1.2) over ``logical_scenario.xosc``. Returns
+    {"directory", "files", "runs", "notes"}; ``force`` replaces an earlier export."""
+    from farm.openscenario.export import export_openscenario as run_export
+
+    directory = target.directory if isinstance(target, QuantifyResult) else Path(target)
+    return run_export(directory, force=force)
 
 
 def falsify(target, *, gamma_star=None, points: int = 10_000, tries: int = 4, seed: int | None = None,

@@ -159,7 +159,14 @@ def cmd_compare(args) -> int:
 
     from farm.progress import Progress
 
-    metrics = api.compare(args.dir, grid=args.grid, progress=Progress(mode=_mode(args)))
+    progress = Progress(mode=_mode(args))
+    if args.estimate:
+        from farm.compare import describe_estimate
+
+        plan = api.compare(args.dir, grid=args.grid, grid_total=args.grid_total, estimate_only=True, progress=progress)
+        print(describe_estimate(Path(args.dir), plan))
+        return EXIT_OK
+    metrics = api.compare(args.dir, grid=args.grid, grid_total=args.grid_total, progress=progress)
     print(describe(Path(args.dir), metrics))
     return EXIT_OK
 
@@ -173,6 +180,16 @@ def cmd_falsify(args) -> int:
                          progress=Progress(mode=_mode(args)))
     print(describe(Path(args.dir), report))
     return EXIT_COUNTEREXAMPLE if report["refuted"] else EXIT_OK
+
+
+def cmd_export(args) -> int:
+    from farm import api
+    from farm.openscenario.export import describe
+
+    if not args.xosc:
+        raise ValueError("export: choose a format; allowed: --xosc (ASAM OpenSCENARIO and OpenDRIVE)")
+    print(describe(api.export_openscenario(args.dir, force=args.force)))
+    return EXIT_OK
 
 
 def cmd_schema(args) -> int:
@@ -237,7 +254,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("compare", help="compare a quantified set with the reference safe set")
     p.add_argument("dir")
-    p.add_argument("--grid", type=int, default=None, help="reference grid points per axis")
+    p.add_argument("--grid", type=int, default=None, help="reference grid points per axis (default: ~1.5e6 points "
+                                                          "for a model reference, 24^3 for a simulated one)")
+    p.add_argument("--grid-total", type=int, default=None, help="reference grid points in all (the most points per "
+                                                                "axis that fit)")
+    p.add_argument("--estimate", action="store_true", help="say how many runs the reference takes and how long "
+                                                           "(from a timed first batch), then stop")
     _add_output_flags(p)
     p.set_defaults(func=cmd_compare)
 
@@ -250,6 +272,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=None, help="default: the campaign's farm.seed")
     _add_output_flags(p)
     p.set_defaults(func=cmd_falsify)
+
+    p = sub.add_parser("export", help="write a campaign's failing runs and certified set for other tools")
+    p.add_argument("dir")
+    p.add_argument("--xosc", action="store_true", help="as ASAM OpenSCENARIO (.xosc) with OpenDRIVE roads (.xodr), "
+                                                       "into DIR/openscenario/")
+    p.add_argument("--force", action="store_true", help="replace an earlier export in DIR/openscenario/")
+    p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("schema", help="print the JSON Schema of the config (for editors)")
     p.set_defaults(func=cmd_schema)

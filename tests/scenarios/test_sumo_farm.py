@@ -65,6 +65,9 @@ def test_compare_on_a_sumo_campaign_uses_the_simulated_reference(tmp_path):
                        text=True)
     assert r.returncode == 0, r.stderr
     assert "simulated under Gamma*" in r.stdout
+    # up front: the runs (1,728 grid points + 4 slices of 30 x 30 for the figure) and their time
+    plan = r.stderr.index("1,728 grid points (12 per axis) + 3,600 for the figure = 5,328 runs")
+    assert plan < r.stderr.index("for the rest (a shared machine") < r.stderr.index("reference done")
     metrics = json.loads((out / "compare.json").read_text())
     assert metrics["iou"] >= 0.95 and metrics["precision"] >= 0.97
 
