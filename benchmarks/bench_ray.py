@@ -31,7 +31,6 @@ def campaign_config(executor="local", workers=1, backend="numpy", delta_min=0.5)
 
 def run_campaign(cfg):
     """-> (counters, wall seconds of the campaign loop, worker stats or None, result hash)."""
-    from coordinator.results import result_hash
     from farm.campaign_setup import build_algorithm, build_campaign, spec_of
     from farm.executors import make_executor
     from farm.simulators import build_simulator
@@ -48,7 +47,7 @@ def run_campaign(cfg):
     wall = time.perf_counter() - t0
     stats = ex.worker_stats() if ray_actors else None
     ex.close()
-    return c, wall, stats, result_hash(*algo.result())
+    return c, wall, stats, algo.result().result_hash
 
 
 def idle(stats, wall) -> str:

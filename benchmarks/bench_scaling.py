@@ -57,11 +57,9 @@ def run_campaign(cfg) -> dict:
     stats = ex.worker_stats()
     busy = np.array([s["busy_s"] for s in stats])
     ex.close()
-    from coordinator.results import result_hash
-
     return {"workers": cfg.farm.workers, "committed": c.committed, "wall_s": wall, "cpu_s": cpu, "main_cpu_s": main_cpu, "startup_s": startup,
             "rate": c.committed / wall, "idle": 1 - busy.mean() / wall,
-            "worker_busy_s": float(busy.sum()), "workers_cpu_s": workers_cpu, "hash": result_hash(*algo.result())}
+            "worker_busy_s": float(busy.sum()), "workers_cpu_s": workers_cpu, "hash": algo.result().result_hash}
 
 
 def _cpu_seconds(pids: list[int]) -> float:

@@ -34,7 +34,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.coverage import Coverage, Rescreen
+from coordinator.safe_set import SafeSet
 from coordinator.stable_sampler import Draws
+from scenarios.base import Scenario
 from scenarios.streams import RunStreams
 
 
@@ -62,6 +64,7 @@ class Algorithm(ABC):
     """A quantification algorithm (paper Alg. 5-8) over explicit state."""
 
     name: str = ""
+    scenario: Scenario
     decays: bool = True  # delta shrinks round by round (False: a single round)
     # can end with a certification round (the final set checked as validate checks it)
     certifies: bool = False
@@ -151,9 +154,9 @@ class Algorithm(ABC):
         its checkpoints need, before the result files and plots are made. ``result``,
         ``counts`` and ``failure_points`` still answer; ``state`` need not."""
 
-    def result(self) -> tuple[np.ndarray, float]:
-        """The quantified set: (M, n) alive centres and the half-width."""
-        return self.vertices.alive_points(), self.delta
+    def result(self) -> SafeSet:
+        """The quantified set: a box of half-width delta around every alive centre."""
+        return SafeSet.uniform(self.vertices.alive_points(), self.delta, self.scenario.state_names)
 
     def failure_points(self) -> np.ndarray:
         """(F, n) start states of runs that failed and pruned (PhiBar), if kept."""

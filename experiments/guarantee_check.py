@@ -56,7 +56,7 @@ def experiment(seeds: int, b: float) -> dict:
     for seed in range(seeds):
         cert = api.validate(config(b, seed))
         wrong += cert.certified
-        n = cert["n_required"]
+        n = cert.n_required
     lo, hi = stats.binomtest(wrong, seeds).proportion_ci(0.95, method="exact")
     return {"epsilon": EPS, "beta": BETA, "n_eps": n, "cut_b": b, "true_violation_rate": p_true,
             "true_rate_mc_runs": mc_runs, "predicted_false_certification": (1 - p_true) ** n,

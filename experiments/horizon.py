@@ -17,7 +17,6 @@ import numpy as np
 
 from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign, CampaignSettings
-from coordinator.spatial import PointIndex
 from coordinator.spe import SPESettings
 from farm.local_executor import LocalExecutor
 from scenarios.simulator import SimSpec
@@ -62,10 +61,8 @@ def main() -> None:
         truth = adversary_reference(make_scenario("lead-follow", sv_policy=policy), grid)
         for delta_min in (1.0, 0.5):
             for horizon in (5, 10, 20, 50, 100):
-                scenario, (centres, h) = quantified("lead-follow", policy, horizon, delta_min)
-                index = PointIndex(3, 2 * h, scenario.lower)
-                index.insert(centres)
-                claimed = index.any_within(grid, h)
+                _, safe_set = quantified("lead-follow", policy, horizon, delta_min)
+                claimed = safe_set.contains(grid)
                 row = {"policy": policy, "delta_min": delta_min, "K": horizon,
                        "unsafe_claimed_fraction_of_claimed": float((claimed & ~truth).sum() / claimed.sum()),
                        "unsafe_claimed_fraction_of_sigma": float((claimed & ~truth).mean()),

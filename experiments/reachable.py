@@ -29,9 +29,9 @@ def main() -> None:
             t0 = time.perf_counter()
             settings = CampaignSettings(epsilon=0.001, beta=0.1, budget=3_000_000, batch_size=1024, pipeline_depth=2)
             c = Campaign(algo, ex, settings).run()
-            centres, h = algo.result()
-            m = compare_boxes(NumpyBackend(sc), centres, h, grid_points_per_axis=100)
-            row = {"policy": policy, "reachable": mode, "runs": c.committed, "boxes": len(centres),
+            safe_set = algo.result()
+            m = compare_boxes(NumpyBackend(sc), safe_set, grid_points_per_axis=100)
+            row = {"policy": policy, "reachable": mode, "runs": c.committed, "boxes": len(safe_set),
                    "iou": m["iou"], "precision": m["precision"], "recall": m["recall"],
                    "seconds": round(time.perf_counter() - t0, 1)}
             rows.append(row)

@@ -70,17 +70,17 @@ def run(batch: int, depth: int, delta_min: float, certify: bool, truth: dict, se
     seconds = time.perf_counter() - t0
     ends = c.round_ends
     rounds = [b - a for a, b in zip([0] + ends[:-1], ends)]
-    centres, half_width = algo.result()
+    safe_set = algo.result()
     backend = executor.simulator.backend
     if "safe" not in truth:
         truth["safe"] = reference_safe(backend, grid(backend.scenario))
-    metrics = compare_boxes(backend, centres, half_width, truth=truth["safe"])
+    metrics = compare_boxes(backend, safe_set, truth=truth["safe"])
     stale = sum(v for k, v in kinds.items() if "in flight" in k)
     return {"seed": seed, "delta_min": delta_min, "certify": certify, "batch_size": batch, "pipeline_depth": depth,
             "in_flight": batch * depth, "busy_at_most_of_32": busy_at_most(32, depth, batch),
             "committed": c.committed, "rounds": rounds, "converged": c.converged, "changes": c.changes,
             "changes_start_pruned_in_flight": stale, "changes_by_kind": dict(sorted(kinds.items())),
-            "boxes": int(len(centres)), "iou": metrics["iou"], "precision": metrics["precision"],
+            "boxes": len(safe_set), "iou": metrics["iou"], "precision": metrics["precision"],
             "recall": metrics["recall"], "seconds_in_process": round(seconds, 2)}
 
 

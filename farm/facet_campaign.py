@@ -40,6 +40,7 @@ class FacetCampaign:
         self.config_hash = config_hash(cfg)
         self.campaign: Campaign | None = None
         self.startup_s = 0.0
+        self.virtual: tuple[float, float] | None = None  # the virtual farm's (clock, utilisation)
         self._restored: checkpoint.Restored | None = None
 
     def restore(self) -> None:
@@ -75,6 +76,8 @@ class FacetCampaign:
                 self.campaign.run()
             finally:
                 executor.close()
+            if farm_cfg.executor == "virtual":
+                self.virtual = (executor.clock, executor.utilisation)
         done = self.campaign.counters.done
         if done:
             self.algorithm.stop_committing()  # the last checkpoint is then gathered with less held

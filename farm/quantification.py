@@ -10,23 +10,21 @@ checkpoint (farm/signals.py).
 
 from __future__ import annotations
 
+from dataclasses import replace
+from functools import partial
 from pathlib import Path
 
-import numpy as np
-
-from coordinator.results import result_hash
-from coordinator.volume import hull_volume, union_volume
 from farm import config as config_mod
 from farm.campaign_setup import side_facets, spec_of
 from farm.config import Config
 from farm.facet_campaign import FacetCampaign, Stopped
-from farm.files import write_json, write_safe_set
+from farm.files import atomic_write, write_json
 from farm.progress import Progress
 from farm.resources import check_quantify
 from farm.simulators import build_simulator
 from farm.status import StatusWriter
 from farm.storage import CampaignDir, CampaignError
-from scenarios.version import __version__
+from farm.summary import Summary, summarize
 
 __all__ = ["Stopped", "run"]
 
@@ -104,76 +102,28 @@ def guarantee_of(cfg: Config, part: FacetCampaign, delta: float):
                       escaped=campaign.counters.escaped_in_streak, adversarial=cfg.actions.mode == "adversarial")
 
 
-def finish(cfg: Config, out: Path, parts: dict[str, FacetCampaign]) -> dict:
-    part = parts["total"]
-    campaign, scenario = part.campaign, part.scenario
-    centres, h = part.algorithm.result()
-    centres = centres[np.lexsort(centres.T[::-1])]
-    c = campaign.counters
-    chash = config_mod.config_hash(cfg)
-    rhash = result_hash(centres, h)
-    bounds = (scenario.lower, scenario.upper)
-    counters = [p.campaign.counters for p in parts.values()]
-    summary = {
-        "scenario": cfg.scenario.name,
-        "sv_policy": scenario.sv_policy_name,
-        "backend": cfg.scenario.backend,
-        "algorithm": cfg.quantify.algorithm,
-        "epsilon": cfg.quantify.epsilon,
-        "beta": cfg.quantify.beta,
-        "n_eps": campaign.n_eps,
-        # a sampled certification's attempts, and the quiet runs its last one needed
-        # (beta split over attempts); 0 and n_eps without certification
-        "certification_attempts": c.attempts,
-        "n_eps_final": campaign.quiet_needed() if c.attempts and not part.algorithm.enumerates else campaign.n_eps,
-        "delta_final": h,
-        "rounds": c.rounds_completed,
-        "converged": c.converged,
-        "runs_committed": sum(k.committed for k in counters),
-        "runs_simulated": sum(k.runs_simulated for k in counters),
-        "runs_dropped": sum(k.runs_dropped for k in counters),
-        "runs_replaced": sum(k.runs_replaced for k in counters),
-        "runs_discarded": sum(k.runs_discarded for k in counters),
-        "steps_simulated": sum(k.steps_simulated for k in counters),
-        "boxes": int(len(centres)),
-        "volume_union": union_volume(centres, h, bounds=bounds),
-        "volume_hull": hull_volume(centres, h, bounds=bounds),
-        "volume_sigma": scenario.volume,
-        "seed": cfg.farm.seed,
-        "config_hash": chash,
-        "result_hash": rhash,
-        "elapsed_s": round(sum(k.elapsed_s for k in counters), 3),
-        "startup_s": round(sum(p.startup_s for p in parts.values()), 3),
-        "guarantee": (g := guarantee_of(cfg, part, h)).plain,
-        "guarantee_formal": g.formal,
-        "actions": part.policy.description,
-        "failure_facets": list(scenario.failure_facets),
-        "round_ends": list(c.round_ends),
-        "scenario_farm_version": __version__,
-    }
-    for label, side in parts.items():
+def finish(cfg: Config, out: Path, parts: dict[str, FacetCampaign]) -> Summary:
+    safe_sets = {label: p.algorithm.result() for label, p in parts.items()}
+    safe_sets["total"] = safe_sets["total"].sorted()
+    summary = summarize(cfg, parts, safe_sets,
+                        {label: guarantee_of(cfg, p, safe_sets[label].finest) for label, p in parts.items()})
+    for label, safe_set in safe_sets.items():
         if label == "total":
-            continue
-        sc, sh = side.algorithm.result()
-        summary[f"volume_{label}_side"] = union_volume(sc, sh, bounds=bounds)
-        summary[f"volume_hull_{label}_side"] = hull_volume(sc, sh, bounds=bounds)
-        summary[f"result_hash_{label}_side"] = result_hash(sc, sh)
-        gs = guarantee_of(cfg, side, sh)
-        summary[f"guarantee_{label}_side"], summary[f"guarantee_formal_{label}_side"] = gs.plain, gs.formal
-        write_safe_set(out / f"safe_set_{label}_side.parquet", sc, sh, side.scenario.state_names,
-                       {"config_hash": chash, "side": label})
-    write_safe_set(out / "safe_set.parquet", centres, h, scenario.state_names,
-                   {"config_hash": chash, "result_hash": rhash})
+            name, meta = "safe_set.parquet", {"config_hash": summary.config_hash, "result_hash": summary.result_hash}
+        else:
+            name, meta = f"safe_set_{label}_side.parquet", {"config_hash": summary.config_hash, "side": label}
+        atomic_write(out / name, partial(safe_set.to_parquet, metadata=meta))
     for label, p in parts.items():
         if p.campaign.adversary is not None:
             name = "adversary.json" if label == "total" else f"adversary_{label}_side.json"
             write_json(out / name, p.campaign.adversary.report(p.scenario))
-    write_json(out / "summary.json", summary)
+    summary.write(out)
     from farm.plots import draw
 
-    draw(out / "plots", scenario, centres, h, summary)
     for label, side in parts.items():
-        if label != "total":
-            sc, sh = side.algorithm.result()
-            draw(out / "plots" / f"{label}_side", side.scenario, sc, sh, {**summary, "algorithm": f"{label} side"})
+        if label == "total":
+            draw(out / "plots", side.scenario, safe_sets[label], summary)
+        else:
+            draw(out / "plots" / f"{label}_side", side.scenario, safe_sets[label],
+                 replace(summary, algorithm=f"{label} side"))
     return summary

@@ -7,13 +7,13 @@ in a validation directory, the counterexample of certificate.json.
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
 import numpy as np
 import pyarrow.dataset as ds
 
+from farm.certificate import FILE as CERTIFICATE_FILE, Certificate
 from farm.simulators import build_simulator
 from farm.storage import CampaignDir
 from scenarios.base import OUTCOME_NAMES
@@ -25,16 +25,16 @@ def rerun(simulator, index: int, start: np.ndarray):
     return batch.trajectory(0), OUTCOME_NAMES[int(batch.outcomes[0])]
 
 
-def record_counterexample(path: Path, scenario, cert: dict) -> None:
+def record_counterexample(path: Path, scenario, cert: Certificate) -> None:
     from farm.recording import write_recording
 
-    ce = cert["counterexample"]
+    ce = cert.counterexample
     write_recording(path, scenario_name=scenario.name, state_names=list(scenario.state_names), dt=scenario.dt,
                     runs=[{"sample_index": ce["sample_index"], "trajectory": np.array(ce["trajectory"]),
                            "outcome": ce["outcome"]}],
-                    metadata={"config_hash": cert["config_hash"], "seed": str(cert["seed"]),
+                    metadata={"config_hash": cert.config_hash, "seed": str(cert.seed),
                               "kind": "validation counterexample", "reason": ce["reason"],
-                              "scenario_farm_version": cert["scenario_farm_version"]})
+                              "scenario_farm_version": cert.scenario_farm_version})
 
 
 def _recorded(directory: Path, index: int):
@@ -71,7 +71,7 @@ def replay(directory: Path, index: int) -> tuple[bool, str]:
 
     directory = Path(directory)
     CampaignDir(directory).open()  # a one-line error for a file or a directory not ours
-    if (directory / "certificate.json").exists():
+    if (directory / CERTIFICATE_FILE).exists():
         return _replay_counterexample(directory, index)
 
     cfg = CampaignDir(directory).frozen_config()
@@ -104,8 +104,7 @@ def replay(directory: Path, index: int) -> tuple[bool, str]:
 
 
 def _replay_counterexample(directory: Path, index: int) -> tuple[bool, str]:
-    cert = json.loads((directory / "certificate.json").read_text())
-    ce = cert.get("counterexample")
+    ce = Certificate.read(directory).counterexample
     if not ce or ce["sample_index"] != index:
         raise ValueError(f"{directory}: certificate.json holds no counterexample with sample index {index}")
 

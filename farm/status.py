@@ -14,6 +14,7 @@ from pathlib import Path
 
 from farm.files import write_json
 from farm.storage import MARKER, CampaignDir
+from farm.summary import FILE as SUMMARY_FILE, Summary
 
 EVERY_S = 2.0
 
@@ -97,10 +98,10 @@ def describe(directory: Path) -> str:
         lines.append(f"  {state}" + (f": {detail}" if detail else ""))
         if st.get("search_weights"):
             lines.append("  search mixture: " + ", ".join(f"{k} {v:.3f}" for k, v in st["search_weights"].items()))
-    if (directory / "summary.json").exists():
-        s = json.loads((directory / "summary.json").read_text())
-        lines.append(f"  finished: {s['boxes']} boxes, volume {s['volume_union']:.6g}, result hash {s['result_hash']}")
-        lines.append(f"  {s['guarantee']}")
+    if (directory / SUMMARY_FILE).exists():
+        s = Summary.read(directory)
+        lines.append(f"  finished: {s.boxes} boxes, volume {s.volume_union:.6g}, result hash {s.result_hash}")
+        lines.append(f"  {s.guarantee}")
     return "\n".join(lines)
 
 

@@ -180,13 +180,14 @@ class CampaignDir:
                                                "config_hash": config_mod.config_hash(cfg),
                                                "scenario_farm_version": __version__})
 
-    def finished_summary(self) -> dict | None:
-        """``summary.json`` of a finished campaign, or None."""
+    def finished_summary(self):
+        """``summary.json`` of a finished campaign (``farm.summary.Summary``), or None."""
+        from farm.summary import Summary
+
         try:
-            summary = json.loads((self.path / "summary.json").read_text())
-        except (OSError, ValueError):
+            return Summary.read(self.path)
+        except (CampaignError, OSError, ValueError):
             return None
-        return summary if isinstance(summary, dict) and "result_hash" in summary else None
 
     def nothing_started(self) -> bool:
         """No directory, an empty one, or one of ours killed before its config was frozen."""

@@ -32,8 +32,8 @@ def test_a_done_algorithm_keeps_its_state_until_released_and_its_answers_after(a
     assert after.keys() == state.keys()
     assert all(np.array_equal(after[k], v) for k, v in state.items())
     algo.release()
-    (centres, h), counts, failures = algo.result(), algo.counts(), algo.failure_points()
-    assert np.array_equal(centres, answers[0][0]) and h == answers[0][1]
+    safe_set, counts, failures = algo.result(), algo.counts(), algo.failure_points()
+    assert np.array_equal(safe_set.centres, answers[0].centres) and safe_set.result_hash == answers[0].result_hash
     assert counts == answers[1]
     assert np.array_equal(failures, answers[2])
     if mode == "adversarial":  # certification ran: the certified count survives the release

@@ -6,7 +6,6 @@ import pytest
 
 from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign, CampaignSettings
-from coordinator.spatial import PointIndex
 from coordinator.spe import SPESettings
 from farm.local_executor import LocalExecutor
 from scenarios.simulator import SimSpec
@@ -26,10 +25,8 @@ def quantify(algorithm, seed, delta0=1.0, delta_min=0.25):
     settings = CampaignSettings(epsilon=0.01, beta=0.1, budget=400_000, batch_size=256, pipeline_depth=2, seed=seed)
     counters = Campaign(algo, executor, settings).run()
     assert counters.converged
-    centres, h = algo.result()
-    index = PointIndex(2, 2 * h, np.zeros(2))
-    index.insert(centres)
-    return index.any_within(GRID, h), centres, h
+    safe_set = algo.result()
+    return safe_set.contains(GRID), safe_set.centres, safe_set.half_width
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
