@@ -33,7 +33,7 @@ import numpy as np
 from coordinator.algorithm import Algorithm, Event
 from coordinator.coverage import Rescreen
 from coordinator.executor import Chunk
-from scenarios.base import FAILURE, OUTCOME_NAMES
+from scenarios.base import FAILURE, OUTCOME_NAMES, TRUNCATED
 from scenarios.streams import RunStreams
 
 
@@ -69,6 +69,16 @@ class Counters:
     elapsed_s: float = 0.0
     recorded: int = 0  # runs handed to the recorder so far
     attempts: int = 0  # certification attempts (a change during certification starts the next)
+    truncations: list = field(default_factory=list)  # committed truncated runs per facet (Scenario.facets() order)
+
+    def count_truncations(self, chunk: Chunk, k: int) -> None:
+        """Add the truncated runs among the chunk's first ``k`` (committed) rows, by the
+        facet they left Sigma through."""
+        left = chunk.exits[:k][chunk.outcomes[:k] == TRUNCATED]
+        if len(left):
+            counts = np.bincount(left, minlength=len(self.truncations))
+            counts[: len(self.truncations)] += self.truncations
+            self.truncations = counts.tolist()
 
 
 class CommitLog:
@@ -222,6 +232,7 @@ class Campaign:
             pos += 1
         rows = np.arange(pos)
         c.committed += pos
+        c.count_truncations(chunk, pos)
         p.done = at + pos
         self.log.add(chunk.first_index, starts, chunk, rows, rnd, delta, changed[:pos], counted[:pos])
         algo.record(chunk, rows, ids[:pos], starts[:pos])

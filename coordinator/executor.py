@@ -46,6 +46,7 @@ class Chunk:
     fetch_visited: Callable[[], tuple[np.ndarray, np.ndarray]] = field(repr=False)
     keep: Callable = field(repr=False, default=None)  # (rows, takes) -> a handle for screen_stored
     _visited: tuple | None = field(default=None, repr=False)
+    exits: np.ndarray | None = field(default=None, repr=False)  # (k,) int8 facet left through (RunBatch.exits)
 
     def __len__(self) -> int:
         return len(self.lengths)
@@ -95,13 +96,14 @@ def summarize(batch: RunBatch, screen) -> tuple[dict, tuple[np.ndarray, np.ndarr
     states, offsets = batch.visited()
     screening = None if screen is None else screen.screen(states, offsets, batch.outcomes)
     summary = {"first_index": int(batch.indices[0]) if len(batch) else 0, "lengths": batch.lengths,
-               "outcomes": batch.outcomes, "last": batch.last_states(), "screening": screening}
+               "outcomes": batch.outcomes, "last": batch.last_states(), "screening": screening,
+               "exits": batch.exits}
     return summary, (states, offsets)
 
 
 def chunk_of(summary: dict, fetch_visited: Callable, keep: Callable) -> Chunk:
     return Chunk(summary["first_index"], summary["lengths"], summary["outcomes"], summary["last"],
-                 summary["screening"], fetch_visited, keep)
+                 summary["screening"], fetch_visited, keep, exits=summary["exits"])
 
 
 def screen_piece(simulator, source, piece, coverage) -> tuple[np.ndarray, np.ndarray]:

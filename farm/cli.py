@@ -99,6 +99,10 @@ def _print_summary(summary: dict, out: Path) -> None:
         if k in summary:
             v = summary[k]
             print(f"{k:>18}: {v:.6g}" if isinstance(v, float) else f"{k:>18}: {v}")
+    from farm.truncations import lines
+
+    for line in lines(summary):
+        print(f"{'truncated':>18}: {line}")
     print(f"{'guarantee':>18}: {summary['guarantee']}")
     if summary.get("guarantee_formal"):
         print(f"{'formally':>18}: {summary['guarantee_formal']}")

@@ -297,6 +297,7 @@ def finish(cfg: Config, out: Path, parts: dict[str, Part]) -> dict:
         "actions": part.policy.description,
         "failure_facets": list(scenario.failure_facets),
         "round_ends": list(c.round_ends),
+        "truncations": {f.label: n for (f, _), n in zip(scenario.facets(), c.truncations) if n},
         "scenario_farm_version": __version__,
     }
     for label, side in parts.items():
