@@ -77,7 +77,7 @@ class Counters:
         left = chunk.exits[:k][chunk.outcomes[:k] == TRUNCATED]
         if len(left):
             counts = np.bincount(left, minlength=len(self.truncations))
-            counts[: len(self.truncations)] += self.truncations
+            counts[: len(self.truncations)] += np.asarray(self.truncations, dtype=np.int64)
             self.truncations = counts.tolist()
 
 

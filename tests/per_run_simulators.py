@@ -33,13 +33,16 @@ class RowByRow(RunSimulator):
 
 
 class Remembers(RowByRow):
-    """Forgets to forget: the scene keeps the previous run's last gap."""
+    """Forgets to forget: the previous run's last gap leaks into the next run's steps."""
 
     def reset(self, state, key):
-        carried = getattr(self, "state", state)
-        super().reset(state, key)
-        self.state[-1] += 1e-3 * carried[-1]
-        return self.state
+        self.carried = getattr(self, "state", state)[-1]
+        return super().reset(state, key)
+
+    def step(self, action):
+        state = super().step(action)
+        state[-1] += 1e-6 * self.carried
+        return state
 
 
 class Misplaces(RowByRow):
