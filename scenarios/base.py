@@ -250,7 +250,10 @@ class Scenario(ABC):
         """(B, n) -> (B,) int8: CONTINUE, TRUNCATED or FAILURE (failure wins ties).
 
         One axis at a time: with n <= 5 columns, 1-D comparisons are ~20x faster than
-        (B, n) boolean masks reduced with ``any(axis=1)``."""
+        (B, n) boolean masks reduced with ``any(axis=1)``. One state (a per-run simulator's
+        step) in Python floats: the same comparisons, without ~15 numpy calls."""
+        if len(states) == 1:
+            return np.array([self._classify_one(states[0].tolist())], dtype=np.int8)
         left = np.zeros(len(states), dtype=bool)
         failed = np.zeros(len(states), dtype=bool)
         for axis in range(states.shape[1]):
@@ -265,6 +268,19 @@ class Scenario(ABC):
                 failed |= above
         # a failure also left Sigma, so left + failed is 0, 1 (TRUNCATED) or 2 (FAILURE)
         return np.add(left, failed, dtype=np.int8)
+
+    def _classify_one(self, state: list) -> int:
+        verdict = CONTINUE
+        for axis, x in enumerate(state):
+            if x < self._below[axis]:
+                if self._failure_mask_lower[axis]:
+                    return FAILURE
+                verdict = TRUNCATED
+            elif x > self._above[axis]:
+                if self._failure_mask_upper[axis]:
+                    return FAILURE
+                verdict = TRUNCATED
+        return verdict
 
     def exits(self, states: np.ndarray) -> np.ndarray:
         """(B, n) states outside Sigma -> (B,) int8: the facet each left through, as an
