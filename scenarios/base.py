@@ -286,11 +286,11 @@ class Scenario(ABC):
         """(B, n) states outside Sigma -> (B,) int8: the facet each left through, as an
         index into ``facets()`` (2 * axis, + 1 for the upper facet); -1 for a state inside.
         The facet that decides ``classify``: the first failure facet crossed, else the
-        first facet crossed. Called on the few states that end runs, so not tuned."""
+        first facet crossed. Called once per batch, on its runs' last states."""
         crossed = np.empty((len(states), 2 * self.n), dtype=bool)
         crossed[:, 0::2] = states < np.asarray(self._below)
         crossed[:, 1::2] = states > np.asarray(self._above)
-        failing = crossed & np.stack([self._failure_mask_lower, self._failure_mask_upper], 1).reshape(-1)
+        failing = crossed & np.column_stack([self._failure_mask_lower, self._failure_mask_upper]).reshape(-1)
         first = np.where(failing.any(axis=1), failing.argmax(axis=1), crossed.argmax(axis=1))
         return np.where(crossed.any(axis=1), first, -1).astype(np.int8)
 

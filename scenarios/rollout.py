@@ -102,15 +102,15 @@ def run_scenario(backend, starts: np.ndarray, horizon: int, policy, streams: Run
         hi = min(batch, lo + piece)
         part = streams if (lo, hi) == (0, batch) else streams.subset(np.arange(lo, hi))
         _run_piece(backend, starts[lo:hi], horizon, policy, part, check_step_bound,
-                   store[:, :, lo:hi] if (lo, hi) != (0, batch) else store, lengths[lo:hi], outcomes[lo:hi],
-                   exits[lo:hi])
+                   store[:, :, lo:hi] if (lo, hi) != (0, batch) else store, lengths[lo:hi], outcomes[lo:hi])
+    ended = np.flatnonzero(outcomes != HORIZON)  # the facet each left through, from its last state
+    exits[ended] = scenario.exits(store[lengths[ended] - 1, :, ended])
     return RunBatch(streams.indices, store.transpose(0, 2, 1), lengths, outcomes, exits)
 
 
-def _run_piece(backend, starts, horizon, policy, streams, check_step_bound, store, lengths, outcomes,
-               exits) -> None:
-    """One simulation of the runs ``starts``; fills ``store`` (K, n, b), lengths, outcomes
-    and exits. A run that ended is never stepped again: the back end forgets it (``keep``)
+def _run_piece(backend, starts, horizon, policy, streams, check_step_bound, store, lengths, outcomes) -> None:
+    """One simulation of the runs ``starts``; fills ``store`` (K, n, b), lengths and
+    outcomes. A run that ended is never stepped again: the back end forgets it (``keep``)
     in the step it ended, so a simulator never sees a state past a facet."""
     scenario = backend.scenario
     batch, n = starts.shape
@@ -121,6 +121,7 @@ def _run_piece(backend, starts, horizon, policy, streams, check_step_bound, stor
         if states is not starts:
             _check_start(scenario, states, starts, streams)
         rows = np.arange(batch)  # the batch rows of the runs still running: the back end holds these
+        alive = np.ones(batch, dtype=bool)  # the same rows as flags (rows is increasing)
         row_streams = streams
         for t in range(1, horizon):
             actions = policy(scenario, states, t, row_streams)
@@ -130,8 +131,9 @@ def _run_piece(backend, starts, horizon, policy, streams, check_step_bound, stor
             slab = store[t] if full else np.empty((n, len(rows)))
             backend.step(states, actions, noise, slab)
             nxt = slab.T
-            if not full:
-                store[t][:, rows] = slab
+            if not full:  # by flags, one state variable at a time: ~3-8x a scatter by row numbers
+                for i in range(n):
+                    store[t][i][alive] = slab[i]
             # one pass: a sum is finite iff every term is (or it overflowed, which the exact
             # per-row check below then clears); the per-row search only on error
             if not np.isfinite(np.add.reduce(slab, axis=None)):
@@ -146,11 +148,11 @@ def _run_piece(backend, starts, horizon, policy, streams, check_step_bound, stor
                 done = rows[ended]
                 outcomes[done] = status[ended]
                 lengths[done] = t + 1
-                exits[done] = scenario.exits(nxt[ended])
                 going = ~ended
                 if not going.any():
                     break
                 backend.keep(going)
+                alive[done] = False
                 rows = rows[going]
                 nxt = np.compress(going, slab, axis=1).T
                 row_streams = row_streams.subset(going)
