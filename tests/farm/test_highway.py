@@ -88,9 +88,10 @@ def test_highway_idm_quantified_on_ray_certified_and_compared_with_numpy(workdir
     centres, h = read_safe_set(workdir / "runs" / "hw" / "safe_set.parquet", ("v0", "v1", "p10"))
     numpy_idm = make_backend({"name": "lead-follow", "sv_policy": "idm"})
     metrics = compare_boxes(numpy_idm, centres, h, grid_points_per_axis=40)
-    assert metrics["iou"] > 0.75, metrics  # the numpy idm's exact safe set: the same parameters, a close set
-    truth = metrics["reference_volume"]
-    assert 0.7 * truth < metrics["claimed_volume"] < 1.3 * truth
+    # against the numpy idm's exact safe set (same parameters): highway-env's IDM, which
+    # sees the gap centre to centre, brakes later, so its set lies inside (at delta 1 the
+    # IoU is 0.88, docs/benchmarks.md; these delta-4 boxes lose more at the boundary)
+    assert metrics["precision"] > 0.97 and metrics["iou"] > 0.55, metrics
 
 
 def test_the_lateral_case_quantifies_and_certifies(workdir, highway_on_path):
