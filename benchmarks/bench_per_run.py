@@ -25,7 +25,8 @@ from scenarios.registry import make_backend  # noqa: E402
 from scenarios.rollout import run_scenario  # noqa: E402
 from scenarios.streams import RunStreams  # noqa: E402
 
-BACKENDS = {"highway-env IDM (per-run)": "highway_idm:HighwayIDM", "nothing (per-run, Still)": "per_run_simulators:Still"}
+BACKENDS = {"highway-env IDM (per-run)": "highway_idm:HighwayIDM",
+            "nothing (per-run, Still)": "per_run_simulators:Still"}
 
 
 def measure(backend_name: str, runs: int = 400, horizon: int = 50, repeats: int = 5) -> tuple[float, float]:

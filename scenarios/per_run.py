@@ -49,10 +49,6 @@ class RunKey:
         return np.random.Generator(np.random.PCG64(np.random.SeedSequence(self.seed,
                                                                           spawn_key=(self.index, PURPOSE_USER))))
 
-    def streams(self) -> RunStreams:
-        """The run's counter-based streams (``scenarios.streams``), as the farm draws them."""
-        return RunStreams.of(self.seed, [self.index])
-
 
 class RunSimulator(ABC):
     """A simulator of one scene at a time (see the module docstring).

@@ -3,8 +3,9 @@ back end, with every piece of bookkeeping done here once.
 
 Every step's new states are classified continue / truncated / failure (failure wins);
 a run ends at its first non-continue state or after K states (the start counts as the
-first), and a run that ended is never stepped again. The returned trajectories hold every state of every run, the terminal one
-included, so a run can be checked and replayed state by state.
+first), and a run that ended is never stepped again. The returned trajectories hold
+every state of every run, the terminal one included, so a run can be checked and
+replayed state by state.
 """
 
 from __future__ import annotations

@@ -60,7 +60,8 @@ class HighwayIDM(RunSimulator):
         super().__init__(scenario, options)
         unknown = set(self.options) - {"clamp_reverse"}
         if unknown:
-            raise ValueError(f"scenario.highway_idm: unknown option {sorted(unknown)[0]!r}; allowed: clamp_reverse")
+            raise ValueError(f'scenario."highway_idm:HighwayIDM": unknown option {sorted(unknown)[0]!r}; '
+                             f'allowed: clamp_reverse')
         self.clamp_reverse = bool(self.options.get("clamp_reverse", True))
         self.dt = scenario.dt
         self.road = Road(RoadNetwork.straight_road_network(lanes=1, length=10_000.0, speed_limit=30.0))

@@ -93,7 +93,7 @@ class HighwayMOBIL(RunSimulator):
     def __init__(self, scenario, options=None):
         super().__init__(scenario, options)
         if self.options:
-            raise ValueError(f"scenario.highway_lanes: no options; got {sorted(self.options)}")
+            raise ValueError(f'scenario."highway_lanes:HighwayMOBIL": takes no options; got {sorted(self.options)}')
         self.dt = scenario.dt
         self.road = Road(RoadNetwork.straight_road_network(lanes=2, length=10_000.0, speed_limit=30.0))
         self.lane = self.road.network.get_lane(("0", "1", 0))
