@@ -1,8 +1,8 @@
 """A slow simulator for scaling benchmarks: the spec's numpy dynamics at the speed of a
 real simulator process (SUMO: ~4 us per run and step, docs/benchmarks.md).
 
-It costs ``STEP_COST_S`` per held run per step, and drops ended runs at once, as a
-simulator removes finished vehicles. The cost is a sleep, standing in for a remote core:
+It costs ``STEP_COST_S`` per held run per step (the rollout core drops ended runs at
+once, as a simulator removes finished vehicles). The cost is a sleep, standing in for a remote core:
 on one machine, many workers then cost almost no CPU, so the benchmark measures the farm
 (the coordinator and Ray), not this machine's two cores. The steps' costs are added up
 and slept at the end of the rollout, in one sleep: on this KVM guest every sleep call
@@ -22,7 +22,6 @@ STEP_COST_S = 4e-6  # [s] per run and step
 
 class SlowBackend(NumpyBackend):
     name = "slow"
-    compact_below = 1.0  # a simulator stops paying for a run when it ends
     step_cost_s = STEP_COST_S
 
     def __init__(self, scenario, options=None):

@@ -46,7 +46,7 @@ from coordinator.coverage import Rescreen
 from coordinator.executor import Chunk, Executor
 from coordinator.sample_size import n_eps, n_eps_attempt
 from coordinator.stable_sampler import Draws
-from scenarios.base import FAILURE, OUTCOME_NAMES
+from scenarios.base import FAILURE, OUTCOME_NAMES, TRUNCATED
 from scenarios.streams import RunStreams
 
 COUNTING = ("sequential", "deferred")
@@ -158,6 +158,18 @@ class Counters:
     elapsed_s: float = 0.0
     recorded: int = 0  # runs handed to the recorder so far
     attempts: int = 0  # certification attempts (a change during certification starts the next)
+    truncations: list = field(default_factory=list)  # committed truncated runs per facet (Scenario.facets() order)
+
+    def count_truncations(self, chunk: Chunk, rows: np.ndarray) -> None:
+        """Add the truncated runs among the chunk's (used) ``rows``, by the facet they left
+        Sigma through."""
+        if chunk.exits is None:
+            return
+        left = chunk.exits[rows][chunk.outcomes[rows] == TRUNCATED]
+        if len(left):
+            counts = np.bincount(left, minlength=len(self.truncations))
+            counts[: len(self.truncations)] += np.asarray(self.truncations, dtype=np.int64)
+            self.truncations = counts.tolist()
 
     @property
     def runs_dropped(self) -> int:
@@ -498,6 +510,7 @@ class Campaign:
         if len(used) == 0:
             return
         algo.record(chunk, rows[used], ids[used], starts[used])
+        self.counters.count_truncations(chunk, rows[used])
         if self.adversary is not None:
             self.adversary.observe(first_index + used, chunk.outcomes[rows[used]])
 

@@ -50,6 +50,7 @@ class Chunk:
     fetch_visited: Callable[[], tuple[np.ndarray, np.ndarray]] = field(repr=False)
     keep: Callable = field(repr=False, default=None)  # (rows, takes) -> a handle for screen_stored
     _visited: tuple | None = field(default=None, repr=False)
+    exits: np.ndarray | None = field(default=None, repr=False)  # (k,) int8 facet left through (RunBatch.exits)
     indices: np.ndarray | None = None  # (k,) sample indices, when not first_index + row
 
     def __post_init__(self):
@@ -90,7 +91,7 @@ class Chunk:
 
         keep = None if self.keep is None else (lambda rows, takes: self.keep(rows + lo, takes))
         return Chunk(int(self.indices[lo]), self.lengths[lo:hi], self.outcomes[lo:hi], self.last[lo:hi], sc, visited,
-                     keep, indices=self.indices[lo:hi])
+                     keep, indices=self.indices[lo:hi], exits=None if self.exits is None else self.exits[lo:hi])
 
     def trajectory(self, row: int, start: np.ndarray) -> np.ndarray:
         """(length, n) every state of run ``row``: its start, its visited states and
@@ -146,13 +147,13 @@ def summarize(batch: RunBatch, screen) -> tuple[dict, tuple[np.ndarray, np.ndarr
     screening = None if screen is None else screen.screen(states, offsets, batch.outcomes)
     summary = {"first_index": int(batch.indices[0]) if len(batch) else 0, "lengths": batch.lengths,
                "outcomes": batch.outcomes, "last": batch.last_states(), "screening": screening,
-               "indices": batch.indices.astype(np.int64)}
+               "indices": batch.indices.astype(np.int64), "exits": batch.exits}
     return summary, (states, offsets)
 
 
 def chunk_of(summary: dict, fetch_visited: Callable, keep: Callable) -> Chunk:
     return Chunk(summary["first_index"], summary["lengths"], summary["outcomes"], summary["last"],
-                 summary["screening"], fetch_visited, keep, indices=summary["indices"])
+                 summary["screening"], fetch_visited, keep, indices=summary["indices"], exits=summary["exits"])
 
 
 def screen_piece(simulator, source, piece, coverage) -> tuple[np.ndarray, np.ndarray]:

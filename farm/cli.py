@@ -104,6 +104,10 @@ def _print_summary(out: Path, summary=None) -> None:
         if k in values:
             v = values[k]
             print(f"{k:>18}: {v:.6g}" if isinstance(v, float) else f"{k:>18}: {v}")
+    from farm.truncations import lines
+
+    for line in lines(summary):
+        print(f"{'truncated':>18}: {line}")
     print(f"{'guarantee':>18}: {summary.guarantee}")
     if summary.guarantee_formal:
         print(f"{'formally':>18}: {summary.guarantee_formal}")

@@ -13,6 +13,7 @@ import pyarrow.dataset as ds
 
 from farm.files import atomic_write_bytes
 from farm.summary import Summary
+from farm.truncations import shares
 
 STYLE = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
 h1{font-size:1.5em}h2{font-size:1.15em;margin-top:1.6em;border-bottom:1px solid #ddd}
@@ -58,6 +59,11 @@ def write_html(directory, out: Path | None = None) -> Path:
         parts.append(f"<p>{html.escape(str(png.relative_to(directory)))}<br>"
                      f"<img alt='{html.escape(png.stem)}' src='data:image/png;base64,{data}'></p>")
     parts.append("<h2>Rounds</h2>" + _table(_rounds(directory)))
+    parts.append("<h2>Truncated runs</h2><p>Committed runs that left Sigma through a truncating facet: they "
+                 "end quietly and count as safe. A large share through a facet the study did not expect (a "
+                 "vehicle reversing through a speed's lower bound) hides failures.</p>"
+                 + _table([{"facet": facet, "runs": runs, "share of committed runs": f"{share:.2%}"}
+                           for facet, runs, share in shares(summary)]))
     shown = {k: v for k, v in summary.to_json().items() if not isinstance(v, (list, dict))
              and not k.startswith("guarantee")}
     parts.append("<h2>Summary</h2><table>" + "".join(

@@ -85,6 +85,8 @@ class Summary(JsonFile):
     actions: str = ""
     failure_facets: list = field(default_factory=list)
     round_ends: list = field(default_factory=list)
+    # committed runs that left Sigma through a truncating facet (counted safe), per facet
+    truncations: dict = field(default_factory=dict)
     scenario_farm_version: str = ""
     # the virtual farm (farm.executor = "virtual"): simulated time to the result, and the
     # share of the workers' time spent on runs
@@ -161,6 +163,7 @@ def summarize(cfg: Config, parts: dict, safe_sets: dict[str, SafeSet], guarantee
         actions=part.policy.description,
         failure_facets=list(scenario.failure_facets),
         round_ends=list(c.round_ends),
+        truncations=_truncations(scenario, counters),
         scenario_farm_version=__version__,
         **_virtual(parts),
         sides={label: SideSummary(volume=safe_sets[label].volume_union(bounds),
@@ -168,6 +171,16 @@ def summarize(cfg: Config, parts: dict, safe_sets: dict[str, SafeSet], guarantee
                                   result_hash=safe_sets[label].result_hash, guarantee=guarantees[label].plain,
                                   guarantee_formal=guarantees[label].formal)
                for label in parts if label != "total"})
+
+
+def _truncations(scenario, counters: list) -> dict[str, int]:
+    """Committed truncated runs per facet label, over the facet campaigns."""
+    totals = {}
+    for k in counters:
+        for (facet, _), n in zip(scenario.facets(), k.truncations):
+            if n:
+                totals[facet.label] = totals.get(facet.label, 0) + int(n)
+    return totals
 
 
 def _virtual(parts: dict) -> dict:

@@ -5,23 +5,27 @@ needs the same way: action draws from each run's own stream, classification of e
 state (continue / truncated / failure), run ends, lengths, outcomes, the finiteness
 check and the step-bound check. A back end implements only the simulator side:
 
-    insert(starts, horizon)     place runs exactly at ``starts`` (B, n), each to last at most
-                                ``horizon`` states; return the states read back (B, n)
+    insert(starts, horizon, streams)
+                                place runs exactly at ``starts`` (B, n), each to last at most
+                                ``horizon`` states; return the states read back (B, n).
+                                ``streams``: the runs' keyed random streams
+                                (``scenarios.streams.RunStreams``), for a simulator's own
+                                randomness
     step(states, actions, noise, out)
                                 advance every held run one ``dt`` under ``actions`` (k, m)
                                 and write the states read back into ``out`` (n, k);
                                 ``states`` (k, n) are the held runs' last read-back states
-    keep(rows)                  forget the runs whose flag is False (they ended)
+    keep(rows)                  forget the runs whose flag is False: they ended in the step
+                                just taken, and are never stepped again
     clear()                     end of the batch: release whatever the runs hold
 
 plus attributes: ``max_batch`` (None, or the most runs one simulation holds: the core
-runs larger batches in consecutive pieces), ``compact_below`` (the core drops ended runs once fewer than this
-share of the held runs still run: ended runs of a vectorized back end are cheaper to
-keep stepping than to gather away, while a simulator pays per held vehicle) and
-``deterministic`` (a run's outcome depends on its key alone: needed for exactness).
+runs larger batches in consecutive pieces) and ``deterministic`` (a run's outcome
+depends on its key alone: needed for exactness).
 
 ``NumpyBackend`` is the back end of every scenario with a functional ``step_into``;
-``scenarios.sumo`` is a black-box simulator behind the same four calls.
+``scenarios.sumo`` is a black-box simulator behind the same four calls, and
+``scenarios.per_run`` adapts a simulator that advances one scene at a time.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from scenarios.base import Scenario
+from scenarios.streams import RunStreams
 
 
 @runtime_checkable
@@ -38,11 +43,10 @@ class Backend(Protocol):
     """A batch simulator for one scenario (see the module docstring)."""
 
     scenario: Scenario
-    compact_below: float
     deterministic: bool
     max_batch: int | None
 
-    def insert(self, starts: np.ndarray, horizon: int) -> np.ndarray: ...
+    def insert(self, starts: np.ndarray, horizon: int, streams: RunStreams) -> np.ndarray: ...
 
     def step(self, states: np.ndarray, actions: np.ndarray, noise: np.ndarray | None, out: np.ndarray) -> None: ...
 
@@ -58,7 +62,6 @@ class NumpyBackend:
     straight into the store."""
 
     name = "numpy"
-    compact_below = 0.75  # any value in 0.2-0.9 does as well (docs/benchmarks.md)
     deterministic = True  # the spec's dynamics: a run is a function of its key
     max_batch = None
 
@@ -67,7 +70,7 @@ class NumpyBackend:
             raise ValueError(f"scenario.numpy: the numpy back end takes no options; got {sorted(options)}")
         self.scenario = scenario
 
-    def insert(self, starts: np.ndarray, horizon: int) -> np.ndarray:
+    def insert(self, starts: np.ndarray, horizon: int, streams: RunStreams) -> np.ndarray:
         return starts
 
     def step(self, states, actions, noise, out) -> None:

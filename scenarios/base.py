@@ -250,7 +250,10 @@ class Scenario(ABC):
         """(B, n) -> (B,) int8: CONTINUE, TRUNCATED or FAILURE (failure wins ties).
 
         One axis at a time: with few columns, 1-D comparisons are much faster than
-        (B, n) boolean masks reduced with ``any(axis=1)``."""
+        (B, n) boolean masks reduced with ``any(axis=1)``. One state (a per-run simulator's
+        step) in Python floats: the same comparisons, without numpy's per-call overhead."""
+        if len(states) == 1:
+            return np.array([self._classify_one(states[0].tolist())], dtype=np.int8)
         left = np.zeros(len(states), dtype=bool)
         failed = np.zeros(len(states), dtype=bool)
         for axis in range(states.shape[1]):
@@ -265,6 +268,31 @@ class Scenario(ABC):
                 failed |= above
         # a failure also left Sigma, so left + failed is 0, 1 (TRUNCATED) or 2 (FAILURE)
         return np.add(left, failed, dtype=np.int8)
+
+    def _classify_one(self, state: list) -> int:
+        verdict = CONTINUE
+        for axis, x in enumerate(state):
+            if x < self._below[axis]:
+                if self._failure_mask_lower[axis]:
+                    return FAILURE
+                verdict = TRUNCATED
+            elif x > self._above[axis]:
+                if self._failure_mask_upper[axis]:
+                    return FAILURE
+                verdict = TRUNCATED
+        return verdict
+
+    def exits(self, states: np.ndarray) -> np.ndarray:
+        """(B, n) states outside Sigma -> (B,) int8: the facet each left through, as an
+        index into ``facets()`` (2 * axis, + 1 for the upper facet); -1 for a state inside.
+        The facet that decides ``classify``: the first failure facet crossed, else the
+        first facet crossed. Called once per batch, on its runs' last states."""
+        crossed = np.empty((len(states), 2 * self.n), dtype=bool)
+        crossed[:, 0::2] = states < np.asarray(self._below)
+        crossed[:, 1::2] = states > np.asarray(self._above)
+        failing = crossed & np.column_stack([self._failure_mask_lower, self._failure_mask_upper]).reshape(-1)
+        first = np.where(failing.any(axis=1), failing.argmax(axis=1), crossed.argmax(axis=1))
+        return np.where(crossed.any(axis=1), first, -1).astype(np.int8)
 
     # -- model-based reference (for `compare`) ------------------------------------------
     def reference_safe(self, points: np.ndarray) -> np.ndarray | None:

@@ -1,6 +1,7 @@
 """Where scenarios and back ends are found by name: one dict each, lazy imports.
 
-A new scenario or back end is one file plus one registration:
+A new scenario or back end is one file plus one registration (a back end may also be a
+per-run simulator, ``scenarios.per_run.RunSimulator``):
 
     register_scenario("my-scenario", "mypackage.scenarios:MyScenario")
     register_backend("carla", "mypackage.carla:CarlaBackend")
@@ -22,6 +23,7 @@ import inspect
 from importlib.metadata import entry_points
 
 from scenarios.base import EXTERNAL_SV, Scenario
+from scenarios.per_run import RunSimulator, per_run_backend
 
 SCENARIOS: dict[str, str | type] = {
     "lead-follow": "scenarios.lead_follow:LeadFollow",
@@ -85,9 +87,17 @@ def scenario_class(name: str) -> type[Scenario]:
 
 
 def backend_class(name: str) -> type:
+    """The back-end class named ``name``; a per-run simulator class (a
+    ``scenarios.per_run.RunSimulator``) comes wrapped in its adapter."""
     cls = _lookup("backend", BACKENDS, name, "scenario.backend")
+    if isinstance(cls, type) and issubclass(cls, RunSimulator):
+        if inspect.isabstract(cls):
+            missing = ", ".join(sorted(cls.__abstractmethods__))
+            raise ValueError(f"scenario.backend: {name!r} does not implement {missing}")
+        return per_run_backend(cls)
     if not isinstance(cls, type) or not all(callable(getattr(cls, m, None)) for m in ("insert", "step", "keep", "clear")):
-        raise ValueError(f"scenario.backend: {name!r} is not a back end (a class with insert, step, keep, clear)")
+        raise ValueError(f"scenario.backend: {name!r} is not a back end (a class with insert, step, keep, clear) "
+                         f"nor a per-run simulator (a scenarios.per_run.RunSimulator)")
     return cls
 
 

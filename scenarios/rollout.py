@@ -3,8 +3,9 @@ back end, with every piece of bookkeeping done here once.
 
 Every step's new states are classified continue / truncated / failure (failure wins);
 a run ends at its first non-continue state or after K states (the start counts as the
-first). The returned trajectories hold every state of every run, the terminal one
-included, so a run can be checked and replayed state by state.
+first), and a run that ended is never stepped again. The returned trajectories hold
+every state of every run, the terminal one included, so a run can be checked and
+replayed state by state.
 """
 
 from __future__ import annotations
@@ -28,12 +29,15 @@ class RunBatch:
     trajectories  (K, B, n) states; entries past a run's length are meaningless
     lengths       (B,) int32 number of states in each run (start included, >= 1)
     outcomes      (B,) int8 FAILURE / TRUNCATED / HORIZON
+    exits         (B,) int8 the facet a failed or truncated run left Sigma through, as an
+                  index into ``Scenario.facets()``; -1 for a run that ran its horizon
     """
 
     indices: np.ndarray
     trajectories: np.ndarray
     lengths: np.ndarray
     outcomes: np.ndarray
+    exits: np.ndarray
 
     @property
     def starts(self) -> np.ndarray:
@@ -93,64 +97,66 @@ def run_scenario(backend, starts: np.ndarray, horizon: int, policy, streams: Run
     store[0] = starts.T
     lengths = np.full(batch, horizon, dtype=np.int32)
     outcomes = np.full(batch, HORIZON, dtype=np.int8)
+    exits = np.full(batch, -1, dtype=np.int8)
     piece = getattr(backend, "max_batch", None) or max(batch, 1)
     for lo in range(0, batch, piece):
         hi = min(batch, lo + piece)
         part = streams if (lo, hi) == (0, batch) else streams.subset(np.arange(lo, hi))
         _run_piece(backend, starts[lo:hi], horizon, policy, part, check_step_bound,
                    store[:, :, lo:hi] if (lo, hi) != (0, batch) else store, lengths[lo:hi], outcomes[lo:hi])
-    return RunBatch(streams.indices, store.transpose(0, 2, 1), lengths, outcomes)
+    ended = np.flatnonzero(outcomes != HORIZON)  # the facet each left through, from its last state
+    exits[ended] = scenario.exits(store[lengths[ended] - 1, :, ended])
+    return RunBatch(streams.indices, store.transpose(0, 2, 1), lengths, outcomes, exits)
 
 
 def _run_piece(backend, starts, horizon, policy, streams, check_step_bound, store, lengths, outcomes) -> None:
-    """One simulation of the runs ``starts``; fills ``store`` (K, n, b), lengths, outcomes."""
+    """One simulation of the runs ``starts``; fills ``store`` (K, n, b), lengths and
+    outcomes. A run that ended is never stepped again: the back end forgets it (``keep``)
+    in the step it ended, so a simulator never sees a state past a facet."""
     scenario = backend.scenario
     batch, n = starts.shape
     disturbed = scenario.disturbance > 0.0 and scenario.noise_width > 0
     bound = scenario.step_bound() + STEP_BOUND_SLACK if check_step_bound else None
     try:
-        states = backend.insert(starts, horizon)
+        states = backend.insert(starts, horizon, streams)
         if states is not starts:
             _check_start(scenario, states, starts, streams)
-        rows = np.arange(batch)  # batch rows still held by the back end (some may have ended)
-        running = np.ones(batch, dtype=bool)  # ... of which these have not ended
-        full = True  # rows == arange(batch)
+        rows = np.arange(batch)  # the batch rows of the runs still running: the back end holds these
+        alive = np.ones(batch, dtype=bool)  # the same rows as flags (rows is increasing)
         row_streams = streams
         for t in range(1, horizon):
             actions = policy(scenario, states, t, row_streams)
             noise = row_streams.uniform(t, PURPOSE_DISTURBANCE, scenario.noise_width) if disturbed else None
-            # all rows held: straight into the store; after compaction: scattered there
+            # every run still running: straight into the store; after the first end: scattered there
+            full = len(rows) == batch
             slab = store[t] if full else np.empty((n, len(rows)))
             backend.step(states, actions, noise, slab)
             nxt = slab.T
-            status = scenario.classify(nxt)
-            if not full:
-                store[t][:, rows] = slab
+            if not full:  # by flags, one state variable at a time: cheaper than by row numbers
+                for i in range(n):
+                    store[t][i][alive] = slab[i]
             # one pass: a sum is finite iff every term is (or it overflowed, which the exact
             # per-row check below then clears); the per-row search only on error
             if not np.isfinite(np.add.reduce(slab, axis=None)):
-                bad = ~np.isfinite(nxt).all(axis=1) & running
+                bad = ~np.isfinite(nxt).all(axis=1)
                 if bad.any():
                     _raise_bad_state(scenario, nxt, rows, bad, streams, starts, t)
             if bound is not None:
-                _check_step(scenario, bound, states, nxt, running, rows, streams, t)
-            ended = running & (status != CONTINUE)
+                _check_step(scenario, bound, states, nxt, rows, streams, t)
+            status = scenario.classify(nxt)
+            ended = status != CONTINUE
             if ended.any():
                 done = rows[ended]
                 outcomes[done] = status[ended]
                 lengths[done] = t + 1
-                running &= ~ended
-                alive = int(running.sum())
-                if alive == 0:
+                going = ~ended
+                if not going.any():
                     break
-                # Ended rows keep being stepped until they are a share of the held rows
-                # (for numpy cheaper than a gather every step): then compact.
-                if alive < backend.compact_below * len(rows):
-                    backend.keep(running)
-                    rows, nxt = rows[running], np.compress(running, nxt.T, axis=1).T
-                    row_streams = row_streams.subset(running)
-                    running = np.ones(len(rows), dtype=bool)
-                    full = False
+                backend.keep(going)
+                alive[done] = False
+                rows = rows[going]
+                nxt = np.compress(going, slab, axis=1).T
+                row_streams = row_streams.subset(going)
             states = nxt
     finally:
         backend.clear()  # also after an error: the next batch must find an empty simulator
@@ -165,11 +171,11 @@ def _check_start(scenario, states, starts, streams) -> None:
                             f"state {starts[row].tolist()}: read back {states[row].tolist()}")
 
 
-def _check_step(scenario, bound, states, nxt, running, rows, streams, t) -> None:
-    moved = np.abs(nxt[running] - states[running]).max(axis=1) if running.any() else np.zeros(0)
+def _check_step(scenario, bound, states, nxt, rows, streams, t) -> None:
+    moved = np.abs(nxt - states).max(axis=1)
     if len(moved) and moved.max() > bound:
         k = int(np.argmax(moved))
-        run = int(rows[np.nonzero(running)[0][k]])
+        run = int(rows[k])
         raise ScenarioError(f"scenario {scenario.name!r}: step_bound() = {scenario.step_bound():g} but sample index "
                             f"{int(streams.indices[run])} moved {moved[k]:g} (l-inf) in step {t}; step_bound() must "
                             f"bound every step (Assumption 1)")

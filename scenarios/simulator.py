@@ -68,7 +68,7 @@ class Simulator:
         self._checked = True
         keep = int(batch.lengths.max()) if len(batch) else 1  # only the rows some run used
         return RunBatch(batch.indices, np.ascontiguousarray(batch.trajectories[:keep]), batch.lengths,
-                        batch.outcomes)
+                        batch.outcomes, batch.exits)
 
     def _culprit(self, indices, starts, exc) -> ScenarioError:
         """Bisect the batch (runs depend on their own key only) down to the first run that

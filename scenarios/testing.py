@@ -3,6 +3,7 @@ sampler tests): plain functions that raise ``AssertionError`` naming what broke.
 
     from scenarios.testing import check_backend
     check_backend(make_backend({"name": "my-scenario"}))     # in a test of your own
+    check_backend(make_backend({"name": "lead-follow", "backend": "my_sim:MySimulator"}))  # a per-run simulator
 
 What the farm relies on, and what each check tests:
 - ``check_declarations``: Sigma, Gamma, Gamma* and the facets are consistent arrays.

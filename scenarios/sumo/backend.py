@@ -27,7 +27,6 @@ _SUMO_DEFAULT_ACCEL_BOUND = 9.0  # [m/s^2] SUMO's passenger emergencyDecel (acce
 class SumoBackend:
     name = "sumo"
     external_sv = "sumo"  # the config's sv_policy: the SV is SUMO's own model
-    compact_below = 1.0  # remove ended vehicles at once: SUMO pays per vehicle and step
     max_batch = MAX_SLOTS
 
     def __init__(self, scenario: Scenario, options: dict | None = None):
@@ -50,7 +49,7 @@ class SumoBackend:
             float(params[k]) for k in ("accel", "decel", "emergencyDecel") if k in params])
 
     # -- the Backend calls -------------------------------------------------------------
-    def insert(self, starts: np.ndarray, horizon: int) -> np.ndarray:
+    def insert(self, starts: np.ndarray, horizon: int, streams=None) -> np.ndarray:
         import libsumo
 
         from scenarios.sumo.simulation import world

@@ -1,5 +1,6 @@
 """The shared conformance suite (scenarios/testing.py) on every scenario and back end we
-ship, the custom-scenario guide's example included, and the SUMO back end."""
+ship, the custom-scenario guide's example included, the SUMO back end, and the per-run
+simulators of the highway-env worked example (examples/highway)."""
 
 import sys
 from pathlib import Path
@@ -12,6 +13,7 @@ from scenarios.base import ScenarioError
 from scenarios.registry import make_backend
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "custom"
+HIGHWAY = EXAMPLES.parent / "highway"
 
 BACKENDS = {
     "lead-follow/brake": {"name": "lead-follow", "sv_policy": "brake"},
@@ -20,12 +22,15 @@ BACKENDS = {
     "toy": {"name": "toy"},
     "guide:approach": {"name": "approach:Approach"},
     "sumo:lead-follow": {"name": "lead-follow", "backend": "sumo", "sv_policy": "sumo"},
+    "per-run:highway-idm": {"name": "lead-follow", "backend": "highway_idm:HighwayIDM"},
+    "per-run:highway-lanes": {"name": "highway_lanes:TwoLaneFollow", "backend": "highway_lanes:HighwayMOBIL"},
 }
 
 
 @pytest.fixture(params=list(BACKENDS))
 def backend(request, monkeypatch):
     monkeypatch.syspath_prepend(str(EXAMPLES))  # as the CLI does with the working directory
+    monkeypatch.syspath_prepend(str(HIGHWAY))
     sys.modules.pop("approach", None)
     return make_backend(dict(BACKENDS[request.param]))
 

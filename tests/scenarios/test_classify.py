@@ -3,6 +3,7 @@ import numpy as np
 from scenarios.base import CONTINUE, FAILURE, TRUNCATED
 from scenarios.fleet3 import Fleet3
 from scenarios.lead_follow import LeadFollow
+from scenarios.registry import make_scenario
 
 
 def test_classification_of_each_facet():
@@ -34,3 +35,19 @@ def test_unknown_failure_facet_is_a_clear_error():
 
     with pytest.raises(ValueError, match="scenario.failure_facets: unknown facet 'v0'"):
         Fleet3(failure_facets=["v0"])
+
+
+def test_one_state_is_classified_as_in_a_batch():
+    """classify's one-state path (per-run simulators) decides as the batch path does,
+    on facets, on the 1e-9 tolerance and across failure/truncation ties."""
+    for name, facets in (("fleet3", None), ("fleet3", ["p10"]), ("lead-follow", None)):
+        sc = make_scenario(name, failure_facets=facets)
+        rng = np.random.default_rng(1)
+        span = sc.upper - sc.lower
+        states = rng.uniform(sc.lower - 0.2 * span, sc.upper + 0.2 * span, (3000, sc.n))
+        edge = rng.integers(0, sc.n, 1000)
+        states[np.arange(1000), edge] = np.where(rng.random(1000) < 0.5, sc.lower[edge], sc.upper[edge]) + \
+            rng.choice([-2e-9, -1e-9, 0.0, 1e-9, 2e-9], 1000)
+        batch = sc.classify(states)
+        one = np.concatenate([sc.classify(states[i : i + 1]) for i in range(len(states))])
+        assert np.array_equal(batch, one) and len(set(batch.tolist())) == 3

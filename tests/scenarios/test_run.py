@@ -44,3 +44,39 @@ def test_user_scenario_from_module_path_and_nan_is_reported_with_the_sample_inde
 def test_unknown_scenario_names_the_field():
     with pytest.raises(ValueError, match="scenario.name: unknown scenario 'lead-folow'"):
         make_scenario("lead-folow")
+
+
+def test_a_run_that_ended_is_never_stepped_again():
+    """Every state a back end is stepped from lies inside Sigma, and each run is stepped
+    exactly length - 1 times: a simulator never sees a gap past contact."""
+    from scenarios.backend import NumpyBackend
+
+    class Watching(NumpyBackend):
+        def insert(self, starts, horizon, streams):
+            self.rows, self.stepped, self.seen = np.arange(len(starts)), np.zeros(len(starts), int), []
+            return super().insert(starts, horizon, streams)
+
+        def step(self, states, actions, noise, out):
+            self.seen.append(self.scenario.classify(states))
+            self.stepped[self.rows] += 1
+            super().step(states, actions, noise, out)
+
+        def keep(self, rows):
+            self.rows = self.rows[rows]
+
+    backend = Watching(make_scenario("lead-follow", sv_policy="idm"))
+    sc = backend.scenario
+    starts = sc.lower + (sc.upper - sc.lower) * np.random.default_rng(2).random((2000, 3))
+    batch = run_scenario(backend, starts, 50, make_action_policy("uniform", sc), RunStreams.of(0, np.arange(2000)))
+    assert (batch.outcomes != HORIZON).sum() > 300  # many runs end early: the check has something to catch
+    assert all((status == 0).all() for status in backend.seen)
+    np.testing.assert_array_equal(backend.stepped, batch.lengths - 1)
+
+
+def test_each_ended_run_records_the_facet_it_left_through():
+    sc = make_scenario("lead-follow", sv_policy="brake")
+    starts = np.array([[20.0, 0.0, 1.0], [0.0, 20.0, 69.0], [0.0, 0.0, 30.0], [0.0, 20.0, 30.0]])
+    batch = run_scenario(sc, starts, 10, make_action_policy("constant", sc, [3.0]), RunStreams.of(0, np.arange(4)))
+    labels = [f.label for f, _ in sc.facets()]
+    assert [labels[e] if e >= 0 else None for e in batch.exits] == ["p10 < 0", "v1 > 20", None, "v1 > 20"]
+    assert sc.exits(np.array([[25.0, 25.0, -1.0], [25.0, 1.0, 80.0], [1.0, 1.0, 1.0]])).tolist() == [4, 1, -1]

@@ -1,0 +1,126 @@
+"""The per-run simulator contract: a simulator that advances one scene at a time (CARLA,
+esmini, highway-env, an in-house tool), beside the vectorized back ends.
+
+A user class subclasses ``RunSimulator`` and implements two calls:
+
+    reset(state, key) -> state  place the scene exactly at the start state (n,); return the
+                                state read back from the simulator (the core checks it to 1e-9)
+    step(action) -> state       advance the scene one ``dt`` under the scenario action (m,)
+                                and return the state read back (n,)
+    close()                     optional: release the simulator (end of the worker)
+
+``key`` is a ``RunKey``: the run's stream key ``(seed, index)``, from which the
+simulator's own randomness must come (``key.generator()``) so that a run depends on its
+key alone. One object is built per worker process (``Class(scenario, options)``) and
+reused for every run it simulates, one run after the other: ``reset`` must forget the
+previous run entirely.
+
+``PerRunBackend`` adapts such a class to the batch contract of ``scenarios.backend``:
+the rollout core runs a batch as pieces of one run (``max_batch = 1``), so the keyed
+action streams, the classification of every state, the end of a run at its first facet
+(a run that ended is never stepped again), the start and finiteness checks and the
+step-bound check are the same code as for every other back end. A config names the class
+as ``scenario.backend = "package.module:Class"``; its options table is
+``[scenario."package.module:Class"]``.
+"""
+
+from __future__ import annotations
+
+import weakref
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from scenarios.base import Scenario, ScenarioError
+from scenarios.streams import PURPOSE_USER, RunStreams
+
+
+@dataclass(frozen=True)
+class RunKey:
+    """A run's stream key: the campaign ``seed`` and the run's global sample ``index``."""
+
+    seed: int
+    index: int
+
+    def generator(self) -> np.random.Generator:
+        """A numpy Generator of this run's own (the same key gives the same draws), for
+        the simulator's randomness (e.g. highway-env's ``road.np_random``)."""
+        return np.random.Generator(np.random.PCG64(np.random.SeedSequence(self.seed,
+                                                                          spawn_key=(self.index, PURPOSE_USER))))
+
+
+class RunSimulator(ABC):
+    """A simulator of one scene at a time (see the module docstring).
+
+    Class attributes:
+      sv_policy   what the summary calls the SV (the simulator's own model), e.g.
+                  "highway-env-idm"; a config's ``scenario.sv_policy`` must be this or unset
+      stochastic  True if the scene draws from ``key.generator()``: a run then depends on
+                  its key, not on its start alone (no exact enumeration of box centres)
+    """
+
+    sv_policy: str = "external"
+    stochastic: bool = False
+
+    def __init__(self, scenario: Scenario, options: dict | None = None):
+        """``scenario`` declares the state space (Sigma, facets, actions, dt);
+        ``options`` is the config's ``[scenario."module:Class"]`` table (or None)."""
+        self.scenario = scenario
+        self.options = dict(options or {})
+
+    @abstractmethod
+    def reset(self, state: np.ndarray, key: RunKey) -> np.ndarray:
+        """Place the scene exactly at ``state`` (n,); -> the state read back (n,)."""
+
+    @abstractmethod
+    def step(self, action: np.ndarray) -> np.ndarray:
+        """Advance one ``dt`` under ``action`` (m,); -> the state read back (n,)."""
+
+    def close(self) -> None:
+        """Release the simulator (called once, when the worker's back end goes away)."""
+
+
+class PerRunBackend:
+    """A ``RunSimulator`` class behind the four calls of ``scenarios.backend.Backend``:
+    pieces of one run each, so the user object holds one scene at a time."""
+
+    name = "per-run"
+    max_batch = 1  # the core runs a batch run by run: one scene in the simulator at a time
+    simulator_class: type[RunSimulator]  # set by ``per_run_backend``
+
+    def __init__(self, scenario: Scenario, options: dict | None = None):
+        if scenario.disturbance != 0.0:
+            raise ValueError(f"scenario.disturbance: a per-run simulator brings its own randomness (key.generator()); "
+                             f"allowed: 0 (got {scenario.disturbance:g})")
+        self.scenario = scenario
+        self.simulator = self.simulator_class(scenario, options)
+        self._n = scenario.n
+        weakref.finalize(self, self.simulator.close)  # at garbage collection or interpreter exit
+
+    def insert(self, starts: np.ndarray, horizon: int, streams: RunStreams) -> np.ndarray:
+        key = RunKey(streams.seed, int(streams.indices[0]))
+        return self._state(self.simulator.reset(starts[0].copy(), key), "reset").reshape(1, self._n)
+
+    def step(self, states, actions, noise, out) -> None:
+        out[:, 0] = self._state(self.simulator.step(actions[0].copy()), "step")
+
+    def keep(self, rows: np.ndarray) -> None:
+        pass  # a piece holds one run: when it ends the piece ends
+
+    def clear(self) -> None:
+        pass  # the next run's reset places a new scene
+
+    def _state(self, state, call: str) -> np.ndarray:
+        state = np.asarray(state, dtype=float)
+        if state.shape != (self._n,):
+            raise ScenarioError(f"{self.simulator_class.__name__}.{call} returned shape {state.shape}, expected "
+                                f"({self._n},): the state {self.scenario.state_names} read back")
+        return state
+
+
+def per_run_backend(cls: type[RunSimulator]) -> type[PerRunBackend]:
+    """The back-end class of a ``RunSimulator`` class (what the registry hands out)."""
+    return type(f"PerRun{cls.__name__}", (PerRunBackend,), {
+        "simulator_class": cls, "external_sv": cls.sv_policy, "deterministic": not cls.stochastic,
+        "name": f"{cls.__module__}:{cls.__qualname__}"})
