@@ -1,13 +1,16 @@
 """The executor contract: where batches of runs are simulated and screened.
 
-    submit(first_index, starts, screen, actions) -> handles   simulate runs first_index..
-                                                     from ``starts``; one handle per chunk, in
-                                                     index order (how a batch is cut
-                                                     into chunks is the executor's
+    submit(first_index, starts, screen, actions, indices) -> handles   simulate runs
+                                                     first_index.. from ``starts``; one handle
+                                                     per chunk, in index order (how a batch is
+                                                     cut into chunks is the executor's
                                                      business: results never depend on it);
                                                      ``actions``: the action policy's adaptive
                                                      state (``ActionPolicy.state()``) for these
-                                                     runs, or None
+                                                     runs, or None; ``indices``: (k,) int64
+                                                     sample indices of the runs instead of
+                                                     first_index, first_index + 1, ...
+                                                     (replacement runs), or None
     result(handle) -> Chunk                          wait for one chunk
     cancel(handle)                                   drop a chunk (it is not committed)
     screen_stored(pieces, coverage) -> [(states, run)]   experience replay: for each stored
@@ -47,6 +50,11 @@ class Chunk:
     fetch_visited: Callable[[], tuple[np.ndarray, np.ndarray]] = field(repr=False)
     keep: Callable = field(repr=False, default=None)  # (rows, takes) -> a handle for screen_stored
     _visited: tuple | None = field(default=None, repr=False)
+    indices: np.ndarray | None = None  # (k,) int64 sample indices (first_index + arange when None)
+
+    def __post_init__(self) -> None:
+        if self.indices is None:
+            self.indices = self.first_index + np.arange(len(self.lengths), dtype=np.int64)
 
     def __len__(self) -> int:
         return len(self.lengths)
@@ -85,8 +93,10 @@ class Executor(ABC):
     workers: int = 1
 
     @abstractmethod
-    def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None) -> list:
-        """Simulate runs ``first_index, first_index + 1, ...`` from ``starts``; one handle per chunk."""
+    def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None,
+               indices: np.ndarray | None = None) -> list:
+        """Simulate runs ``first_index, first_index + 1, ...`` (or ``indices``) from ``starts``;
+        one handle per chunk."""
 
     @abstractmethod
     def result(self, handle) -> Chunk:
@@ -111,13 +121,14 @@ def summarize(batch: RunBatch, screen) -> tuple[dict, tuple[np.ndarray, np.ndarr
     states, offsets = batch.visited()
     screening = None if screen is None else screen.screen(states, offsets, batch.outcomes)
     summary = {"first_index": int(batch.indices[0]) if len(batch) else 0, "lengths": batch.lengths,
-               "outcomes": batch.outcomes, "last": batch.last_states(), "screening": screening}
+               "outcomes": batch.outcomes, "last": batch.last_states(), "screening": screening,
+               "indices": batch.indices.astype(np.int64)}
     return summary, (states, offsets)
 
 
 def chunk_of(summary: dict, fetch_visited: Callable, keep: Callable) -> Chunk:
     return Chunk(summary["first_index"], summary["lengths"], summary["outcomes"], summary["last"],
-                 summary["screening"], fetch_visited, keep)
+                 summary["screening"], fetch_visited, keep, indices=summary["indices"])
 
 
 def screen_piece(simulator, source, piece, coverage) -> tuple[np.ndarray, np.ndarray]:

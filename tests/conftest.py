@@ -9,9 +9,11 @@ def ray_local():
     import ray
 
     os.environ.setdefault("RAY_DEDUP_LOGS", "0")
-    # workers import user scenarios defined under tests/, like a user's own package
+    # workers import user scenarios defined under tests/, like a user's own package, and
+    # the benchmarks' slow back ends
     from farm.ray_session import start_local
 
-    start_local(2, os.path.dirname(os.path.abspath(__file__)))
+    here = os.path.dirname(os.path.abspath(__file__))
+    start_local(2, os.pathsep.join([here, os.path.join(os.path.dirname(here), "benchmarks")]))
     yield ray
     ray.shutdown()
