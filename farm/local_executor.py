@@ -21,7 +21,7 @@ from coordinator.executor import Chunk, Executor, chunk_of, screen_piece, summar
 from coordinator.experience_replay import select
 from farm.chunking import ChunkSizer
 from farm.simulators import build_simulator
-from farm.waiting import InThread
+from farm.waiting import InThread, name_runs
 from scenarios.simulator import SimSpec
 
 
@@ -69,8 +69,7 @@ class LocalExecutor(Executor):
             self.sizer.ran(len(starts), time.perf_counter() - t0)
             return done
 
-        index = first_index if indices is None or not len(indices) else int(indices[0])
-        what = f"scenario {self._scenario!r}: the {len(starts)} runs from sample index {index}"
+        what = name_runs(self._scenario, first_index, starts, indices)
         summary, visited = self._thread.run(work, self.sizer.limit(len(starts)), what)
         return chunk_of(summary, lambda: visited, lambda rows, takes: _compact(visited, rows, takes))
 

@@ -37,7 +37,7 @@ from farm.chunking import ChunkSizer
 from farm.ray_pool import ActorPool, Call, check_started
 from farm.ray_session import connect
 from farm.simulators import build_simulator
-from farm.waiting import WorkerError
+from farm.waiting import WorkerError, name_runs
 from scenarios.base import ScenarioError
 from scenarios.simulator import SimSpec
 
@@ -301,20 +301,13 @@ class RayExecutor(Executor):
     def _send(self, first_index, starts, screen, actions, indices, rows) -> int:
         first = first_index + int(rows[0])
         picked = None if indices is None else np.asarray(indices, dtype=np.int64)[rows]
-        job = _Job(len(rows), self._describe(first, starts[rows], picked), None, first=first, starts=starts[rows],
+        job = _Job(len(rows), name_runs(self._scenario, first, starts[rows], picked), None, first=first, starts=starts[rows],
                    screen=screen, actions=actions, indices=picked)
         job.launch = lambda actor, job=job: self._launch(job, actor)
         self.pool.send(job)
         self._jobs[self._next] = job
         self._next += 1
         return self._next - 1
-
-    def _describe(self, first: int, starts: np.ndarray, indices) -> str:
-        k = len(starts)
-        index = first if indices is None else int(indices[0])
-        where = f"sample index {index} (start state {np.round(starts[0], 6).tolist()})" if k == 1 else (
-            f"the {k} runs from sample index {index} (the first from start state {np.round(starts[0], 6).tolist()})")
-        return f"scenario {self._scenario!r}: {where}"
 
     def chunks_per_batch(self, batch_size: int) -> int:
         """The chunks a batch of ``batch_size`` runs is cut into now (``submit``)."""
@@ -486,8 +479,8 @@ class RayExecutor(Executor):
 
     def close(self) -> None:
         """End the actors. Each first finishes what it was sent (at a round's end, chunks
-        that were dropped: short) and exits; one still busy after ``CLOSE_GRACE_S`` (or
-        down) is killed. Killing at once failed the running chunk, which Ray reports on
+        that were dropped: short) and exits; one still busy after ``CLOSE_GRACE_S`` (at
+        once after a stop), or down, is killed. Killing at once failed the running chunk, which Ray reports on
         the driver as "Task SimWorker.run failed ... will be retried" at the end of every
         normal campaign."""
         slots = self.pool.slots
@@ -496,8 +489,9 @@ class RayExecutor(Executor):
         live = [s for s in slots if not s.down]
         ends = [s.handle.__ray_terminate__.options(max_task_retries=0).remote() for s in live]
         busy = []
-        if ends:
-            _, busy = self.ray.wait(ends, num_returns=len(ends), timeout=CLOSE_GRACE_S)
+        if ends:  # no grace on a stop: a hung chunk would hold it up
+            grace = 0.0 if self.stop is not None and self.stop.is_set() else CLOSE_GRACE_S
+            _, busy = self.ray.wait(ends, num_returns=len(ends), timeout=grace)
         for slot in slots:
             if slot.down and not slot.dead:
                 self.ray.kill(slot.handle, no_restart=True)

@@ -15,6 +15,8 @@ import threading
 import time
 from typing import Any, Callable
 
+import numpy as np
+
 POLL_S = 0.2  # [s] how often a wait looks at the stop flag and the time limits
 
 
@@ -29,6 +31,20 @@ class WorkerError(RuntimeError):
 class Interrupted(KeyboardInterrupt):
     """A wait for a chunk was ended by a stop: nothing was committed since the last chunk,
     so the campaign can be checkpointed as it is."""
+
+
+def name_runs(scenario: str, first: int, starts: np.ndarray, indices: np.ndarray | None = None) -> str:
+    """A chunk's runs as an error names them: the sample index and start state of a single
+    run, the index range of several."""
+    k = len(starts)
+    if k == 1:
+        index = first if indices is None else int(indices[0])
+        where = f"sample index {index} (start state {np.round(starts[0], 6).tolist()})"
+    elif indices is None:
+        where = f"the {k} runs at sample indices {first}-{first + k - 1}"
+    else:
+        where = f"the {k} runs at sample indices {int(indices[0])}, ..., {int(indices[-1])}"
+    return f"scenario {scenario!r}: {where}"
 
 
 def stop_asked(stop: threading.Event | None) -> None:

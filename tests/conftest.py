@@ -4,11 +4,13 @@ import pytest
 
 
 @pytest.fixture(scope="session")
-def ray_local():
-    """A real local Ray with two CPUs, shared by the tests that need it."""
+def ray_local(tmp_path_factory):
+    """A real local Ray with two CPUs, shared by the tests that need it. Its workers see
+    FARM_TEST_HANG (tests/user_scenarios.py: Hanging hangs while that file exists)."""
     import ray
 
     os.environ.setdefault("RAY_DEDUP_LOGS", "0")
+    os.environ.setdefault("FARM_TEST_HANG", str(tmp_path_factory.mktemp("hang") / "marker"))
     # workers import user scenarios defined under tests/, like a user's own package, and
     # the benchmarks' slow back ends
     from farm.ray_session import start_local
