@@ -299,6 +299,9 @@ def main(argv=None) -> int:
     # SIGTERM outside a campaign's own handler (start-up, finishing) ends like Ctrl-C: the
     # files stay as the last checkpoint left them, and the exit says "stopped"
     signal.signal(signal.SIGTERM, _terminate)
+    from farm import ray_watch
+
+    ray_watch.on_lost = _lost
     try:
         return args.func(args)
     except Exception as exc:  # noqa: BLE001 - the one place where errors become exit codes
@@ -310,6 +313,14 @@ def main(argv=None) -> int:
 
 def _terminate(signum, frame):
     raise KeyboardInterrupt
+
+
+def _lost(why: str) -> None:
+    """Ray lost this driver's raylet or the cluster's head (farm/ray_watch.py): our line and
+    exit code, before Ray ends the process with exit code 1."""
+    print(f"scenario-farm: infrastructure error: {why} (the last checkpoint stands: `scenario-farm resume DIR` "
+          f"continues)", file=sys.stderr, flush=True)
+    os._exit(EXIT_INFRASTRUCTURE)
 
 
 def report_error(exc: BaseException) -> int:

@@ -121,6 +121,11 @@ def _actor_class():
                 self.mirror.sync(ray.get(block) if isinstance(block, ray.ObjectRef) else block)
             return self.mirror
 
+        def revisit(self, first_index: int, starts: np.ndarray, actions=None, indices=None):
+            """A chunk's visited states again (they were lost with their node): a run
+            depends on its key, start and the policy's state only."""
+            return self.simulator.simulate(first_index, starts, indices=indices, actions=actions).visited()
+
         def replay_screen(self, pieces, source_refs, message, actions=None):
             """Experience replay on stored pieces: each one's new states under the
             coverage. All of an actor's pieces come in one call: a call costs the
@@ -165,7 +170,6 @@ class _Job(Call):
     visited_ref: object = None
     sent: tuple | None = None  # the coverage (id, epoch, seq) its message brings the actor to
     fresh: bool = False  # send a whole snapshot (the actor lost its mirror)
-    call_s: float = 0.0  # the driver's time on it
     summary: dict | None = None
 
 
@@ -332,30 +336,54 @@ class RayExecutor(Executor):
         job = self._jobs.pop(handle)
         summary = self._read(job)
         visited_ref = job.visited_ref
-        return chunk_of(summary, lambda: self.ray.get(visited_ref), lambda rows, takes: visited_ref)
+        return chunk_of(summary, lambda: self._visited(job), lambda rows, takes: visited_ref)
 
-    def _read(self, job: _Job) -> dict:
-        """The chunk's summary: waits for it (a stop ends the wait), sends it again where
-        its actor was lost or restarted without its mirror."""
+    def _visited(self, job: _Job):
+        """A chunk's visited states from its node's object store, or simulated again on a
+        live actor when that node is gone."""
+        try:
+            return self.ray.get(job.visited_ref)
+        except self.ray.exceptions.ObjectLostError:
+            pass
+        call = Call(job.runs, f"{job.what} (simulated again: their node was lost)", None)
+
+        def launch(actor: int) -> None:
+            call.ref = self.actors[actor].revisit.remote(job.first, job.starts, job.actions, job.indices)
+            self.pool.sent(call, actor)
+
+        call.launch = launch
+        self.pool.send(call, interruptible=False)
+        return self._get(call, interruptible=False)  # in the middle of a commit: not stopped there
+
+    def _get(self, call: Call, interruptible: bool = True):
+        """``call``'s value once it is back: it is sent again, to another actor, while its
+        actor is lost (a stop ends the wait when ``interruptible``)."""
         ray = self.ray
-        while job.summary is None:
-            self.pool.wait(job)
+        while True:
+            self.pool.wait(call, interruptible)
             t0 = time.perf_counter()
             try:
-                summary = ray.get(job.ref)
+                value = ray.get(call.ref)
             except ray.exceptions.RayTaskError as exc:
                 cause = getattr(exc, "cause", None)
                 if isinstance(cause, ScenarioError):  # the user's scenario raised: its own line
                     raise cause from None
-                raise WorkerError(f"worker failed on {job.what}: {cause if cause is not None else exc}") from None
+                raise WorkerError(f"worker failed on {call.what}: {cause if cause is not None else exc}") from None
             except (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError,
                     ray.exceptions.ObjectLostError) as exc:
                 check_started(exc)
-                if job.actor >= 0 and job in self.pool.slots[job.actor].queue:
-                    self.pool.lost(job.actor, why=type(exc).__name__)
+                if call in self.pool.slots[call.actor].queue:  # else: sent elsewhere already
+                    self.pool.lost(call.actor, why=type(exc).__name__, interruptible=interruptible)
                 continue
-            job.call_s += time.perf_counter() - t0
-            self.pool.finished(job)
+            call.call_s += time.perf_counter() - t0
+            self.pool.finished(call)
+            return value
+
+    def _read(self, job: _Job) -> dict:
+        """The chunk's summary (once: it is kept), sent again where its actor was restarted
+        without its mirror; the chunk sizes learn from its time."""
+        while job.summary is None:
+            summary = self._get(job)
             if isinstance(summary, str) and summary == RESYNC:  # restarted without its mirror
                 job.fresh = True
                 job.launch(job.actor)
@@ -438,27 +466,11 @@ class RayExecutor(Executor):
         return call
 
     def _read_replay(self, call: Call) -> list:
-        ray = self.ray
         while True:
-            self.pool.wait(call, interruptible=False)  # a round end's replay finishes before a stop
-            try:
-                result = ray.get(call.ref)
-            except ray.exceptions.RayTaskError as exc:
-                cause = getattr(exc, "cause", None)
-                if isinstance(cause, ScenarioError):
-                    raise cause from None
-                raise WorkerError(f"worker failed on {call.what}: {cause if cause is not None else exc}") from None
-            except (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError,
-                    ray.exceptions.ObjectLostError) as exc:
-                check_started(exc)
-                if call.actor >= 0 and call in self.pool.slots[call.actor].queue:
-                    self.pool.lost(call.actor, why=type(exc).__name__, interruptible=False)
-                continue
-            self.pool.finished(call)
-            if isinstance(result, str):  # the actor was restarted without its mirror
-                call.relaunch_fresh()
-                continue
-            return result
+            result = self._get(call, interruptible=False)  # a round end's replay finishes before a stop
+            if not isinstance(result, str):
+                return result
+            call.relaunch_fresh()  # the actor was restarted without its mirror
 
     def cancel(self, handle: int) -> None:
         job = self._jobs.pop(handle, None)

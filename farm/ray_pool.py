@@ -55,6 +55,7 @@ class Call:
     timeouts: int = 0
     dropped: bool = False  # nobody waits for it any more (a cancelled chunk): not launched again
     limit: float | None = None  # [s] its own time limit (else the pool's, by its runs)
+    call_s: float = 0.0  # [s] the driver's time on sending it and reading its result
 
 
 @dataclasses.dataclass
