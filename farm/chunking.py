@@ -1,21 +1,26 @@
 """How big a chunk is and how long it may take: from the run time and the Ray call cost
 the executor measures (shared/spec/scaling.md, "Chunking and the virtual farm").
 
-A chunk is the runs one worker simulates in one call. Its size follows the simulator:
+A chunk is the runs one worker simulates in one call. Its time on the worker is
+``t(c) = a + b c`` for ``c`` runs: ``a`` the worker's cost per chunk (a vectorized back
+end's per-step overhead, screening, Ray: ~7 ms for lead-follow on numpy here), ``b`` per
+run. Its size follows them:
 
 - every worker gets a share of every batch (``ceil(runs / workers)`` runs at most), so
   the ``pipeline_depth`` batches in flight keep each worker ``pipeline_depth`` chunks deep
   and none idles when the oldest batch is committed;
-- a chunk holds at most ``CHUNK_S`` seconds of simulation, so that a round end (whose
-  dropped chunks still run to their end on their workers) or a stop waits about that long;
-- but at least ``workers * t_call / (DRIVER_SHARE * t_run)`` runs (scaling.md's
-  ``c ~ 4 W t_call / t_run``): with every worker busy, the driver spends at most about a
-  quarter of its time on Ray calls; past that, chunks grow (and fewer workers are busy)
-  rather than the driver falling behind all of them.
+- a chunk holds at most ``CHUNK_S`` seconds of work, so that a round end (whose dropped
+  chunks still run to their end on their workers) waits about that long;
+- but the worker's cost per chunk stays under ``OVERHEAD_SHARE`` of the chunk's time, and
+  the driver spends at most ``DRIVER_SHARE`` of its time on Ray calls with every worker
+  busy (scaling.md's ``c ~ 4 W t_call / t_run``): past those, chunks grow (and fewer
+  workers are busy) rather than the workers or the driver wasting most of their time.
 
-``t_run`` is a worker's busy time per run, ``t_call`` the driver's time per chunk (its
-call and the read of its result), both smoothed over the latest chunks. How a batch is
-cut never changes a result: runs are committed in index order and re-screened.
+``a`` and ``b`` are fitted (least squares) to the latest chunks' busy times, the driver's
+time per chunk ``t_call`` (its call and the read of its result) smoothed likewise. The
+first chunk of a campaign is a single run (the executor's probe): until chunks of
+another size come back, ``t(1)`` counts as per-run cost. How a batch is cut never changes
+a result: runs are committed in index order and re-screened.
 
 The time limit of a chunk is ``LIMIT_FACTOR`` times its expected time plus
 ``LIMIT_FLOOR_S`` (``farm.chunk_timeout`` replaces it), counted from when its worker
@@ -27,10 +32,12 @@ from __future__ import annotations
 
 import math
 
-CHUNK_S = 1.0  # [s] of simulation a chunk holds at most (unless the driver cannot afford smaller)
+CHUNK_S = 1.0  # [s] of work a chunk holds at most (unless the workers or the driver cannot afford smaller)
+OVERHEAD_SHARE = 0.1  # of a chunk's time on the worker's cost per chunk, at most
 DRIVER_SHARE = 0.25  # of the driver's time on Ray calls, every worker busy
 CALL_S = 1e-3  # [s] the driver's time per chunk until it is measured
-DECAY = 0.8  # weight of the older chunks in the smoothed run and call times, per chunk
+DECAY = 0.8  # weight of the older chunks in the fitted times, per chunk
+SPREAD = 0.1  # chunk sizes' coefficient of variation below which a and b are not refitted
 LIMIT_FACTOR = 10.0  # a chunk may take this many times its expected time ...
 LIMIT_FLOOR_S = 5.0  # [s] ... plus this (a loaded machine, a garbage collection)
 UNMEASURED_LIMIT_S = 600.0  # [s] a chunk's limit before any chunk has come back
@@ -43,15 +50,30 @@ class ChunkSizer:
         """``chunk_timeout``: a fixed limit per chunk in seconds (farm.chunk_timeout); 0: derived."""
         self.workers = max(1, int(workers))
         self.chunk_timeout = float(chunk_timeout)
-        self._busy = self._runs = 0.0  # decayed sums: t_run = busy / runs
+        self._fit = [0.0] * 5  # decayed sums of 1, c, c^2, t, c t over chunks
+        self.chunk_cost_s: float | None = None  # a: a worker's time per chunk
+        self.run_cost_s: float | None = None  # b: a worker's time per run
         self._call = self._calls = 0.0  # decayed sums: t_call = call / calls
 
     # -- measurements ----------------------------------------------------------------------
     def ran(self, runs: int, busy_s: float) -> None:
         """A worker spent ``busy_s`` seconds on a chunk of ``runs`` runs."""
-        if runs > 0 and busy_s >= 0:
-            self._busy = DECAY * self._busy + busy_s
-            self._runs = DECAY * self._runs + runs
+        if runs <= 0 or busy_s < 0:
+            return
+        f = self._fit
+        for i, v in enumerate((1.0, runs, runs * runs, busy_s, runs * busy_s)):
+            f[i] = DECAY * f[i] + v
+        w, wc, wcc, wt, wct = f
+        mean_c, mean_t = wc / w, wt / w
+        var_c = wcc / w - mean_c**2
+        a, b = 0.0, mean_t / mean_c  # one size seen: all of it per run
+        if var_c > (SPREAD * mean_c) ** 2:
+            slope = (wct / w - mean_c * mean_t) / var_c
+            if slope > 0 and mean_t - slope * mean_c >= 0:
+                a, b = mean_t - slope * mean_c, slope
+        elif self.chunk_cost_s is not None and mean_t > self.chunk_cost_s:
+            a, b = self.chunk_cost_s, (mean_t - self.chunk_cost_s) / mean_c  # sizes alike: a kept
+        self.chunk_cost_s, self.run_cost_s = a, max(b, 1e-9)
 
     def called(self, seconds: float) -> None:
         """The driver spent ``seconds`` on one chunk's call and result."""
@@ -61,27 +83,33 @@ class ChunkSizer:
 
     @property
     def run_s(self) -> float | None:
-        """A worker's seconds per run (None until a chunk has come back)."""
-        return self._busy / self._runs if self._runs else None
+        """A worker's seconds per run in the latest chunks, their cost per chunk shared out
+        (None until a chunk has come back)."""
+        f = self._fit
+        return f[3] / f[1] if f[1] else None
 
     @property
     def call_s(self) -> float:
         """The driver's seconds per chunk."""
         return self._call / self._calls if self._calls else CALL_S
 
+    def expected_s(self, runs: int) -> float | None:
+        """A worker's expected seconds for a chunk of ``runs`` runs."""
+        if self.run_cost_s is None:
+            return None
+        return self.chunk_cost_s + self.run_cost_s * runs
+
     # -- what follows ----------------------------------------------------------------------
     def size(self, runs: int) -> int:
         """Runs per chunk for a batch of ``runs`` runs (1 up to ``runs``)."""
-        if runs <= 1:
-            return 1
-        run_s = self.run_s
         share = math.ceil(runs / self.workers)
-        if run_s is None:
-            return share
-        run_s = max(run_s, 1e-9)
-        by_time = max(1, math.floor(CHUNK_S / run_s))
-        afford = math.ceil(self.workers * self.call_s / (DRIVER_SHARE * run_s))
-        return min(runs, max(1, min(share, by_time), afford))
+        if runs <= 1 or self.run_cost_s is None:
+            return max(1, min(runs, share))
+        a, b = self.chunk_cost_s, self.run_cost_s
+        by_time = max(1, math.floor((CHUNK_S - a) / b))
+        efficient = math.ceil(a * (1 - OVERHEAD_SHARE) / (OVERHEAD_SHARE * b))
+        afford = math.ceil((self.workers * self.call_s / DRIVER_SHARE - a) / b)
+        return min(runs, max(1, min(share, by_time), efficient, afford))
 
     def chunks(self, runs: int) -> int:
         """The chunks a batch of ``runs`` runs is cut into."""
@@ -95,6 +123,7 @@ class ChunkSizer:
         """[s] the time a chunk of ``runs`` runs may take once its worker has started it."""
         if self.chunk_timeout > 0:
             return self.chunk_timeout
-        if self.run_s is None:
+        expected = self.expected_s(runs)
+        if expected is None:
             return UNMEASURED_LIMIT_S
-        return LIMIT_FLOOR_S + LIMIT_FACTOR * runs * self.run_s
+        return LIMIT_FLOOR_S + LIMIT_FACTOR * expected

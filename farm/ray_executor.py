@@ -232,6 +232,11 @@ class RayExecutor(Executor):
     def notify(self, notify) -> None:
         self.pool.notify = notify
 
+    @property
+    def chunks_sent(self) -> int:
+        """Chunks submitted so far (a retry is not another)."""
+        return self._next
+
     def pids(self) -> list[int]:
         return self.ray.get([a.pid.remote() for a in self.actors])
 
