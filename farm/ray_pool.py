@@ -72,9 +72,22 @@ class Slot:
     ping: object = None
     pinged: float = 0.0
 
-    @property
-    def runs_queued(self) -> int:
-        return sum(c.runs for c in self.queue)
+    runs_queued: int = 0  # the runs of the calls in ``queue``
+
+    def push(self, call: Call) -> None:
+        self.queue.append(call)
+        self.runs_queued += call.runs
+
+    def pop(self) -> Call:
+        call = self.queue.popleft()
+        self.runs_queued -= call.runs
+        return call
+
+    def clear(self) -> list[Call]:
+        calls = list(self.queue)
+        self.queue.clear()
+        self.runs_queued = 0
+        return calls
 
 
 class ActorPool:
@@ -111,7 +124,7 @@ class ActorPool:
         if not slot.queue:
             slot.started = time.monotonic()
         call.actor = actor
-        slot.queue.append(call)
+        slot.push(call)
 
     def send(self, call: Call, interruptible: bool = True) -> None:
         """Launch ``call`` on the best actor."""
@@ -121,7 +134,7 @@ class ActorPool:
         """``call``'s result was read: it and every call before it on its actor are over."""
         slot = self.slots[call.actor]
         if call in slot.queue:
-            while slot.queue.popleft() is not call:
+            while slot.pop() is not call:
                 pass
             slot.started = time.monotonic()
 
@@ -153,7 +166,7 @@ class ActorPool:
         now = time.monotonic()
         for actor, slot in enumerate(self.slots):
             while slot.queue and slot.queue[0].ref in done:
-                slot.queue.popleft()
+                slot.pop()
                 slot.started = now
             if slot.queue and not slot.down:
                 head = slot.queue[0]
@@ -175,8 +188,7 @@ class ActorPool:
         calls queued on it go to the others. The call it was running is charged a try
         (unless ``charged`` already was)."""
         slot = self.slots[actor]
-        queue = list(slot.queue)
-        slot.queue.clear()
+        queue = slot.clear()
         slot.down, slot.ping, slot.pinged = True, None, time.monotonic()
         slot.synced = slot.confirmed = None  # Ray restarts it from its constructor: no mirror
         if charged is None and queue:

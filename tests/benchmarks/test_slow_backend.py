@@ -35,19 +35,21 @@ def test_the_slow_backend_costs_its_step_cost_per_live_run_step_and_simulates_th
 
 
 def test_the_real_ray_benchmarks_simulator_takes_about_2_ms_a_full_horizon_run():
-    """bench_scaling.py's simulator: wall time per run measured on runs that last the whole
-    horizon (a quiet start: the lead far ahead), one run at a time and 64 at once."""
+    """bench_scaling.py's simulator, wall time per run measured on runs that last the whole
+    horizon (a quiet start: the lead far ahead), 64 at a time as a worker simulates them (its
+    numpy steps cost ~7 ms of CPU a chunk on top, whatever the chunk's size), and one at a
+    time (never less than the sleep)."""
     from slow_backend import RUN_STEP_COST_S
 
     slow = make_backend({"name": "lead-follow", "sv_policy": "idm", "backend": "slow_backend:SlowRunBackend"})
     policy = make_action_policy("uniform", slow.scenario)
     quiet = np.array([[10.0, 10.0, 60.0]])
-    for count, repeats in ((1, 20), (64, 2)):
+    assert 49 * RUN_STEP_COST_S == pytest.approx(1.96e-3)
+    for count, repeats, most in ((64, 3, 4e-3), (1, 10, None)):
         t0 = time.perf_counter()
         for r in range(repeats):
             batch = run_scenario(slow, np.repeat(quiet, count, axis=0), 50, policy,
                                  RunStreams.of(0, np.arange(r * count, (r + 1) * count)))
             assert (batch.lengths == 50).all()  # every run the whole horizon
         per_run = (time.perf_counter() - t0) / (count * repeats)
-        assert 49 * RUN_STEP_COST_S == pytest.approx(1.96e-3)
-        assert 1.9e-3 < per_run < 10e-3, f"{1e3 * per_run:.2f} ms a run"
+        assert per_run >= 1.96e-3 and (most is None or per_run < most), f"{1e3 * per_run:.2f} ms a run of {count}"
