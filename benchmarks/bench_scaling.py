@@ -1,29 +1,42 @@
-"""Scaling of the farm: committed runs/s of a quantification campaign against the number
-of Ray workers, with a simulator of realistic speed (4 us per run-step, a sleep standing
-in for a remote core: benchmarks/slow_backend.py), on a local Ray.
+"""Scaling of the farm on real Ray: the time to the result of a quantification campaign
+against the number of workers, with a sleeping simulator of ~2 ms a full-horizon run
+(benchmarks/slow_backend.py, ``SlowRunBackend``: 40 us per run and step, slept; a sleep
+stands in for a remote core, so that 32 workers on this 2-core machine measure the farm,
+the coordinator and Ray, not the machine's cores).
 
-lead-follow idm, uniform Gamma, delta 2 -> 1, the default batch size and pipeline depth.
-Ray start-up and actor creation are left out (they are reported apart); the coordinator's
-CPU time per committed run is printed too.
+lead-follow idm, uniform Gamma, delta 2 -> 1, eps 0.001, K = 50, certification off,
+the default window (1024 x 2), seed 0. The time to the result runs from the campaign's
+first draw to its result; Ray start-up and actor creation are reported apart. Every row
+has the same result hash (the worker count never changes a result). Per row also: the
+workers' idle share, the chunks sent and their mean size, the run and call times the
+executor measured (farm/chunking.py), the driver's CPU per chunk and the workers' CPU.
 
-    python benchmarks/bench_scaling.py [--workers 1 2 4 8 16 32]
+    python benchmarks/bench_scaling.py               # 1, 8, 32 workers: docs/scaling.json, docs/scaling.md
+    python benchmarks/bench_scaling.py --workers 1 2 4 --backend slow_backend:SlowBackend --no-write
+    python benchmarks/bench_scaling.py --render      # docs/scaling.md from docs/scaling.json only
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import platform
 import sys
 import time
+from pathlib import Path
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
+HERE = Path(__file__).resolve().parent
+DOCS = HERE.parent / "docs"
+sys.path.insert(0, str(HERE))
 
 import numpy as np  # noqa: E402
 
+BACKEND = "slow_backend:SlowRunBackend"
 
-def campaign_config(workers: int, batch: int | None = None, depth: int | None = None,
-                    backend: str = "slow_backend:SlowBackend", delta_min: float = 1.0):
+
+def campaign_config(workers: int, batch: int | None = None, depth: int | None = None, backend: str = BACKEND,
+                    delta_min: float = 1.0, certify: bool = False):
     from farm import config as config_mod
 
     farm = {"executor": "ray", "workers": workers, "seed": 0}
@@ -32,7 +45,7 @@ def campaign_config(workers: int, batch: int | None = None, depth: int | None = 
         "scenario": {"name": "lead-follow", "sv_policy": "idm", "backend": backend},
         "actions": {"mode": "uniform"},
         "quantify": {"delta0": 2.0, "delta_min": delta_min, "epsilon": 0.001, "beta": 0.1, "horizon": 50,
-                     "certify": False},
+                     "certify": certify},
         "farm": farm})
 
 
@@ -50,16 +63,22 @@ def run_campaign(cfg) -> dict:
     startup = time.perf_counter() - t0
     workers_cpu0 = _cpu_seconds(pids)
     campaign = build_campaign(cfg, algo, sim, ex)
+    load0 = os.getloadavg()[0]
     cpu0, main0, t0 = time.process_time(), time.thread_time(), time.perf_counter()
     c = campaign.run()
     wall, cpu, main_cpu = time.perf_counter() - t0, time.process_time() - cpu0, time.thread_time() - main0
     workers_cpu = _cpu_seconds(pids) - workers_cpu0
-    stats = ex.worker_stats()
-    busy = np.array([s["busy_s"] for s in stats])
+    busy = np.array([s["busy_s"] for s in ex.worker_stats()])
+    chunks = ex.chunks_sent
     ex.close()
-    return {"workers": cfg.farm.workers, "committed": c.committed, "wall_s": wall, "cpu_s": cpu, "main_cpu_s": main_cpu, "startup_s": startup,
-            "rate": c.committed / wall, "idle": 1 - busy.mean() / wall,
-            "worker_busy_s": float(busy.sum()), "workers_cpu_s": workers_cpu, "hash": algo.result().result_hash}
+    return {"workers": cfg.farm.workers, "wall_s": round(wall, 3), "committed": c.committed,
+            "simulated": c.runs_simulated, "rate": round(c.committed / wall, 1), "idle": round(1 - busy.mean() / wall, 3),
+            "chunks": chunks, "mean_chunk": round(c.runs_simulated / max(chunks, 1), 1),
+            "run_ms": round(1e3 * ex.sizer.run_s, 3), "call_ms": round(1e3 * ex.sizer.call_s, 3),
+            "cpu_s": round(cpu, 2), "main_cpu_s": round(main_cpu, 2), "worker_busy_s": round(float(busy.sum()), 2),
+            "driver_cpu_per_chunk_ms": round(1e3 * cpu / max(chunks, 1), 2), "workers_cpu_s": round(workers_cpu, 2),
+            "startup_s": round(startup, 1), "load_before": round(load0, 2), "load_after": round(os.getloadavg()[0], 2),
+            "hash": algo.result().result_hash}
 
 
 def _cpu_seconds(pids: list[int]) -> float:
@@ -74,33 +93,87 @@ def _cpu_seconds(pids: list[int]) -> float:
     return total
 
 
+def line(r: dict, base: dict) -> str:
+    return (f"{r['workers']:3d} workers: {r['wall_s']:7.1f} s to the result, speed-up {base['wall_s'] / r['wall_s']:5.2f}x "
+            f"({r['committed']:,} committed, {r['simulated']:,} simulated, {r['rate']:,.0f} runs/s; workers idle "
+            f"{r['idle']:.2f}; {r['chunks']:,} chunks of {r['mean_chunk']:.0f} runs; run {r['run_ms']:.2f} ms, call "
+            f"{r['call_ms']:.2f} ms; driver {r['cpu_s']:.1f} CPU-s ({r['driver_cpu_per_chunk_ms']:.2f} ms a "
+            f"chunk), workers {r['workers_cpu_s'] / r['wall_s']:.2f} cores; load {r['load_before']:.1f} -> "
+            f"{r['load_after']:.1f}; actors up in {r['startup_s']:.1f} s)")
+
+
+def render() -> Path:
+    """docs/scaling.md from docs/scaling.json."""
+    data = json.loads((DOCS / "scaling.json").read_text())
+    meta, rows = data["meta"], data["rows"]
+    base = rows[0]
+    out = [
+        "# Scaling on real Ray",
+        "",
+        "<!-- rendered by `python benchmarks/bench_scaling.py --render` from docs/scaling.json: edit the script, "
+        "not this file -->",
+        "",
+        f"`python benchmarks/bench_scaling.py` ({meta['date']}, {meta['machine']}, Python {meta['python']}, Ray "
+        f"{meta['ray']}; load average {meta['load_before']:.1f} before the first row): {meta['campaign']}. A "
+        f"sleeping simulator of {meta['run_ms']:g} ms a full-horizon run ({meta['backend']}) stands in for remote "
+        "cores, so the workers cost this machine little CPU. Time to the result from the first draw; Ray and the "
+        "actors' start-up apart. The machine is shared: figures move with its load (the columns at the right).",
+        "",
+        "| workers | time to result | speed-up | committed / simulated runs | workers idle | chunks (mean runs) "
+        "| run / call time measured | driver CPU (per chunk) | workers' CPU | load before -> after |",
+        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for r in rows:
+        out.append(f"| {r['workers']} | {r['wall_s']:.1f} s | {base['wall_s'] / r['wall_s']:.1f}x | "
+                   f"{r['committed']:,} / {r['simulated']:,} | {r['idle']:.2f} | {r['chunks']:,} ({r['mean_chunk']:.0f}) "
+                   f"| {r['run_ms']:.2f} / {r['call_ms']:.2f} ms | {r['cpu_s']:.1f} s "
+                   f"({r['driver_cpu_per_chunk_ms']:.2f} ms) | {r['workers_cpu_s'] / r['wall_s']:.2f} cores | "
+                   f"{r['load_before']:.1f} -> {r['load_after']:.1f} |")
+    out += ["", f"Same result hash on every row: {'yes' if len({r['hash'] for r in rows}) == 1 else 'NO'} "
+            f"({rows[0]['hash']}).", ""]
+    out += [f"{text}" for text in meta.get("notes", [])]
+    path = DOCS / "scaling.md"
+    path.write_text("\n".join(out).rstrip() + "\n")
+    return path
+
+
 def main() -> None:
     import ray
 
+    if sys.argv[1:] == ["--render"]:
+        print(render())
+        return
     ap = argparse.ArgumentParser()
-    ap.add_argument("--workers", type=int, nargs="+", default=[1, 2, 4, 8, 16, 32])
+    ap.add_argument("--workers", type=int, nargs="+", default=[1, 8, 32])
     ap.add_argument("--batch", type=int, help="farm.batch_size (default: the config default)")
     ap.add_argument("--depth", type=int, help="farm.pipeline_depth (default: the config default)")
+    ap.add_argument("--backend", default=BACKEND)
+    ap.add_argument("--no-write", action="store_true", help="print only (no docs/scaling.json)")
     args = ap.parse_args()
     from farm.ray_session import start_local
+    from slow_backend import SlowBackend, SlowRunBackend
 
-    start_local(os.cpu_count(), HERE)
-    cfg0 = campaign_config(1, args.batch, args.depth)
-    print(f"machine: {os.cpu_count()} cores; Ray {ray.__version__}, local; simulator 4 us per run-step (sleep); "
-          f"batch_size {cfg0.farm.batch_size}, pipeline_depth {cfg0.farm.pipeline_depth}")
-    base = None
-    hashes = set()
+    start_local(os.cpu_count(), str(HERE))
+    cfg0 = campaign_config(1, args.batch, args.depth, args.backend)
+    step = SlowRunBackend.step_cost_s if args.backend.endswith(":SlowRunBackend") else SlowBackend.step_cost_s
+    run_ms = 1e3 * step * (cfg0.quantify.horizon - 1)
+    campaign = (f"lead-follow idm, uniform Gamma, delta 2 -> 1, eps 0.001, K = {cfg0.quantify.horizon}, "
+                f"certification off, batch_size {cfg0.farm.batch_size} x pipeline_depth {cfg0.farm.pipeline_depth}, "
+                f"seed 0")
+    meta = {"date": time.strftime("%Y-%m-%d"), "machine": f"{platform.machine()}, {os.cpu_count()} cores",
+            "python": platform.python_version(), "ray": ray.__version__, "backend": args.backend,
+            "run_ms": round(run_ms, 3), "campaign": campaign, "load_before": round(os.getloadavg()[0], 2)}
+    print(f"{meta['machine']}; Ray {ray.__version__}, local; simulator {run_ms:g} ms a full-horizon run (sleep); "
+          f"{campaign}; load {meta['load_before']}", flush=True)
+    rows = []
     for w in args.workers:
-        r = run_campaign(campaign_config(w, args.batch, args.depth))
-        base = base or r["rate"]
-        hashes.add(r["hash"])
-        print(f"{w:3d} workers: {r['rate']:9,.0f} committed runs/s  speed-up {r['rate'] / base:5.2f}x  "
-              f"({r['committed']} runs in {r['wall_s']:.1f} s; worker idle {r['idle']:.2f}; coordinator "
-              f"{r['committed'] / max(r['cpu_s'], 1e-9):,.0f} runs per CPU-s; workers' CPU "
-              f"{r['workers_cpu_s'] / r['wall_s']:.2f} cores; actors up in {r['startup_s']:.1f} s)",
-              flush=True)
-    print(f"same result for every worker count: {len(hashes) == 1}")
+        rows.append(run_campaign(campaign_config(w, args.batch, args.depth, args.backend)))
+        print(line(rows[-1], rows[0]), flush=True)
+    print(f"same result for every worker count: {len({r['hash'] for r in rows}) == 1}")
     ray.shutdown()
+    if not args.no_write:
+        (DOCS / "scaling.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1) + "\n")
+        print(render())
 
 
 if __name__ == "__main__":

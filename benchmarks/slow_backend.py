@@ -9,6 +9,11 @@ and slept at the end of the rollout, in one sleep: on this KVM guest every sleep
 costs ~100-170 us of CPU, which per step (50 sleeps per chunk) nearly doubled a worker's
 CPU per run (17.7 against 9.4 us). A chunk still takes as long as its steps cost, and
 nothing is returned before that. tests/benchmarks checks that it is as slow as it says.
+
+``SlowRunBackend`` is the same at 40 us per run-step: a full-horizon run of 50 states (49
+steps) takes ~2 ms, the simulator of the real-Ray scaling benchmark (bench_scaling.py).
+Either takes its step cost as an option, ``[scenario."slow_backend:SlowBackend"]
+step_cost_s = ...``.
 """
 
 from __future__ import annotations
@@ -18,6 +23,7 @@ import time
 from scenarios.backend import NumpyBackend
 
 STEP_COST_S = 4e-6  # [s] per run and step
+RUN_STEP_COST_S = 40e-6  # [s] per run and step: ~2 ms a full-horizon run of 50 states
 
 
 class SlowBackend(NumpyBackend):
@@ -25,6 +31,8 @@ class SlowBackend(NumpyBackend):
     step_cost_s = STEP_COST_S
 
     def __init__(self, scenario, options=None):
+        options = dict(options or {})
+        self.step_cost_s = float(options.pop("step_cost_s", self.step_cost_s))
         super().__init__(scenario, options)
         self._owed_s = 0.0  # the cost of the steps taken since the rollout began
 
@@ -38,3 +46,8 @@ class SlowBackend(NumpyBackend):
         if owed > 0:
             time.sleep(owed)
         super().clear()
+
+
+class SlowRunBackend(SlowBackend):
+    name = "slow-run"
+    step_cost_s = RUN_STEP_COST_S

@@ -9,7 +9,10 @@
                                                      business: results never depend on it);
                                                      ``actions``: the action policy's adaptive
                                                      state (``ActionPolicy.state()``) for these
-                                                     runs, or None
+                                                     runs, or None; ``indices``: (k,) int64
+                                                     sample indices of the runs instead of
+                                                     first_index, first_index + 1, ...
+                                                     (replacement runs), or None
     result(handle) -> Chunk                          wait for one chunk
     cancel(handle)                                   drop a chunk (it is not committed)
     screen_stored(pieces, coverage) -> [(states, run)]   experience replay: for each stored

@@ -1,43 +1,146 @@
-"""How a batch is cut into chunks for workers (shared/spec/scaling.md, "Chunking").
+"""How big a chunk is and how long it may take: from the run time and the Ray call cost
+the executor measures (shared/spec/scaling.md, "Chunking and the virtual farm").
 
-A chunk is one call: the coordinator pays for sending and reading it, a worker for
-taking it. The size follows the simulator's run time ``run_time`` and the call's cost
-``call_cost``:
+A chunk is the runs one worker simulates in one call. Its time on the worker is
+``t(c) = a + b c`` for ``c`` runs: ``a`` the worker's cost per chunk (a vectorized back
+end's per-step overhead, screening, Ray: ~7 ms for lead-follow on numpy here), ``b`` per
+run. Its size follows them:
 
-- enough chunks to keep every worker busy from the batches in flight: at most
-  ``batch * pipeline_depth / workers`` runs a chunk;
-- few enough calls for the coordinator: at least ``4 * workers * call_cost / run_time``
-  runs a chunk (the coordinator then spends at most a quarter of its time on calls);
-- a chunk takes at most about ``MAX_CHUNK_S`` of simulation, so that a round end or a stop
-  does not wait long for it (the coordinator's floor wins over it).
+- every worker gets a share of every batch (``ceil(runs / workers)`` runs at most), so
+  the ``pipeline_depth`` batches in flight keep each worker ``pipeline_depth`` chunks deep
+  and none idles when the oldest batch is committed;
+- a chunk holds at most ``CHUNK_S`` seconds of work, so that a round end (whose dropped
+  chunks still run to their end on their workers) waits about that long;
+- but the worker's cost per chunk stays under ``OVERHEAD_SHARE`` of the chunk's time, and
+  the driver spends at most ``DRIVER_SHARE`` of its time on Ray calls with every worker
+  busy (scaling.md's ``c ~ 4 W t_call / t_run``): past those, chunks grow (and fewer
+  workers are busy) rather than the workers or the driver wasting most of their time.
 
-Chunking never changes a result: runs are committed in index order and re-screened.
+``a`` and ``b`` are fitted (least squares) to the latest chunks' busy times, the driver's
+time per chunk ``t_call`` (its call and the read of its result) smoothed likewise. The
+first chunk of a campaign is a single run (the executor's probe): until chunks of
+another size come back, ``t(1)`` counts as per-run cost. How a batch is cut never changes
+a result: runs are committed in index order and re-screened.
+
+The time limit of a chunk is ``LIMIT_FACTOR`` times its expected time plus
+``LIMIT_FLOOR_S`` (``farm.chunk_timeout`` replaces it), counted from when its worker
+starts it; before any chunk has come back nothing is measured, and the limit is
+``UNMEASURED_LIMIT_S``.
 """
 
 from __future__ import annotations
 
-import numpy as np
+import math
 
-MAX_CHUNK_S = 1.5  # [s] of simulation a chunk takes at most (unless the coordinator's floor says more)
-DRIVER_SHARE = 4  # the coordinator spends at most 1 / DRIVER_SHARE of its time on calls
-
-
-def chunk_size(batch: int, workers: int, pipeline_depth: int, run_time: float, call_cost: float) -> int:
-    """Runs per chunk for batches of ``batch`` runs (``run_time``: seconds a run takes)."""
-    busy = -(-batch * pipeline_depth // max(workers, 1))
-    if run_time <= 0:
-        return max(1, busy)
-    driver = int(np.ceil(DRIVER_SHARE * workers * call_cost / run_time))
-    short = max(1, int(MAX_CHUNK_S / run_time))
-    return int(max(1, driver, min(busy, short)))
+CHUNK_S = 1.0  # [s] of work a chunk holds at most (unless the workers or the driver cannot afford smaller)
+OVERHEAD_SHARE = 0.1  # of a chunk's time on the worker's cost per chunk, at most
+DRIVER_SHARE = 0.25  # of the driver's time on Ray calls, every worker busy
+CALL_S = 1e-3  # [s] the driver's time per chunk until it is measured
+DECAY = 0.8  # weight of the older chunks in the fitted times, per chunk
+SPREAD = 0.1  # chunk sizes' coefficient of variation below which a and b are not refitted
+LIMIT_FACTOR = 10.0  # a chunk may take this many times its expected time ...
+LIMIT_FLOOR_S = 5.0  # [s] ... plus this (a loaded machine, a garbage collection)
+UNMEASURED_LIMIT_S = 600.0  # [s] a chunk's limit before any chunk has come back
 
 
-def chunk_rows(n: int, workers: int, pipeline_depth: int, run_time: float, call_cost: float,
-               urgent: bool = False) -> list[np.ndarray]:
-    """The rows of a batch of ``n`` runs, cut into chunks of about equal size. ``urgent``
-    (replacements: the head may be waiting for them): one wave over the workers, however
-    small the chunks."""
-    if n == 0:
-        return []
-    size = -(-n // max(workers, 1)) if urgent else chunk_size(n, workers, pipeline_depth, run_time, call_cost)
-    return np.array_split(np.arange(n), -(-n // size))
+class ChunkSizer:
+    """The measured run and call times of one executor, and what follows from them."""
+
+    def __init__(self, workers: int, chunk_timeout: float = 0.0):
+        """``chunk_timeout``: a fixed limit per chunk in seconds (farm.chunk_timeout); 0: derived."""
+        self.workers = max(1, int(workers))
+        self.chunk_timeout = float(chunk_timeout)
+        self._fit = [0.0] * 5  # decayed sums of 1, c, c^2, t, c t over chunks
+        self.chunk_cost_s: float | None = None  # a: a worker's time per chunk
+        self.run_cost_s: float | None = None  # b: a worker's time per run
+        self._call = self._calls = 0.0  # decayed sums: t_call = call / calls
+
+    # -- measurements ----------------------------------------------------------------------
+    def ran(self, runs: int, busy_s: float) -> None:
+        """A worker spent ``busy_s`` seconds on a chunk of ``runs`` runs."""
+        if runs <= 0 or busy_s < 0:
+            return
+        f = self._fit
+        for i, v in enumerate((1.0, runs, runs * runs, busy_s, runs * busy_s)):
+            f[i] = DECAY * f[i] + v
+        w, wc, wcc, wt, wct = f
+        mean_c, mean_t = wc / w, wt / w
+        var_c = wcc / w - mean_c**2
+        a, b = 0.0, mean_t / mean_c  # one size seen: all of it per run
+        if var_c > (SPREAD * mean_c) ** 2:
+            slope = (wct / w - mean_c * mean_t) / var_c
+            if slope > 0 and mean_t - slope * mean_c >= 0:
+                a, b = mean_t - slope * mean_c, slope
+        elif self.chunk_cost_s is not None and mean_t > self.chunk_cost_s:
+            a, b = self.chunk_cost_s, (mean_t - self.chunk_cost_s) / mean_c  # sizes alike: a kept
+        self.chunk_cost_s, self.run_cost_s = a, max(b, 1e-9)
+
+    def called(self, seconds: float) -> None:
+        """The driver spent ``seconds`` on one chunk's call and result."""
+        if seconds >= 0:
+            self._call = DECAY * self._call + seconds
+            self._calls = DECAY * self._calls + 1
+
+    @property
+    def run_s(self) -> float | None:
+        """A worker's seconds per run in the latest chunks, their cost per chunk shared out
+        (None until a chunk has come back)."""
+        f = self._fit
+        return f[3] / f[1] if f[1] else None
+
+    @property
+    def call_s(self) -> float:
+        """The driver's seconds per chunk."""
+        return self._call / self._calls if self._calls else CALL_S
+
+    def expected_s(self, runs: int) -> float | None:
+        """A worker's expected seconds for a chunk of ``runs`` runs."""
+        if self.run_cost_s is None:
+            return None
+        return self.chunk_cost_s + self.run_cost_s * runs
+
+    # -- what follows ----------------------------------------------------------------------
+    def size(self, runs: int, urgent: bool = False) -> int:
+        """Runs per chunk for a batch of ``runs`` runs (1 up to ``runs``). ``urgent``
+        (replacements, which the commit head may be waiting for): one wave over the
+        workers, however small its chunks."""
+        share = math.ceil(runs / self.workers)
+        if urgent or runs <= 1 or self.run_cost_s is None:
+            return max(1, min(runs, share))
+        return min(runs, max(min(share, self._by_time()), self._floor()))
+
+    def _by_time(self) -> int:
+        return max(1, math.floor((CHUNK_S - self.chunk_cost_s) / self.run_cost_s))
+
+    def _floor(self) -> int:
+        """The smallest chunk the workers' cost per chunk and the driver's calls afford."""
+        if self.run_cost_s is None:
+            return 1
+        a, b = self.chunk_cost_s, self.run_cost_s
+        efficient = math.ceil(a * (1 - OVERHEAD_SHARE) / (OVERHEAD_SHARE * b))
+        afford = math.ceil((self.workers * self.call_s / DRIVER_SHARE - a) / b)
+        return max(1, efficient, afford)
+
+    def chunks(self, runs: int, urgent: bool = False) -> int:
+        """The chunks a batch of ``runs`` runs is cut into."""
+        return max(1, math.ceil(runs / self.size(runs, urgent)))
+
+    def batch_size(self, requested: int) -> int:
+        """Runs per batch that give every worker a chunk of at least the affordable size
+        (at least ``requested``): with ``pipeline_depth`` batches in flight each worker
+        is then that many chunks deep. Only where the batch size cannot change a result
+        (sequential counting) does the driver ask."""
+        return max(requested, self.workers * self._floor())
+
+    def busy_at_most(self, batch_size: int, pipeline_depth: int) -> int:
+        """Workers that ``pipeline_depth`` batches of ``batch_size`` runs can keep busy."""
+        return min(self.workers, pipeline_depth * self.chunks(batch_size))
+
+    def limit(self, runs: int) -> float:
+        """[s] the time a chunk of ``runs`` runs may take once its worker has started it."""
+        if self.chunk_timeout > 0:
+            return self.chunk_timeout
+        expected = self.expected_s(runs)
+        if expected is None:
+            return UNMEASURED_LIMIT_S
+        return LIMIT_FLOOR_S + LIMIT_FACTOR * expected

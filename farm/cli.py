@@ -3,7 +3,9 @@
 Exit codes: 0 success (certified, campaign finished), 1 counterexample found (validate,
 replay mismatch), 2 bad input or an unusable directory (one line naming the field and
 the allowed range; nothing touched), 3 a bug in this tool (one line and where the
-traceback went: please report it), 130 stopped by a signal (checkpointed; resume it).
+traceback went: please report it), 4 infrastructure (Ray workers lost or hung beyond
+farm.max_retries: the last checkpoint stands, resume it), 130 stopped by a signal
+(checkpointed; resume it).
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from pathlib import Path
 
 from scenarios.version import __version__
 
-EXIT_OK, EXIT_COUNTEREXAMPLE, EXIT_BAD_INPUT, EXIT_BUG, EXIT_STOPPED = 0, 1, 2, 3, 130
+EXIT_OK, EXIT_COUNTEREXAMPLE, EXIT_BAD_INPUT, EXIT_BUG, EXIT_INFRASTRUCTURE, EXIT_STOPPED = 0, 1, 2, 3, 4, 130
 
 
 def _overrides(args) -> dict:
@@ -301,6 +303,9 @@ def main(argv=None) -> int:
     # SIGTERM outside a campaign's own handler (start-up, finishing) ends like Ctrl-C: the
     # files stay as the last checkpoint left them, and the exit says "stopped"
     signal.signal(signal.SIGTERM, _terminate)
+    from farm import ray_watch
+
+    ray_watch.on_lost = _lost
     try:
         return args.func(args)
     except Exception as exc:  # noqa: BLE001 - the one place where errors become exit codes
@@ -314,12 +319,26 @@ def _terminate(signum, frame):
     raise KeyboardInterrupt
 
 
+def _lost(why: str) -> None:
+    """Ray lost this driver's raylet or the cluster's head (farm/ray_watch.py): our line and
+    exit code, before Ray ends the process with exit code 1."""
+    print(f"scenario-farm: infrastructure error: {why} (the last checkpoint stands: `scenario-farm resume DIR` "
+          f"continues)", file=sys.stderr, flush=True)
+    os._exit(EXIT_INFRASTRUCTURE)
+
+
 def report_error(exc: BaseException) -> int:
     from farm.quantification import Stopped
+    from farm.waiting import WorkerError
 
     if isinstance(exc, Stopped):
         print(f"scenario-farm: {exc}; checkpointed (continue with `scenario-farm resume DIR`)", file=sys.stderr)
         return EXIT_STOPPED
+    # TODO(errors branch): WorkerError becomes an InfrastructureError there (farm/exits.py: exit 4)
+    if isinstance(exc, WorkerError):
+        print(f"scenario-farm: infrastructure error: {' '.join(str(exc).split())} (the last checkpoint stands: "
+              f"`scenario-farm resume DIR` continues)", file=sys.stderr)
+        return EXIT_INFRASTRUCTURE
     if is_user_error(exc):
         text = " ".join(str(exc).split()) or type(exc).__name__
         print(f"scenario-farm: error: {text}", file=sys.stderr)
@@ -339,11 +358,10 @@ def is_user_error(exc: BaseException) -> bool:
     from coordinator.domain import DomainError
     from coordinator.safe_set import SafeSetError
     from farm.config import ConfigError
-    from farm.ray_executor import WorkerError
     from farm.storage import CampaignError
     from scenarios.base import ScenarioError
 
-    known = (ConfigError, DomainError, CampaignError, ScenarioError, WorkerError, EmptySetError, SafeSetError,
+    known = (ConfigError, DomainError, CampaignError, ScenarioError, EmptySetError, SafeSetError,
              FileExistsError, ValueError)
     if isinstance(exc, known):
         return True

@@ -9,18 +9,22 @@ Each is imported only when chosen (Ray takes seconds to import and start).
 
 from __future__ import annotations
 
+import threading
+
 from coordinator.executor import Executor
 from scenarios.simulator import SimSpec
 
 
-def make_executor(farm_cfg, spec: SimSpec, check_step_bound: bool = False) -> Executor:
+def make_executor(farm_cfg, spec: SimSpec, check_step_bound: bool = False,
+                  stop: threading.Event | None = None) -> Executor:
     """The executor the ``[farm]`` section (``farm.config.FarmConfig``) names, simulating
-    ``spec``; ``check_step_bound``: check the scenario's step bound on every batch."""
+    ``spec``; ``check_step_bound``: check the scenario's step bound on every batch;
+    ``stop``: an event that ends a wait for a chunk when set (a signal: farm/signals.py)."""
     if farm_cfg.executor == "ray":
         from farm.ray_executor import RayExecutor
 
         return RayExecutor(spec, farm_cfg.workers, farm_cfg.address, farm_cfg.max_retries, check_step_bound,
-                           farm_cfg.pipeline_depth)
+                           farm_cfg.pipeline_depth, farm_cfg.chunk_timeout, stop)
     if farm_cfg.executor == "virtual":
         from farm.virtual_executor import VirtualExecutor
 
@@ -29,4 +33,4 @@ def make_executor(farm_cfg, spec: SimSpec, check_step_bound: bool = False) -> Ex
                                check_step_bound)
     from farm.local_executor import LocalExecutor
 
-    return LocalExecutor(spec, check_step_bound)
+    return LocalExecutor(spec, check_step_bound, farm_cfg.chunk_timeout, stop)

@@ -21,6 +21,7 @@ from farm.signals import stop_on_signals
 from farm.simulators import build_simulator
 from farm.status import StatusWriter
 from farm.storage import CampaignError, Ledger
+from farm.waiting import Interrupted
 
 
 class Stopped(Exception):
@@ -65,15 +66,19 @@ class FacetCampaign:
         # once it has started, not in the middle of ray.init (which can crash on it)
         with stop:
             t0 = time.monotonic()
-            executor = make_executor(farm_cfg, self.spec, check_step_bound=self.cfg.quantify.boundary)
+            executor = make_executor(farm_cfg, self.spec, check_step_bound=self.cfg.quantify.boundary,
+                                     stop=stop.event)
             self.startup_s = time.monotonic() - t0
             if farm_cfg.executor == "ray":
+                executor.notify = progress.line
                 self._say_ray_is_up(executor, progress)
             observers = [self._observer(progress, status)]
             self.campaign = build_campaign(self.cfg, self.algorithm, self.simulator, executor, observers, restored)
             stop.campaign = self.campaign
             try:
                 self.campaign.run()
+            except Interrupted:
+                pass  # a wait for a chunk woke for the stop: the campaign is as after its last commit
             finally:
                 executor.close()
             if farm_cfg.executor == "virtual":
@@ -93,7 +98,7 @@ class FacetCampaign:
         farm_cfg = self.cfg.farm
         progress.line(f"Ray ({farm_cfg.address}) up with {farm_cfg.workers} workers in {self.startup_s:.1f} s")
         busy = executor.busy_at_most(farm_cfg.batch_size)
-        if busy < farm_cfg.workers:  # the cut is fixed by result-relevant settings: say so, do not change it
+        if busy < farm_cfg.workers:  # more workers than runs in flight: result-relevant, so said, not changed
             progress.line(f"note: {farm_cfg.batch_size} x {farm_cfg.pipeline_depth} runs in flight "
                           f"(farm.batch_size x farm.pipeline_depth) keep at most {busy} of the "
                           f"{farm_cfg.workers} workers busy; raise them for more (it costs runs: README, "

@@ -2,61 +2,64 @@
 libsumo simulation per actor process) and a mirror of the coverage its runs are
 screened against.
 
-A batch is cut into workers / pipeline_depth chunks (of MIN_CHUNK runs at least), so
-that the batches in flight keep every worker busy; chunks go to the actor with the fewest
-chunks queued. With each chunk goes what its actor's mirror lacks: the coverage changes
-since the version the actor was last sent (small blocks inside the call, large ones put
-in the object store once and shared by every actor that needs the same range), or a whole
+A batch is cut into chunks whose size follows the simulator (farm/chunking.py: each
+worker a share of every batch, about a second of simulation at most, no more Ray calls
+than the driver can afford); the first batch begins with a one-run chunk that measures
+the run time before the rest is cut. Chunks go to the actor with the fewest runs queued.
+With each chunk goes what its actor's mirror lacks: the coverage changes since the
+version the actor was last sent (small blocks inside the call, large ones put in the
+object store once and shared by every actor that needs the same range), or a whole
 snapshot for a new or restarted actor. A chunk returns two objects: a small per-run
-summary (outcome, length, screening), which comes back to the driver, and the visited
-states, which stay in the worker node's object store until the driver
-asks for them (re-screening, experience replay, recordings) or drops them.
+summary (outcome, length, screening, the actor's busy time), which comes back to the
+driver, and the visited states, which stay in the worker node's object store until the
+driver asks for them (re-screening, experience replay, recordings) or drops them.
 
-An actor whose process dies is restarted by Ray and its chunk retried on another actor
-(bounded); an exception inside a scenario surfaces as a one-line error naming the
-sample index and start state. The mirror is a cache, not state: an actor that lost it
-asks for a snapshot.
+Every wait wakes for a stop and watches the chunks' time limits (farm/ray_pool.py): a
+hung or lost actor is replaced and its chunks retried on the others (bounded by
+``farm.max_retries``); an exception inside a scenario surfaces as a one-line error
+naming the sample index and start state. The mirror is a cache, not state: an actor
+that lost it asks for a snapshot.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import os
+import threading
 import time
+from typing import Callable
 
 import numpy as np
 
 from coordinator.coverage import Coverage, Reset
 from coordinator.executor import Chunk, Executor, chunk_of, screen_piece, summarize
-from farm.simulators import build_simulator
+from farm.chunking import ChunkSizer
+from farm.ray_pool import ActorPool, Call, check_started
 from farm.ray_session import connect
+from farm.simulators import build_simulator
+from farm.waiting import WorkerError, name_runs
+from scenarios.base import ScenarioError
 from scenarios.simulator import SimSpec
+
+__all__ = ["RayExecutor", "WorkerError", "busy_at_most", "chunks_per_batch"]
 
 RESYNC = "resync"  # a worker's answer when its mirror cannot reach the chunk's version
 STORED_PART = 4096  # runs per replay task when a stored piece must be re-simulated
-
-
-MIN_CHUNK = 256  # runs: the smallest chunk a batch is cut into for a worker
 INLINE_BYTES = 1 << 16  # change blocks up to this size travel inside the task call
 CLOSE_GRACE_S = 2.0  # [s] an actor's time to finish its chunks at close before it is killed
 
 
 def chunks_per_batch(workers: int, pipeline_depth: int, batch_size: int) -> int:
-    """The chunks a batch of ``batch_size`` runs is cut into for ``workers`` workers.
-
-    ``pipeline_depth`` batches are in flight: workers / depth chunks per batch keep every
-    worker busy with the fewest Ray calls (2 workers at depth 2: one chunk per batch).
-    None under MIN_CHUNK runs: a smaller chunk costs the driver a Ray call (~1-2 ms) for
-    little simulation, and a worker its per-step overhead for few runs; more workers are
-    kept busy by more runs in flight (farm.batch_size x farm.pipeline_depth), not by
-    thinner chunks."""
-    return min(-(-workers // pipeline_depth), max(1, batch_size // MIN_CHUNK))
+    """The chunks a batch of ``batch_size`` runs is cut into for ``workers`` workers before
+    any run time is measured, and for a simulator slow enough that the run time does not
+    decide it: a share of every batch for every worker (farm/chunking.py)."""
+    return ChunkSizer(workers).chunks(batch_size)
 
 
 def busy_at_most(workers: int, pipeline_depth: int, batch_size: int) -> int:
-    """Workers that batches of ``batch_size`` runs, ``pipeline_depth`` in flight, can keep
-    busy (docs/window.md: what raising them costs)."""
-    return min(workers, pipeline_depth * chunks_per_batch(workers, pipeline_depth, batch_size))
+    """Workers that ``pipeline_depth`` batches of ``batch_size`` runs can keep busy with
+    chunks of one run up: every worker, unless there are more workers than runs in flight."""
+    return ChunkSizer(workers).busy_at_most(batch_size, pipeline_depth)
 
 
 def _nbytes(changes) -> int:
@@ -67,10 +70,6 @@ def _nbytes(changes) -> int:
             return INLINE_BYTES + 1
         total += sum(v.nbytes for v in vars(change).values() if isinstance(v, np.ndarray))
     return total
-
-
-class WorkerError(RuntimeError):
-    pass
 
 
 def _actor_class():
@@ -96,7 +95,9 @@ def _actor_class():
                 return RESYNC, None
             batch = self.simulator.simulate(first_index, starts, indices=indices, actions=actions)
             summary, visited = summarize(batch, screen)
-            self.busy_s += time.perf_counter() - t0
+            busy = time.perf_counter() - t0
+            summary["busy_s"] = busy  # the chunk sizes follow it (farm/chunking.py)
+            self.busy_s += busy
             self.tasks += 1
             return summary, visited
 
@@ -119,6 +120,11 @@ def _actor_class():
             for block in payload:
                 self.mirror.sync(ray.get(block) if isinstance(block, ray.ObjectRef) else block)
             return self.mirror
+
+        def revisit(self, first_index: int, starts: np.ndarray, actions=None, indices=None):
+            """A chunk's visited states again (they were lost with their node): a run
+            depends on its key, start and the policy's state only."""
+            return self.simulator.simulate(first_index, starts, indices=indices, actions=actions).visited()
 
         def replay_screen(self, pieces, source_refs, message, actions=None):
             """Experience replay on stored pieces: each one's new states under the
@@ -152,29 +158,32 @@ def _actor_class():
     return SimWorker
 
 
-@dataclasses.dataclass
-class _InFlight:
-    """A chunk sent to an actor and not yet read back."""
+@dataclasses.dataclass(eq=False)
+class _Job(Call):
+    """A chunk: runs ``first, first + 1, ...`` (or ``indices``) from ``starts``."""
 
-    ref: object  # the summary's object ref
-    visited_ref: object
-    actor: int
-    first: int
-    starts: np.ndarray
-    screen: object
+    first: int = 0
+    starts: np.ndarray | None = None
+    screen: object = None
     actions: dict | None = None  # the policy's adaptive state for this chunk
+    indices: np.ndarray | None = None
+    visited_ref: object = None
     sent: tuple | None = None  # the coverage (id, epoch, seq) its message brings the actor to
-    tries: int = 0
-    indices: np.ndarray | None = None  # its runs' sample indices, when not first, first + 1, ...
+    fresh: bool = False  # send a whole snapshot (the actor lost its mirror)
+    summary: dict | None = None
 
 
 class RayExecutor(Executor):
     name = "ray"
 
     def __init__(self, spec: SimSpec, workers: int, address: str = "local", max_retries: int = 3,
-                 check_step_bound: bool = False, pipeline_depth: int = 1):
+                 check_step_bound: bool = False, pipeline_depth: int = 1, chunk_timeout: float = 0.0,
+                 stop: threading.Event | None = None, notify: Callable[[str], None] | None = None):
         """``pipeline_depth``: batches the caller keeps in flight (farm.pipeline_depth);
-        it decides only how batches are cut into chunks, never a result."""
+        ``chunk_timeout``: seconds a chunk may take (farm.chunk_timeout; 0: derived from
+        the measured run time); ``stop``: set on SIGINT / SIGTERM, it ends a wait for a
+        chunk (``farm.waiting.Interrupted``); ``notify``: takes a line for the user (a
+        worker replaced). None of them changes a result."""
         import ray
 
         connect(address, workers)
@@ -183,23 +192,50 @@ class RayExecutor(Executor):
         self.workers = workers
         self.max_retries = max_retries
         self.pipeline_depth = max(1, int(pipeline_depth))
+        self.sizer = ChunkSizer(workers, chunk_timeout)
+        self._scenario = str(spec.scenario.get("name", "?"))
         # More workers than CPUs (a test asking for 4 on a 2-core Ray) share the CPUs
         # instead of waiting forever for a free one.
         cpus = float(ray.cluster_resources().get("CPU", workers))
         per_actor = min(1.0, cpus / workers)
-        # spread over the cluster's nodes: simulators are what the farm scales
-        cls = _actor_class().options(num_cpus=per_actor, max_restarts=max_retries, max_task_retries=max_retries,
+        # spread over the cluster's nodes: simulators are what the farm scales. Ray
+        # restarts a dead actor (for ever: a chunk's tries are bounded instead) and
+        # retries none of its calls: the pool sends them elsewhere.
+        cls = _actor_class().options(num_cpus=per_actor, max_restarts=-1, max_task_retries=0,
                                      scheduling_strategy="SPREAD")
-        self.actors = [cls.remote(dataclasses.asdict(spec), check_step_bound) for _ in range(workers)]
-        self._queued = [0] * workers
-        self._synced: list[tuple[int, int, int] | None] = [None] * workers  # (coverage id, epoch, seq) sent
-        self._confirmed: list[tuple[int, int, int] | None] = [None] * workers  # ... known applied
+        handles = [cls.remote(dataclasses.asdict(spec), check_step_bound) for _ in range(workers)]
+        self.pool = ActorPool(ray, handles, self.sizer.limit, max_retries, stop, notify)
         self._blocks: dict[tuple, object] = {}  # (coverage id, from seq, to seq) -> ref
         self._static: dict[int, object] = {}  # id(screen) -> ref of a fixed screen
         self._snapshot: tuple = (None, None)  # (coverage id, epoch, seq), ref of its state
-        self._jobs: dict[int, _InFlight] = {}
+        self._jobs: dict[int, _Job] = {}
         self._next = 0
         self._actions: dict | None = None  # the newest adaptive policy state submitted
+
+    @property
+    def actors(self) -> list:
+        return self.pool.handles()
+
+    @property
+    def stop(self) -> threading.Event | None:
+        return self.pool.stop
+
+    @stop.setter
+    def stop(self, event: threading.Event | None) -> None:
+        self.pool.stop = event
+
+    @property
+    def notify(self):
+        return self.pool.notify
+
+    @notify.setter
+    def notify(self, notify) -> None:
+        self.pool.notify = notify
+
+    @property
+    def chunks_sent(self) -> int:
+        """Chunks submitted so far (a retry is not another)."""
+        return self._next
 
     def pids(self) -> list[int]:
         return self.ray.get([a.pid.remote() for a in self.actors])
@@ -223,8 +259,9 @@ class RayExecutor(Executor):
             return ("static", self._static[key], 0)
         screen.start_log()
         now = (id(screen), screen.epoch, screen.seq)
-        sent = self._synced[actor]
-        self._synced[actor] = now
+        slot = self.pool.slots[actor]
+        sent = slot.synced
+        slot.synced = now
         if fresh or sent is None or sent[:2] != now[:2]:
             if self._snapshot[0] != now:
                 self._snapshot = (now, self.ray.put(screen.state()))
@@ -244,10 +281,11 @@ class RayExecutor(Executor):
     def _trim(self, screen: Coverage) -> None:
         """Forget the changes every actor that was sent this coverage has applied. An
         actor never sent it gets a snapshot, not changes, so it holds nothing back: with
-        fewer chunks in flight than workers (8 at the defaults) the actors past the
-        eighth are never used, and waiting for them kept every change of the campaign."""
+        fewer chunks in flight than workers the actors past the last are never used, and
+        waiting for them kept every change of the campaign."""
         now = (id(screen), screen.epoch)
-        holding = [c for s, c in zip(self._synced, self._confirmed) if s is not None and s[:2] == now]
+        slots = self.pool.slots
+        holding = [s.confirmed for s in slots if s.synced is not None and s.synced[:2] == now]
         if holding and all(c is not None and c[:2] == now for c in holding):
             screen.trim_log(min(c[2] for c in holding))
 
@@ -257,45 +295,116 @@ class RayExecutor(Executor):
         # the policy's adaptive state goes with every chunk (a few numbers): an actor that
         # Ray restarted from its constructor needs nothing else
         self._actions = actions
-        handles = []
-        for rows in np.array_split(np.arange(len(starts)), self.chunks_per_batch(len(starts))):
-            if len(rows) == 0:
-                continue
-            actor = int(np.argmin(self._queued))
-            first = first_index + int(rows[0]) if indices is None else int(indices[rows[0]])
-            job = _InFlight(None, None, actor, first, starts[rows], screen, actions,
-                            indices=None if indices is None else indices[rows])
-            self._launch(job)
-            self._jobs[self._next] = job
-            handles.append(self._next)
-            self._next += 1
+        n, handles, at = len(starts), [], 0
+        if n and self.sizer.run_s is None:
+            # nothing measured yet: one run first, then the rest cut by its time (a
+            # simulator of a second per run must not start with minutes-long chunks)
+            handles.append(self._send(first_index, starts, screen, actions, indices, np.arange(1)))
+            self._read(self._jobs[handles[0]])
+            at = 1
+        if n > at:
+            for rows in np.array_split(np.arange(at, n), self.sizer.chunks(n - at, urgent=indices is not None)):
+                handles.append(self._send(first_index, starts, screen, actions, indices, rows))
         return handles
 
+    def _send(self, first_index, starts, screen, actions, indices, rows) -> int:
+        first = first_index + int(rows[0])
+        picked = None if indices is None else np.asarray(indices, dtype=np.int64)[rows]
+        job = _Job(len(rows), name_runs(self._scenario, first, starts[rows], picked), None, first=first, starts=starts[rows],
+                   screen=screen, actions=actions, indices=picked)
+        job.launch = lambda actor, job=job: self._launch(job, actor)
+        self.pool.send(job)
+        self._jobs[self._next] = job
+        self._next += 1
+        return self._next - 1
+
     def chunks_per_batch(self, batch_size: int) -> int:
-        """The chunks a batch of ``batch_size`` runs is cut into (``submit``)."""
-        return chunks_per_batch(self.workers, self.pipeline_depth, batch_size)
+        """The chunks a batch of ``batch_size`` runs is cut into now (``submit``)."""
+        return self.sizer.chunks(batch_size)
+
+    def batch_size(self, requested: int, pipeline_depth: int) -> int:
+        return self.sizer.batch_size(requested)
 
     def busy_at_most(self, batch_size: int) -> int:
         """Workers that batches of ``batch_size`` runs, ``pipeline_depth`` in flight, can
-        keep busy: the others are never sent a chunk."""
-        return busy_at_most(self.workers, self.pipeline_depth, batch_size)
+        keep busy by the run time measured so far: the others are never sent a chunk."""
+        return self.sizer.busy_at_most(batch_size, self.pipeline_depth)
 
-    def _launch(self, job: _InFlight, fresh: bool = False) -> None:
-        self._queued[job.actor] += 1
-        message = self._message(job.actor, job.screen, fresh)
-        job.sent = self._synced[job.actor]
-        job.ref, job.visited_ref = self.actors[job.actor].run.remote(job.first, job.starts, message, job.actions,
-                                                                     job.indices)
+    def _launch(self, job: _Job, actor: int) -> None:
+        t0 = time.perf_counter()
+        message = self._message(actor, job.screen, job.fresh)
+        job.sent = self.pool.slots[actor].synced
+        job.ref, job.visited_ref = self.actors[actor].run.remote(job.first, job.starts, message, job.actions,
+                                                                 job.indices)
+        job.fresh = False
+        job.call_s += time.perf_counter() - t0
+        self.pool.sent(job, actor)
 
     def result(self, handle: int) -> Chunk:
         job = self._jobs.pop(handle)
-        while True:
-            summary = self._get(job)
-            if not (isinstance(summary, str) and summary == RESYNC):
-                break
-            self._launch(job, fresh=True)  # the actor lost its mirror (restarted)
+        summary = self._read(job)
         visited_ref = job.visited_ref
-        return chunk_of(summary, lambda: self.ray.get(visited_ref), lambda rows, takes: visited_ref)
+        return chunk_of(summary, lambda: self._visited(job), lambda rows, takes: visited_ref)
+
+    def _visited(self, job: _Job):
+        """A chunk's visited states from its node's object store, or simulated again on a
+        live actor when that node is gone."""
+        try:
+            return self.ray.get(job.visited_ref)
+        except self.ray.exceptions.ObjectLostError:
+            pass
+        call = Call(job.runs, f"{job.what} (simulated again: their node was lost)", None)
+
+        def launch(actor: int) -> None:
+            call.ref = self.actors[actor].revisit.remote(job.first, job.starts, job.actions, job.indices)
+            self.pool.sent(call, actor)
+
+        call.launch = launch
+        self.pool.send(call, interruptible=False)
+        return self._get(call, interruptible=False)  # in the middle of a commit: not stopped there
+
+    def _get(self, call: Call, interruptible: bool = True):
+        """``call``'s value once it is back: it is sent again, to another actor, while its
+        actor is lost (a stop ends the wait when ``interruptible``)."""
+        ray = self.ray
+        while True:
+            self.pool.wait(call, interruptible)
+            t0 = time.perf_counter()
+            try:
+                value = ray.get(call.ref)
+            except ray.exceptions.RayTaskError as exc:
+                cause = getattr(exc, "cause", None)
+                if isinstance(cause, ScenarioError):  # the user's scenario raised: its own line
+                    raise cause from None
+                raise WorkerError(f"worker failed on {call.what}: {cause if cause is not None else exc}") from None
+            except (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError,
+                    ray.exceptions.ObjectLostError) as exc:
+                check_started(exc)
+                if call in self.pool.slots[call.actor].queue:  # else: sent elsewhere already
+                    self.pool.lost(call.actor, why=type(exc).__name__, interruptible=interruptible)
+                continue
+            call.call_s += time.perf_counter() - t0
+            self.pool.finished(call)
+            return value
+
+    def _read(self, job: _Job) -> dict:
+        """The chunk's summary (once: it is kept), sent again where its actor was restarted
+        without its mirror; the chunk sizes learn from its time."""
+        while job.summary is None:
+            summary = self._get(job)
+            if isinstance(summary, str) and summary == RESYNC:  # restarted without its mirror
+                job.fresh = True
+                job.launch(job.actor)
+                continue
+            slot = self.pool.slots[job.actor]
+            if job.sent is not None:  # the actor's mirror has reached what was sent
+                known = slot.confirmed
+                if known is None or known[:2] != job.sent[:2] or known[2] < job.sent[2]:
+                    slot.confirmed = job.sent
+            self.sizer.ran(job.runs, summary.pop("busy_s"))
+            self.sizer.called(job.call_s)
+            job.summary = summary
+        return job.summary
 
     def screen_stored(self, pieces, screen):
         """The pieces shared out among the actors by runs, one call per actor; a piece
@@ -314,24 +423,22 @@ class RayExecutor(Executor):
                 shares.append(piece)
         # one call per actor with its share (balanced by runs), results
         # back in the shares' order
-        groups: list[list[int]] = [[] for _ in self.actors]
-        load = np.zeros(len(self.actors))
+        up = [i for i, slot in enumerate(self.pool.slots) if not slot.down] or [0]
+        groups: list[list[int]] = [[] for _ in up]
+        load = np.zeros(len(up))
         for i, share in enumerate(shares):
-            actor = int(np.argmin(load))
-            groups[actor].append(i)
-            load[actor] += len(share.indices)
+            g = int(np.argmin(load))
+            groups[g].append(i)
+            load[g] += len(share.indices)
         calls = []
-        for actor, members in enumerate(groups):
+        for members in groups:
             if members:
-                self._queued[actor] += 1
-                calls.append((actor, members, self._replay_call(actor, [shares[i] for i in members], screen)))
+                call = self._replay_call([shares[i] for i in members], screen)
+                self.pool.send(call, interruptible=False)
+                calls.append((members, call))
         found: list = [None] * len(shares)
-        for actor, members, ref in calls:
-            result = self.ray.get(ref)
-            while isinstance(result, str):  # the actor was restarted without its mirror
-                result = self.ray.get(self._replay_call(actor, [shares[i] for i in members], screen, fresh=True))
-            self._queued[actor] -= 1
-            for i, piece_found in zip(members, result):
+        for members, call in calls:
+            for i, piece_found in zip(members, self._read_replay(call)):
                 found[i] = piece_found
         # back to one result per piece (re-simulated pieces came in shares)
         out, at = [], 0
@@ -347,66 +454,68 @@ class RayExecutor(Executor):
                 at += 1
         return out
 
-    def _replay_call(self, actor: int, shares: list, screen, fresh: bool = False):
+    def _replay_call(self, shares: list, screen) -> Call:
+        """Experience replay of ``shares`` on one actor (one call: a call costs the driver
+        ~0.7 ms, and a round end has a piece per chunk that kept states)."""
         from coordinator.experience_replay import Stored
 
         stripped = [Stored(None, p.indices, p.rows, p.takes, p.parents, p.starts) for p in shares]
         sources = [[p.source] if p.source is not None else [] for p in shares]  # nested: not resolved by Ray
-        return self.actors[actor].replay_screen.remote(stripped, sources, self._message(actor, screen, fresh),
-                                                       self._actions)
+        runs = sum(len(p.indices) for p in shares)
+        call = Call(runs, f"scenario {self._scenario!r}: experience replay of {runs} runs", None)
 
-    def _get(self, job: _InFlight):
-        ray = self.ray
+        def launch(actor: int, fresh: bool = False) -> None:
+            message = self._message(actor, screen, fresh)
+            call.ref = self.actors[actor].replay_screen.remote(stripped, sources, message, self._actions)
+            self.pool.sent(call, actor)
+
+        call.launch = launch
+        call.relaunch_fresh = lambda: launch(call.actor, fresh=True)
+        return call
+
+    def _read_replay(self, call: Call) -> list:
         while True:
-            try:
-                summary = ray.get(job.ref)
-                self._queued[job.actor] -= 1
-                if job.sent is not None:  # the actor's mirror has reached what was sent
-                    known = self._confirmed[job.actor]
-                    if known is None or known[:2] != job.sent[:2] or known[2] < job.sent[2]:
-                        self._confirmed[job.actor] = job.sent
-                return summary
-            except ray.exceptions.RayTaskError as exc:
-                self._queued[job.actor] -= 1
-                cause = exc.cause if getattr(exc, "cause", None) is not None else exc
-                raise WorkerError(f"worker failed on runs from sample index {job.first}: {cause}") from None
-            except (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError,
-                    ray.exceptions.ObjectLostError) as exc:
-                self._queued[job.actor] -= 1
-                job.tries += 1
-                if job.tries > self.max_retries:
-                    raise WorkerError(f"runs from sample index {job.first} failed {job.tries} times "
-                                      f"(last: {type(exc).__name__}); giving up") from None
-                self._synced[job.actor] = None  # Ray restarts it without its mirror
-                job.actor = (job.actor + 1) % self.workers  # try another actor meanwhile
-                self._launch(job, fresh=True)
+            result = self._get(call, interruptible=False)  # a round end's replay finishes before a stop
+            if not isinstance(result, str):
+                return result
+            call.relaunch_fresh()  # the actor was restarted without its mirror
 
     def cancel(self, handle: int) -> None:
         job = self._jobs.pop(handle, None)
         if job is None:
             return
-        self._queued[job.actor] -= 1
-        # its changes may never reach the actor: the next message starts from what is known
-        self._synced[job.actor] = self._confirmed[job.actor]
+        job.dropped = True
+        if job.summary is None and job.actor >= 0:
+            # its changes may never reach the actor: the next message starts from what is known
+            slot = self.pool.slots[job.actor]
+            slot.synced = slot.confirmed
         # The chunk is left to finish, its results unread (and freed with the refs): no
         # ray.cancel. Cancelling a queued actor task can leave a gap in the actor's
         # sequence numbers that stalls its next tasks until Ray's 30 s reorder timeout
         # (Ray issues 65785, 66020); seen once here, a round end's replay screening
         # retried after "Timed out waiting for seq_no". A running actor task is not
-        # cancelled anyway, and a round end drops at most the batches in flight.
+        # cancelled anyway, and a round end drops at most the batches in flight; its
+        # time on the actor still counts towards the next chunk's limit (farm/ray_pool.py).
 
     def close(self) -> None:
         """End the actors. Each first finishes what it was sent (at a round's end, chunks
-        that were dropped: short) and exits; one still busy after ``CLOSE_GRACE_S`` is
-        killed. Killing at once failed the running chunk, which Ray reports on the
-        driver as "Task SimWorker.run failed ... will be retried" at the end of every
+        that were dropped: short) and exits; one still busy after ``CLOSE_GRACE_S`` (at
+        once after a stop), or down, is killed. Killing at once failed the running chunk, which Ray reports on
+        the driver as "Task SimWorker.run failed ... will be retried" at the end of every
         normal campaign."""
-        if not self.actors:
+        slots = self.pool.slots
+        if not slots:
             return
-        ends = [a.__ray_terminate__.options(max_task_retries=0).remote() for a in self.actors]
-        _, busy = self.ray.wait(ends, num_returns=len(ends), timeout=CLOSE_GRACE_S)
-        for actor, end in zip(self.actors, ends):
+        live = [s for s in slots if not s.down]
+        ends = [s.handle.__ray_terminate__.options(max_task_retries=0).remote() for s in live]
+        busy = []
+        if ends:  # no grace on a stop: a hung chunk would hold it up
+            grace = 0.0 if self.stop is not None and self.stop.is_set() else CLOSE_GRACE_S
+            _, busy = self.ray.wait(ends, num_returns=len(ends), timeout=grace)
+        for slot in slots:
+            if slot.down and not slot.dead:
+                self.ray.kill(slot.handle, no_restart=True)
+        for slot, end in zip(live, ends):
             if end in busy:
-                self.ray.kill(actor)
-        self.actors = []
-
+                self.ray.kill(slot.handle, no_restart=True)
+        self.pool.slots = []

@@ -32,6 +32,9 @@ def connect(address: str, workers: int) -> None:
         return
     with _keep_sigterm_handler():
         _init(ray, address, workers)
+    from farm import ray_watch
+
+    ray_watch.watch(ray)  # a lost raylet or head: our line, not Ray's exit 1
 
 
 def _init(ray, address: str, workers: int) -> None:

@@ -1,18 +1,22 @@
-"""SIGINT and SIGTERM during a campaign: stop at the next chunk boundary with a
-checkpoint; a second SIGINT aborts at once (the last checkpoint stands, as after kill -9)."""
+"""SIGINT and SIGTERM during a campaign: the first stops it within a fraction of a second
+with a checkpoint (a wait for a chunk wakes up: farm/waiting.py); a second aborts at once
+(the last checkpoint stands, as after kill -9)."""
 
 from __future__ import annotations
 
 import signal
+import threading
 
 
 class stop_on_signals:
-    """While inside, SIGINT / SIGTERM ask ``campaign`` (set it once it exists) to stop; a
-    signal that comes before is kept and passed on when it is set."""
+    """While inside, SIGINT / SIGTERM ask ``campaign`` (set it once it exists) to stop and
+    set ``event`` (the executor's waits end on it); a signal that comes before is kept and
+    passed on when the campaign is set. A second signal raises KeyboardInterrupt."""
 
     def __init__(self, campaign=None):
         self._campaign = campaign
         self._asked = False
+        self.event = threading.Event()
 
     @property
     def campaign(self):
@@ -25,9 +29,10 @@ class stop_on_signals:
             campaign.stop()
 
     def _handle(self, signum, frame):
-        if self._asked and signum == signal.SIGINT:
+        if self._asked:
             raise KeyboardInterrupt
         self._asked = True
+        self.event.set()
         if self._campaign is not None:
             self._campaign.stop()
 

@@ -6,8 +6,9 @@ Only time is modelled, to plan clusters of hundreds to thousands of workers for 
 simulator (shared/spec/scaling.md):
 
 - ``workers`` simulated workers take chunks in submission order, each as soon as one is
-  free; batches are cut into chunks as farm/chunking.py says for ``run_time`` and
-  ``call_cost``;
+  free; batches are cut into chunks as the Ray executor cuts them (farm/chunking.py's
+  ``ChunkSizer``, fed the modelled chunk times: a one-run probe first, then sizes from
+  the measured cost per run and per call);
 - a run takes ``run_time * steps / (horizon - 1)`` (a run that ends early takes its
   share) times a lognormal jitter of sigma ``jitter`` (mean 1), drawn from the run's own
   key, so the timing is reproducible too;
@@ -32,7 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.executor import Chunk, Executor
-from farm.chunking import chunk_rows, chunk_size
+from farm.chunking import ChunkSizer
 from farm.local_executor import LocalExecutor
 from scenarios.simulator import SimSpec
 from scenarios.streams import RunStreams
@@ -57,6 +58,7 @@ class _Job:
     start: float = -1.0  # when a worker took it (-1: queued)
     end: float = 0.0
     chunk: Chunk | None = None
+    measured: bool = False  # its time fed to the sizer (when it came back)
 
 
 class VirtualExecutor(Executor):
@@ -69,6 +71,7 @@ class VirtualExecutor(Executor):
         self.workers = workers
         self.run_time, self.jitter, self.call_cost = float(run_time), float(jitter), float(call_cost)
         self.pipeline_depth = pipeline_depth
+        self.sizer = ChunkSizer(workers)
         self.clock = 0.0  # simulated seconds since the executor started
         self._runs: list[tuple[float, float]] = []  # (from, to) of each chunk's runs on its worker
         self.chunks = 0
@@ -126,31 +129,52 @@ class VirtualExecutor(Executor):
     def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None,
                indices: np.ndarray | None = None) -> list[int]:
         self._enter()
-        handles = []
         (local,) = self.local.submit(first_index, starts, screen, actions, indices)
         batch = _Batch(local)
-        for rows in chunk_rows(len(starts), self.workers, self.pipeline_depth, self.run_time, self.call_cost,
-                               urgent=indices is not None):
-            self.clock += self.call_cost  # the coordinator sends it (and reads it back)
-            batch.waiting += 1
-            self._jobs[self._next] = _Job(batch, (int(rows[0]), int(rows[-1]) + 1), self.clock)
-            handles.append(self._next)
-            self._next += 1
-            self.chunks += 1
+        n, at, handles = len(starts), 0, []
+        if n and self.sizer.run_s is None:  # as the Ray executor: a one-run probe, waited for
+            handles.append(self._cut(batch, 0, 1, indices))
+            self._dispatch(self.clock, handles[0])
+            self._measure(self._jobs[handles[0]])
+            at = 1
+        if n > at:
+            for rows in np.array_split(np.arange(at, n), self.sizer.chunks(n - at, urgent=indices is not None)):
+                handles.append(self._cut(batch, int(rows[0]), int(rows[-1]) + 1, indices))
         if indices is None:
-            self._queue.extend(handles)
+            self._queue.extend(handles[at:])
         else:  # replacements: the next free worker takes them first
-            self._queue.extendleft(reversed(handles))
+            self._queue.extendleft(reversed(handles[at:]))
         self._dispatch(self.clock)
         self._leave()
         return handles
+
+    def _cut(self, batch: _Batch, lo: int, hi: int, indices) -> int:
+        """A chunk of rows ``lo:hi`` of ``batch`` (the caller queues it; the probe, cut
+        before anything was measured, is queued here, first)."""
+        self.clock += self.call_cost  # the coordinator sends it (and reads it back)
+        batch.waiting += 1
+        handle = self._next
+        self._jobs[handle] = _Job(batch, (lo, hi), self.clock)
+        if self.sizer.run_s is None:
+            self._queue.appendleft(handle)
+        self._next += 1
+        self.chunks += 1
+        return handle
+
+    def _measure(self, job: _Job) -> None:
+        """What the Ray executor measures of a chunk that came back."""
+        if not job.measured:
+            job.measured = True
+            self.sizer.ran(job.rows[1] - job.rows[0], job.end - job.start)
+            self.sizer.called(self.call_cost)
+            self.waited_s += max(0.0, job.end - self.clock)
+            self.clock = max(self.clock, job.end)
 
     def result(self, handle: int) -> Chunk:
         self._enter()
         self._dispatch(self.clock, handle)
         job = self._jobs.pop(handle)
-        self.waited_s += max(0.0, job.end - self.clock)
-        self.clock = max(self.clock, job.end)
+        self._measure(job)
         self._leave()
         return job.chunk
 
@@ -174,9 +198,7 @@ class VirtualExecutor(Executor):
         return found
 
     def batch_size(self, requested: int, pipeline_depth: int) -> int:
-        # a chunk per worker from each batch: the chunks the call cost asks for
-        size = chunk_size(requested, self.workers, pipeline_depth, self.run_time, self.call_cost)
-        return max(requested, self.workers * size)
+        return self.sizer.batch_size(requested)
 
     def close(self) -> None:
         self._jobs.clear()

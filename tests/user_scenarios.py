@@ -1,8 +1,13 @@
 """User scenarios loaded by 'package.module:Class' in tests: broken on purpose."""
 
+import os
+import time
+from pathlib import Path
+
 import numpy as np
 
 from scenarios.base import Scenario
+from scenarios.lead_follow import LeadFollow
 
 
 class UnitSquare(Scenario):
@@ -38,3 +43,25 @@ class Raising(UnitSquare):
         if (states[:, 0] > 0.5).any():
             raise ValueError("boom")
         return states
+
+
+HANG_MARKER = "FARM_TEST_HANG"  # environment: a file that, while it exists, makes Hanging hang
+
+
+class Hanging(LeadFollow):
+    """Lead-follow whose step sleeps for ever (a hung simulator) on a batch holding a state
+    in the corner v0 > 19, v1 < 1, p10 > 66 (the start state [19.5, 0.5, 68] is one), while
+    the file named by $FARM_TEST_HANG exists (unset: always). When it starts to hang it
+    creates that file's name + ".hung", so a test knows it hangs."""
+
+    name = "hanging"
+
+    def step_into(self, states, actions, noise, out):
+        corner = (states[:, 0] > 19.0) & (states[:, 1] < 1.0) & (states[:, 2] > 66.0)
+        if corner.any():
+            marker = os.environ.get(HANG_MARKER)
+            if marker:
+                Path(marker + ".hung").touch()
+            while marker is None or os.path.exists(marker):
+                time.sleep(0.05)
+        return super().step_into(states, actions, noise, out)

@@ -1,5 +1,5 @@
-"""The executor conformance suite (farm/testing.py) on every executor we ship: in-process
-and Ray actors on a real local Ray."""
+"""The executor conformance suite (farm/testing.py) on every executor we ship: in-process,
+Ray actors on a real local Ray, and the virtual farm (64 simulated workers of 1 s runs)."""
 
 import os
 import signal
@@ -23,10 +23,18 @@ def kill_first_actor(executor) -> None:
     os.kill(executor.pids()[0], signal.SIGKILL)
 
 
-@pytest.fixture(params=["local", "ray"])
+def virtual_executor(spec):
+    from farm.virtual_executor import VirtualExecutor
+
+    return VirtualExecutor(spec, 64, run_time=1.0, jitter=0.3, call_cost=0.001)
+
+
+@pytest.fixture(params=["local", "ray", "virtual"])
 def make_executor(request):
     if request.param == "local":
         return LocalExecutor
+    if request.param == "virtual":
+        return virtual_executor
     request.getfixturevalue("ray_local")
     return ray_executor()
 

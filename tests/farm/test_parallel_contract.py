@@ -2,6 +2,8 @@
 
 import os
 import signal
+import sys
+from pathlib import Path
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -21,13 +23,13 @@ def contract_config(executor="local", workers=2, **quantify):
 
 @pytest.fixture(autouse=True)
 def chunk_per_worker(monkeypatch):
-    """Cut batches into chunks however small (MIN_CHUNK keeps real chunks >= 256 runs):
-    with 4 workers and 3 batches in flight these campaigns' 128-run batches then arrive
-    in 2 chunks each, 6 chunks over 4 workers, out of order, which is what the
-    index-order commit must get right."""
-    from farm import ray_executor
+    """Cut batches into a chunk per worker whatever the run time (the numpy back end is
+    fast enough for one chunk per batch): with 4 workers and 3 batches in flight these
+    campaigns' 128-run batches then arrive in 4 chunks each, 12 chunks over 4 workers,
+    out of order, which is what the index-order commit must get right."""
+    from farm.chunking import ChunkSizer
 
-    monkeypatch.setattr(ray_executor, "MIN_CHUNK", 1)
+    monkeypatch.setattr(ChunkSizer, "size", lambda self, runs: max(1, -(-runs // self.workers)))
 
 
 @pytest.fixture(scope="module")
@@ -41,6 +43,24 @@ def test_ray_gives_the_in_process_result_bit_for_bit(ray_local, reference, tmp_p
     assert summary["result_hash"] == reference["result_hash"]
     assert summary["runs_committed"] == reference["runs_committed"]
     assert summary["runs_simulated"] >= summary["runs_committed"]
+
+
+def test_any_chunking_gives_the_same_result(ray_local, reference, tmp_path, monkeypatch):
+    """Chunk sizes drawn at random for every batch, 1 run up (a seeded generator of the
+    test's own): the committed sequence is the in-process one all the same."""
+    from farm.chunking import ChunkSizer
+
+    rng = np.random.default_rng(3)
+    sizes = []
+
+    def any_size(self, runs):
+        sizes.append(int(rng.integers(1, runs + 1)))
+        return sizes[-1]
+
+    monkeypatch.setattr(ChunkSizer, "size", any_size)
+    summary = run(contract_config("ray", 3), tmp_path / "c", resume=False)
+    assert min(sizes) < 8 and max(sizes) > 64  # thin and thick chunks were both cut
+    assert summary["result_hash"] == reference["result_hash"]
 
 
 def test_change_blocks_put_in_the_object_store_give_the_same_result(ray_local, reference, tmp_path, monkeypatch):
@@ -119,7 +139,8 @@ def test_a_killed_worker_costs_time_not_results(ray_local, reference, tmp_path, 
 
 
 def test_an_exception_in_a_scenario_names_the_sample_and_does_not_hang(ray_local, tmp_path):
-    from farm.ray_executor import RayExecutor, WorkerError
+    from farm.ray_executor import RayExecutor
+    from scenarios.base import ScenarioError
     from scenarios.simulator import SimSpec
 
     spec = SimSpec({"name": "user_scenarios:Raising", "sv_policy": "none"}, {"mode": "uniform"}, 10, 0)
@@ -127,37 +148,42 @@ def test_an_exception_in_a_scenario_names_the_sample_and_does_not_hang(ray_local
     try:
         starts = np.tile([[0.2, 0.2]], (64, 1))
         starts[37] = [0.9, 0.9]
-        with pytest.raises(WorkerError, match=r"ValueError: boom.*sample index 1037 \(start state \[0.9, 0.9\]\)"):
+        with pytest.raises(ScenarioError, match=r"ValueError: boom.*sample index 1037 \(start state \[0.9, 0.9\]\)"):
             for handle in ex.submit(1000, starts):
                 ex.result(handle)
     finally:
         ex.close()
 
 
-def test_batches_are_cut_into_chunks_of_at_least_min_chunk_runs(ray_local, monkeypatch):
-    """More workers than a batch has MIN_CHUNK-run slices: the batch is cut into fewer,
-    larger chunks (a Ray call per 20 runs cost more than it simulated), and into workers /
-    pipeline_depth chunks when that many batches are in flight; results are the same
-    either way (the test above)."""
-    from farm import ray_executor
+def test_batches_are_cut_by_the_measured_run_time(ray_local, monkeypatch):
+    """The first batch starts with a one-run chunk that measures the run time; the rest is
+    cut by it (farm/chunking.py): a share of each batch per worker, at most about a second
+    of simulation a chunk, at least what the driver can afford. The sleeping back end
+    (benchmarks/slow_backend.py at 20 ms a run) makes chunks of about 50 runs."""
+    from farm.ray_executor import RayExecutor
+
+    monkeypatch.undo()  # the real rule, not the autouse fixture's
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    monkeypatch.setattr(sys, "path", sys.path)
+    cfg = config_mod.normalize({**contract_config("ray", 2).model_dump(),
+                                "scenario": {"name": "lead-follow", "sv_policy": "idm",
+                                             "backend": "slow_backend:SlowBackend",
+                                             "slow_backend:SlowBackend": {"step_cost_s": 4e-4}}})
     from farm.campaign_setup import spec_of
 
-    monkeypatch.setattr(ray_executor, "MIN_CHUNK", 256)
-    cfg = contract_config("ray", 4)
-    ex = ray_executor.RayExecutor(spec_of(cfg), 4)
+    ex = RayExecutor(spec_of(cfg), 2, pipeline_depth=2)
     try:
-        starts = np.tile([10.0, 10.0, 40.0], (1000, 1))
-        handles = ex.submit(0, starts)
-        chunks = [ex.result(h) for h in handles]
-        assert [len(c) for c in chunks] == [334, 333, 333]  # 1000 // 256 = 3 chunks, not 4
-        assert ex.busy_at_most(1000) == 3 and ex.busy_at_most(2048) == 4
-        assert [c.first_index for c in chunks] == [0, 334, 667]
-        assert len(ex.submit(0, starts[:100])) == 1  # a short batch is one chunk
-        # with 2 batches in flight, 4 workers are kept busy by 2 chunks per batch
-        ex.pipeline_depth = 2
+        starts = np.tile([10.0, 10.0, 40.0], (400, 1))  # a quiet run: every step of the horizon
         chunks = [ex.result(h) for h in ex.submit(0, starts)]
-        assert [len(c) for c in chunks] == [500, 500] and [c.first_index for c in chunks] == [0, 500]
-        assert ex.busy_at_most(1000) == 4 and ex.busy_at_most(300) == 2
+        assert len(chunks[0]) == 1  # the probe
+        run_s = ex.sizer.run_s
+        assert 0.0116 < run_s < 0.2, run_s  # 29 steps of 0.4 ms, measured (the worker's CPU on top)
+        assert sum(len(c) for c in chunks) == 400
+        assert [c.first_index for c in chunks] == sorted(c.first_index for c in chunks)
+        assert max(len(c) for c in chunks[1:]) * run_s < 2.0  # cut by the probe's time, not 200 a worker
+        chunks = [ex.result(h) for h in ex.submit(400, starts)]
+        assert all(len(c) * ex.sizer.run_s < 2.0 for c in chunks)  # about a second a chunk, not 400 runs
+        assert len(chunks) >= 4 and ex.busy_at_most(400) == 2
     finally:
         ex.close()
 
@@ -171,13 +197,15 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
     from farm.campaign_setup import spec_of
     from farm.ray_executor import RayExecutor
 
-    monkeypatch.setattr(ray_executor, "MIN_CHUNK", 256)  # 20 runs: one chunk
+    from farm.chunking import ChunkSizer
 
+    monkeypatch.setattr(ChunkSizer, "size", lambda self, runs: runs)  # 20 runs: one chunk
     cfg = contract_config("ray", 4)
     lower, upper = np.array([0.0, 0.0, 0.0]), np.array([100.0, 30.0, 30.0])
     cov = Coverage(3, 2.0, lower, bounds=(lower, upper))
     rng = np.random.default_rng(0)
     ex = RayExecutor(spec_of(cfg), 4)
+    ex.sizer.ran(20, 0.001)  # as if measured: no one-run probe first
     try:
         for step in range(8):
             for _ in range(3):  # a few changes between chunks
@@ -191,23 +219,23 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
         ex.close()
 
 
-def test_workers_that_cannot_be_kept_busy_are_announced(ray_local, reference, tmp_path, monkeypatch):
-    """128-run batches, 3 in flight, chunks of at least 256 runs: 3 of 4 workers can be
-    busy. The campaign says so (the cut is result-relevant, so it is not changed), and
-    its result is the in-process one."""
+def test_workers_that_cannot_be_kept_busy_are_announced(ray_local, tmp_path):
+    """Chunks of one run up keep every worker busy, unless there are more workers than runs
+    in flight: 2 x 1 runs on 3 workers. The campaign says so (the window is result-relevant,
+    so it is not changed); the defaults say nothing."""
     import io
 
-    from farm import ray_executor
     from farm.progress import Progress
 
-    monkeypatch.setattr(ray_executor, "MIN_CHUNK", 256)
     log = io.StringIO()
-    summary = run(contract_config("ray", 4), tmp_path / "c", resume=False, progress=Progress(stream=log))
-    assert "keep at most 3 of the 4 workers busy" in log.getvalue()
-    assert summary["result_hash"] == reference["result_hash"]
+    raw = contract_config("ray", 3).model_dump()
+    raw["farm"].update(batch_size=2, pipeline_depth=1)
+    raw["quantify"]["budget"] = 40
+    run(config_mod.normalize(raw), tmp_path / "c", resume=False, progress=Progress(stream=log))
+    assert "keep at most 2 of the 3 workers busy" in log.getvalue()
     log = io.StringIO()
-    run(contract_config("ray", 3), tmp_path / "d", resume=False, progress=Progress(stream=log))
-    assert "Ray (local) up with 3 workers" in log.getvalue() and "workers busy" not in log.getvalue()
+    run(contract_config("ray", 4, budget=40), tmp_path / "d", resume=False, progress=Progress(stream=log))
+    assert "Ray (local) up with 4 workers" in log.getvalue() and "workers busy" not in log.getvalue()
 
 
 def test_a_dropped_chunk_is_left_to_finish_and_the_actor_goes_on(ray_local):
@@ -219,6 +247,7 @@ def test_a_dropped_chunk_is_left_to_finish_and_the_actor_goes_on(ray_local):
     from farm.campaign_setup import spec_of
 
     ex = ray_executor.RayExecutor(spec_of(contract_config("ray", 1)), 1)
+    ex.sizer.ran(20_000, 0.02)  # as if measured: each batch one chunk, no one-run probe first
     try:
         starts = np.tile([10.0, 10.0, 40.0], (20_000, 1))
         running = ex.submit(0, starts)

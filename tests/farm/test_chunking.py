@@ -1,0 +1,75 @@
+"""The chunk-size rule (farm/chunking.py) on measured times: chunks follow the simulator,
+from one run (a slow one) to a whole batch (a fast vectorized one). The rule on real Ray
+is tested in tests/farm/test_parallel_contract.py; that no cut changes a result, there too."""
+
+import math
+
+import numpy as np
+import pytest
+
+from farm.chunking import LIMIT_FLOOR_S, UNMEASURED_LIMIT_S, ChunkSizer
+
+
+def measured(workers, chunk_cost, run_cost, call=1e-3, sizes=(1, 40, 60), timeout=0.0):
+    """A sizer that saw chunks of ``sizes`` runs take chunk_cost + run_cost * runs."""
+    sizer = ChunkSizer(workers, timeout)
+    for _ in range(10):
+        for c in sizes:
+            sizer.ran(c, chunk_cost + run_cost * c)
+            sizer.called(call)
+    return sizer
+
+
+def test_before_any_chunk_every_worker_gets_a_share_and_the_limit_is_generous():
+    sizer = ChunkSizer(8)
+    assert sizer.size(1024) == 128 and sizer.chunks(1024) == 8
+    assert sizer.limit(128) == UNMEASURED_LIMIT_S
+    assert sizer.busy_at_most(1024, 2) == 8
+    assert ChunkSizer(32).busy_at_most(10, 1) == 10  # more workers than runs in flight
+
+
+def test_the_fit_recovers_the_cost_per_chunk_and_per_run():
+    sizer = measured(4, 0.007, 0.002)
+    assert sizer.chunk_cost_s == pytest.approx(0.007) and sizer.run_cost_s == pytest.approx(0.002)
+    assert sizer.expected_s(10) == pytest.approx(0.027)
+    # one size only (a probe of one run): all of its time counts as per-run cost
+    probe = ChunkSizer(4)
+    probe.ran(1, 0.009)
+    assert probe.chunk_cost_s == 0 and probe.run_cost_s == pytest.approx(0.009)
+
+
+def test_a_slow_simulator_gets_one_run_chunks_and_a_limit_from_its_run_time():
+    sizer = measured(4, 0.01, 1.0)
+    assert sizer.size(1024) == 1 and sizer.chunks(1024) == 1024
+    assert sizer.limit(1) == pytest.approx(LIMIT_FLOOR_S + 10 * 1.01)
+    assert measured(4, 0.01, 1.0, timeout=7.0).limit(1) == 7.0  # farm.chunk_timeout
+
+
+def test_a_chunk_holds_about_a_second():
+    sizer = measured(1, 0.007, 0.002)
+    c = sizer.size(1024)
+    assert sizer.expected_s(c) <= 1.0 < sizer.expected_s(c + 1)
+
+
+def test_many_workers_get_a_share_each_unless_the_workers_or_the_driver_cannot_afford_it():
+    assert measured(8, 0.007, 0.002).size(1024) == 128  # a share per worker
+    # 32 workers of 2 ms runs: 32-run shares, but the driver (1 ms a chunk) affords chunks of 128 ms
+    sizer = measured(32, 0.007, 0.002)
+    c = sizer.size(1024)
+    assert c == math.ceil((32 * 1e-3 / 0.25 - 0.007) / 0.002) == 61
+    assert sizer.busy_at_most(1024, 2) == 32  # still every worker, 2 batches in flight
+    # a fast vectorized back end: the per-chunk cost (7 ms) would dominate a share: whole batches
+    assert measured(2, 0.007, 18e-6).size(1024) == 1024
+    # 1000 workers of 0.1 s runs: the driver cannot call a thousand 1-run chunks a second
+    big = measured(1000, 0.01, 0.1)
+    assert big.size(100_000) == math.ceil((1000 * 1e-3 / 0.25 - 0.01) / 0.1)
+
+
+def test_the_size_is_always_between_one_run_and_the_batch():
+    rng = np.random.default_rng(0)  # test data only
+    for _ in range(500):
+        sizer = measured(int(rng.integers(1, 2000)), float(rng.uniform(0, 0.1)), float(10 ** rng.uniform(-6, 1)),
+                         call=float(10 ** rng.uniform(-4, -1)))
+        runs = int(rng.integers(1, 20_000))
+        assert 1 <= sizer.size(runs) <= runs
+        assert sizer.chunks(runs) * sizer.size(runs) >= runs

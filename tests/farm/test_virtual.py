@@ -1,0 +1,52 @@
+"""The virtual farm (farm.executor = "virtual"): the real coordinator on a simulated clock.
+Its results are a real run's (the same result_hash and committed runs as in-process and
+on Ray), only time is modelled; summary.json then says the simulated time to the result
+and the workers' utilisation."""
+
+import json
+
+import pytest
+
+from farm import quantify
+from small_campaign import lead_follow_toml
+
+
+def _run(tmp_path, name: str, executor: str, farm_extra: str = "", **overrides):
+    result = quantify(lead_follow_toml(executor=executor, farm_extra=farm_extra), out=tmp_path / name, force=True,
+                      **overrides)
+    return json.loads((tmp_path / name / "summary.json").read_text()), result
+
+
+def test_the_virtual_farm_commits_what_a_real_run_commits(tmp_path, ray_local):
+    local, _ = _run(tmp_path, "local", "local")
+    ray, _ = _run(tmp_path, "ray", "ray", "workers = 2")
+    virtual, _ = _run(tmp_path, "virtual", "virtual", "workers = 300\n[farm.virtual]\nrun_time = 2.0\njitter = 0.5")
+    for key in ("result_hash", "runs_committed", "boxes", "rounds", "certification_attempts"):
+        assert local[key] == ray[key] == virtual[key], key
+    # what the window costs (runs discarded unseen and replaced) follows the workers: 300
+    # virtual workers keep more in flight than 2
+    assert virtual["runs_replaced"] >= local["runs_replaced"]
+    assert "virtual_elapsed_s" not in local and "utilisation" not in ray  # only a virtual farm has a clock
+    assert 0 < virtual["utilisation"] <= 1
+    # every committed run took its worker some of the 2 s a full run takes: the clock is
+    # no shorter than the runs' time spread over all 300 workers
+    assert virtual["virtual_elapsed_s"] >= 2.0 * 0.02 * virtual["runs_committed"] / 300
+
+
+def test_more_virtual_workers_reach_the_result_sooner(tmp_path):
+    times = {}
+    for workers in (1, 16):
+        summary, _ = _run(tmp_path, f"w{workers}", "virtual", f"workers = {workers}\n[farm.virtual]\nrun_time = 1.0")
+        times[workers] = summary["virtual_elapsed_s"], summary["result_hash"], summary["utilisation"]
+    assert times[1][1] == times[16][1]  # the worker count never changes a result
+    assert times[1][2] > 0.9  # one worker of 1 s runs is almost never idle
+    assert times[1][0] / times[16][0] > 8  # 16 workers of 1 s runs: most of them busy
+
+
+@pytest.mark.parametrize("field,value", [("run_time", 0.0), ("jitter", -1.0), ("call_cost", -0.1)])
+def test_a_bad_virtual_setting_is_named(tmp_path, field, value):
+    from farm.config import ConfigError
+
+    with pytest.raises(ConfigError, match=f"farm.virtual.{field}"):
+        quantify(lead_follow_toml(executor="virtual", farm_extra=f"[farm.virtual]\n{field} = {value}"),
+                 out=tmp_path / "bad", force=True)
