@@ -149,7 +149,7 @@ class Counters:
     changes: int = 0
     runs_simulated: int = 0
     steps_simulated: int = 0
-    runs_discarded: int = 0  # mispredicted runs, discarded unseen
+    runs_discarded: int = 0  # mispredicted runs, discarded unseen (replacements that moved again too)
     runs_replaced: int = 0  # replacements applied
     rounds_completed: int = 0
     done: bool = False

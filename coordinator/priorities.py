@@ -54,6 +54,8 @@ class FailureDistances:
         if self.seen_failures == 0:  # nothing known yet: every vertex is new
             self.seen_vertices = self._sorted = 0
             self.dist = self._buffer[:0]
+            if self.track_lowered:  # every distance fell from infinity
+                self.lowered.append(np.arange(vertex_count))
         if failure_count > self.seen_failures and self.seen_vertices:
             for f in failures[self.seen_failures : failure_count]:
                 self._lower_by(points, f)

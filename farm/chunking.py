@@ -38,8 +38,8 @@ DRIVER_SHARE = 0.25  # of the driver's time on Ray calls, every worker busy
 CALL_S = 1e-3  # [s] the driver's time per chunk until it is measured
 DECAY = 0.8  # weight of the older chunks in the fitted times, per chunk
 SPREAD = 0.1  # chunk sizes' coefficient of variation below which a and b are not refitted
-LIMIT_FACTOR = 10.0  # a chunk may take this many times its expected time ...
-LIMIT_FLOOR_S = 5.0  # [s] ... plus this (a loaded machine, a garbage collection)
+LIMIT_FACTOR = 20.0  # a chunk may take this many times its expected time ...
+LIMIT_FLOOR_S = 60.0  # [s] ... plus this (a loaded machine, a garbage collection, a long replay)
 UNMEASURED_LIMIT_S = 600.0  # [s] a chunk's limit before any chunk has come back
 
 

@@ -32,7 +32,7 @@ def _overrides(args) -> dict:
 def _add_farm_flags(p, seed=True):
     p.add_argument("--workers", type=int, help="Ray actors (overrides farm.workers)")
     p.add_argument("--address", help="'local' (start Ray here) or 'auto' (join the cluster) (farm.address)")
-    p.add_argument("--executor", choices=["ray", "local"], help="overrides farm.executor")
+    p.add_argument("--executor", choices=["ray", "local", "virtual"], help="overrides farm.executor")
     if seed:
         p.add_argument("--seed", type=int, help="campaign seed (overrides farm.seed)")
 

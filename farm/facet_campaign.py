@@ -97,8 +97,10 @@ class FacetCampaign:
     def _say_ray_is_up(self, executor, progress: Progress) -> None:
         farm_cfg = self.cfg.farm
         progress.line(f"Ray ({farm_cfg.address}) up with {farm_cfg.workers} workers in {self.startup_s:.1f} s")
+        if farm_cfg.counting == "sequential":
+            return  # the batch follows the workers (a result-neutral setting then)
         busy = executor.busy_at_most(farm_cfg.batch_size)
-        if busy < farm_cfg.workers:  # more workers than runs in flight: result-relevant, so said, not changed
+        if busy < farm_cfg.workers:  # deferred counting: the window is result-relevant, so said, not changed
             progress.line(f"note: {farm_cfg.batch_size} x {farm_cfg.pipeline_depth} runs in flight "
                           f"(farm.batch_size x farm.pipeline_depth) keep at most {busy} of the "
                           f"{farm_cfg.workers} workers busy; raise them for more (it costs runs: README, "

@@ -20,7 +20,7 @@ def test_declared_append_only_arrays_only_gain_rows(algorithm, mode):
         "scenario": {"name": "lead-follow", "sv_policy": "idm"}, "actions": {"mode": mode},
         "quantify": {"algorithm": algorithm, "delta0": 4.0, "delta_min": 1.0, "epsilon": 0.01, "beta": 0.1,
                      "horizon": 30},
-        "farm": {"executor": "local", "batch_size": 256, "seed": 1}})
+        "farm": {"executor": "local", "batch_size": 128, "seed": 1}})  # many chunks, so many comparisons
     sim = build_simulator(spec_of(cfg))
     algo = build_algorithm(cfg, sim)
     seen = {"previous": None, "compared": 0, "grown": set()}

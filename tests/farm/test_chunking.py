@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from farm.chunking import LIMIT_FLOOR_S, UNMEASURED_LIMIT_S, ChunkSizer
+from farm.chunking import LIMIT_FACTOR, LIMIT_FLOOR_S, UNMEASURED_LIMIT_S, ChunkSizer
 
 
 def measured(workers, chunk_cost, run_cost, call=1e-3, sizes=(1, 40, 60), timeout=0.0):
@@ -41,7 +41,7 @@ def test_the_fit_recovers_the_cost_per_chunk_and_per_run():
 def test_a_slow_simulator_gets_one_run_chunks_and_a_limit_from_its_run_time():
     sizer = measured(4, 0.01, 1.0)
     assert sizer.size(1024) == 1 and sizer.chunks(1024) == 1024
-    assert sizer.limit(1) == pytest.approx(LIMIT_FLOOR_S + 10 * 1.01)
+    assert sizer.limit(1) == pytest.approx(LIMIT_FLOOR_S + LIMIT_FACTOR * 1.01)
     assert measured(4, 0.01, 1.0, timeout=7.0).limit(1) == 7.0  # farm.chunk_timeout
 
 

@@ -29,7 +29,7 @@ def chunk_per_worker(monkeypatch):
     out of order, which is what the index-order commit must get right."""
     from farm.chunking import ChunkSizer
 
-    monkeypatch.setattr(ChunkSizer, "size", lambda self, runs: max(1, -(-runs // self.workers)))
+    monkeypatch.setattr(ChunkSizer, "size", lambda self, runs, urgent=False: max(1, -(-runs // self.workers)))
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +53,7 @@ def test_any_chunking_gives_the_same_result(ray_local, reference, tmp_path, monk
     rng = np.random.default_rng(3)
     sizes = []
 
-    def any_size(self, runs):
+    def any_size(self, runs, urgent=False):
         sizes.append(int(rng.integers(1, runs + 1)))
         return sizes[-1]
 
@@ -199,7 +199,7 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
 
     from farm.chunking import ChunkSizer
 
-    monkeypatch.setattr(ChunkSizer, "size", lambda self, runs: runs)  # 20 runs: one chunk
+    monkeypatch.setattr(ChunkSizer, "size", lambda self, runs, urgent=False: runs)  # 20 runs: one chunk
     cfg = contract_config("ray", 4)
     lower, upper = np.array([0.0, 0.0, 0.0]), np.array([100.0, 30.0, 30.0])
     cov = Coverage(3, 2.0, lower, bounds=(lower, upper))
@@ -221,18 +221,23 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
 
 def test_workers_that_cannot_be_kept_busy_are_announced(ray_local, tmp_path):
     """Chunks of one run up keep every worker busy, unless there are more workers than runs
-    in flight: 2 x 1 runs on 3 workers. The campaign says so (the window is result-relevant,
-    so it is not changed); the defaults say nothing."""
+    in flight: 2 x 1 runs on 3 workers. Under deferred counting the campaign says so (the
+    window is result-relevant, so it is not changed); under sequential counting (the
+    default) the batch follows the workers and nothing is said."""
     import io
 
     from farm.progress import Progress
 
     log = io.StringIO()
     raw = contract_config("ray", 3).model_dump()
-    raw["farm"].update(batch_size=2, pipeline_depth=1)
+    raw["farm"].update(batch_size=2, pipeline_depth=1, counting="deferred")
     raw["quantify"]["budget"] = 40
     run(config_mod.normalize(raw), tmp_path / "c", resume=False, progress=Progress(stream=log))
     assert "keep at most 2 of the 3 workers busy" in log.getvalue()
+    log = io.StringIO()
+    raw["farm"]["counting"] = "sequential"
+    run(config_mod.normalize(raw), tmp_path / "s", resume=False, progress=Progress(stream=log))
+    assert "workers busy" not in log.getvalue()
     log = io.StringIO()
     run(contract_config("ray", 4, budget=40), tmp_path / "d", resume=False, progress=Progress(stream=log))
     assert "Ray (local) up with 4 workers" in log.getvalue() and "workers busy" not in log.getvalue()
