@@ -375,6 +375,12 @@ class Campaign:
             if self._apply_replacement(waiting[0]):
                 return False
 
+    def _resolve_all(self) -> None:
+        """The budget is spent: every committed index gets its run, so apply the
+        replacements still pending (as a one-run-at-a-time campaign would have run them)."""
+        while self.replacements:
+            self._apply_replacement(self.replacements.popleft())
+
     def _apply_due(self) -> None:
         """Apply the replacements due before the head's index."""
         c = self.counters
@@ -541,6 +547,7 @@ class Campaign:
         while not c.done and not self._stop:
             self._fill()
             if not self.pending:
+                self._resolve_all()
                 c.done = True  # budget exhausted before the last round converged
                 break
             p = self.pending[0]
@@ -554,6 +561,7 @@ class Campaign:
                 if p.done == len(p):
                     self.pending.popleft()
                 if c.committed >= self.settings.budget:
+                    self._resolve_all()
                     c.done = True
             c.elapsed_s = time.monotonic() - started
             for observe in self.observers:

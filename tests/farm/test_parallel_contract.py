@@ -88,10 +88,16 @@ def test_change_blocks_put_in_the_object_store_give_the_same_result(ray_local, r
 def test_n_eps_rule_is_exact_in_the_committed_record(reference, tmp_path):
     out = tmp_path / "c"
     summary = run(contract_config(), out, resume=False)
-    ledger = pq.read_table(out / "ledger").to_pandas().sort_values("sample_index")
+    ledger = pq.read_table(out / "ledger").to_pandas()
+    discarded = ledger[ledger["discarded"]]
+    ledger = ledger[~ledger["discarded"]].sort_values("sample_index")
     idx = ledger["sample_index"].to_numpy()
     np.testing.assert_array_equal(idx, np.arange(len(idx)))  # none missing, none twice
     assert len(idx) == summary["runs_committed"]
+    # coupled counting: a run whose start its stream no longer draws is discarded unseen
+    # (never counted, never a change) and its index re-run from the current draw
+    assert not discarded["counted"].any() and not discarded["changed"].any()
+    assert sorted(discarded["sample_index"]) == sorted(ledger.loc[ledger["replacement"], "sample_index"])
     changed = ledger["changed"].to_numpy()
     counted = ledger["counted"].to_numpy()
     # every round ends after N_eps quiet runs; the certification round (the last) after
@@ -104,9 +110,9 @@ def test_n_eps_rule_is_exact_in_the_committed_record(reference, tmp_path):
         tail = slice(end - need, end)
         assert counted[tail].all() and not changed[tail].any()  # N_eps quiet, current-state runs
         assert changed[end - need - 1] or not counted[end - need - 1]  # ... and not one more
-    # a run counts only when drawn after the last change: never right after a change
-    # while older draws are still being committed
-    assert not counted[np.nonzero(changed)[0] + 1].all()
+    # runs drawn before a change count when their draw is what the changed set draws:
+    # the streak starts right after the change, not a window later
+    assert counted[np.nonzero(changed)[0] + 1].any()
     # runs dropped at round ends were simulated and are accounted
     assert summary["runs_simulated"] == summary["runs_committed"] + summary["runs_replaced"] + summary["runs_dropped"]
 
