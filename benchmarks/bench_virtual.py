@@ -8,6 +8,7 @@ to the result, the workers' utilisation and the speed-up over one worker, and wr
 docs/virtual.json (rendered into docs/virtual.md).
 
     python benchmarks/bench_virtual.py [--seeds 0 1 2 3] [--workers 1 32 256 1000] [--run-time 1.0 0.1]
+    python benchmarks/bench_virtual.py --seeds 1 --merge    # adds seed 1's rows to docs/virtual.json
     python benchmarks/bench_virtual.py --render
 """
 
@@ -63,6 +64,8 @@ def main() -> None:
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 32, 256, 1000])
     ap.add_argument("--run-time", type=float, nargs="+", default=[1.0, 0.1])
     ap.add_argument("--render", action="store_true")
+    ap.add_argument("--merge", action="store_true",
+                    help="keep docs/virtual.json's other rows (runs of other seeds or run times, e.g. in parallel)")
     args = ap.parse_args()
     if args.render:
         print(render())
@@ -80,8 +83,12 @@ def main() -> None:
                       f"to the result ({row['speedup']:.1f}x one worker), utilisation {row['utilisation']:.2f}, "
                       f"coordinator {row['coordinator_cpu_s']:.1f} CPU-s, {row['committed']:,} committed "
                       f"(result {row['result_hash']})", flush=True)
-    (DOCS / "virtual.json").write_text(json.dumps({"meta": machine_stamp(cpus=os.cpu_count()), "rows": rows},
-                                                  indent=1) + "\n")
+    path = DOCS / "virtual.json"
+    if args.merge and path.exists():
+        mine = {(r["workers"], r["run_time"], r["seed"]) for r in rows}
+        rows = [r for r in json.loads(path.read_text())["rows"]
+                if (r["workers"], r["run_time"], r["seed"]) not in mine] + rows
+    path.write_text(json.dumps({"meta": machine_stamp(cpus=os.cpu_count()), "rows": rows}, indent=1) + "\n")
     print(render())
 
 
