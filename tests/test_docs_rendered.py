@@ -10,22 +10,24 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 RENDERED = {  # renderer -> the docs it writes
-    "convergence.py": ["convergence.md", "convergence_table.md"],
-    "figures.py": ["figures.md"],
-    "adversary.py": ["adversary.md"],
-    "reproduce.py": ["reproduction.md"],
-    "window.py": ["window.md"],
+    "experiments/convergence.py": ["convergence.md", "convergence_table.md"],
+    "experiments/figures.py": ["figures.md"],
+    "experiments/adversary.py": ["adversary.md"],
+    "experiments/reproduce.py": ["reproduction.md"],
+    "experiments/window.py": ["window.md"],
+    "benchmarks/bench_virtual.py": ["virtual.md"],
+    "benchmarks/bench_scaling.py": ["scaling.md"],
 }
 
 
 @pytest.mark.parametrize("script", sorted(RENDERED))
 def test_rendered_docs_match_their_json(tmp_path, script):
-    # a copy of experiments/ and docs/: the renderers write next to themselves
-    shutil.copytree(ROOT / "experiments", tmp_path / "experiments")
-    shutil.copytree(ROOT / "docs", tmp_path / "docs")
-    r = subprocess.run([sys.executable, str(tmp_path / "experiments" / script), "--render"], capture_output=True,
+    # a copy of experiments/, benchmarks/ and docs/: the renderers write next to themselves
+    for folder in ("experiments", "benchmarks", "docs"):
+        shutil.copytree(ROOT / folder, tmp_path / folder)
+    r = subprocess.run([sys.executable, str(tmp_path / script), "--render"], capture_output=True,
                        text=True, cwd=tmp_path, timeout=120)
     assert r.returncode == 0, r.stderr
     for doc in RENDERED[script]:
         assert (tmp_path / "docs" / doc).read_text() == (ROOT / "docs" / doc).read_text(), (
-            f"docs/{doc} differs from `python experiments/{script} --render`")
+            f"docs/{doc} differs from `python {script} --render`")
