@@ -25,11 +25,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.coverage import Coverage, Rescreen
+from scenarios.errors import UserError
 from scenarios.streams import PURPOSE_START, RunStreams
 
 
-class EmptySetError(RuntimeError):
-    """Every candidate was pruned: the quantified safe set is empty."""
+class EmptySetError(UserError, RuntimeError):
+    """Every candidate was pruned: the quantified safe set is empty (the config asks for
+    a set that does not exist at this resolution)."""
 
 
 @dataclass(frozen=True)

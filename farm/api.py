@@ -15,7 +15,6 @@ What these functions write is a normal campaign directory: every CLI command acc
 
 from __future__ import annotations
 
-import json
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -24,7 +23,7 @@ import numpy as np
 
 from farm import config as config_mod
 from farm.config import Config
-from farm.files import read_safe_set, write_json
+from farm.files import read_json, read_safe_set, write_json
 from farm.storage import CampaignDir, CampaignError
 
 
@@ -38,6 +37,7 @@ def load_config(source, **overrides) -> Config:
 
 
 # -- quantification -----------------------------------------------------------------------
+SUMMARY_KEYS = ("scenario", "boxes", "volume_union", "volume_hull", "result_hash", "guarantee", "delta_final")
 @dataclass(frozen=True)
 class QuantifyResult:
     """A finished quantification: the safe set (a union of boxes centre +- half_width),
@@ -54,11 +54,10 @@ class QuantifyResult:
     def load(cls, directory, side: str | None = None) -> "QuantifyResult":
         directory = Path(directory)
         CampaignDir(directory).open("quantify")
-        try:
-            summary = json.loads((directory / "summary.json").read_text())
-        except FileNotFoundError:
+        if not (directory / "summary.json").exists():
             raise CampaignError(f"{directory}: the campaign has not finished (no summary.json); see "
-                                f"`scenario-farm status {directory}`") from None
+                                f"`scenario-farm status {directory}`")
+        summary = read_json(directory / "summary.json", SUMMARY_KEYS)
         from farm.quantification import load_frozen_config
         from scenarios.registry import scenario_class
 
@@ -183,9 +182,9 @@ def quantify(config, out=None, *, resume: bool = False, force: bool = False, pro
     from farm.progress import Progress
     from farm.quantification import run
 
-    cfg = load_config(config, **overrides)
+    text = config_mod.read_text(config) if isinstance(config, (str, Path)) and _is_file(config) else None
+    cfg = load_config(config_mod.parse(text, str(config)) if text is not None else config, **overrides)
     out = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="scenario-farm-")) / "campaign"
-    text = Path(config).read_text() if isinstance(config, (str, Path)) and _is_file(config) else None
     run(cfg, out, resume=resume, force=force, progress=Progress(enabled=progress), config_text=text)
     return QuantifyResult.load(out)
 
@@ -312,7 +311,7 @@ def overlay(results, path) -> Path:
     results = [r if isinstance(r, QuantifyResult) else open_campaign(r) for r in results]
     names = {r.summary["scenario"] for r in results}
     if len(names) != 1:
-        raise ValueError(f"overlay: the campaigns quantify different scenarios ({', '.join(sorted(names))})")
+        raise CampaignError(f"overlay: the campaigns quantify different scenarios ({', '.join(sorted(names))})")
     labels = [f"{r.summary.get('sv_policy')} / {r.summary.get('actions', '')} ({r.directory.name})" for r in results]
     return draw_overlay(Path(path), results[0]._scenario(), [(r.centres, r.half_width) for r in results], labels)
 

@@ -1,9 +1,7 @@
 """``scenario-farm`` (also ``python -m farm``): a thin layer over ``farm.api``.
 
-Exit codes: 0 success (certified, campaign finished), 1 counterexample found (validate,
-replay mismatch), 2 bad input or an unusable directory (one line naming the field and
-the allowed range; nothing touched), 3 a bug in this tool (one line and where the
-traceback went: please report it), 130 stopped by a signal (checkpointed; resume it).
+Every error ends as one line on stderr and an exit code (farm/exits.py has the table);
+``SCENARIO_FARM_DEBUG=1`` also prints the traceback, and keeps Ray's own log lines.
 """
 
 from __future__ import annotations
@@ -15,11 +13,15 @@ import signal
 import sys
 import tempfile
 import traceback
+import warnings
 from pathlib import Path
 
+from farm import exits
+from scenarios.errors import ConfigError
 from scenarios.version import __version__
 
-EXIT_OK, EXIT_COUNTEREXAMPLE, EXIT_BAD_INPUT, EXIT_BUG, EXIT_STOPPED = 0, 1, 2, 3, 130
+EXIT_OK, EXIT_COUNTEREXAMPLE, EXIT_STOPPED = exits.OK, exits.FINDING, exits.STOPPED
+DEBUG = "SCENARIO_FARM_DEBUG"  # set to 1: tracebacks and Ray's log lines on stderr
 
 
 def _overrides(args) -> dict:
@@ -65,12 +67,14 @@ def _add_output_flags(p) -> None:
 
 
 def cmd_quantify(args) -> int:
-    from farm import api, quantification
+    from farm import config as config_mod
+    from farm import quantification
     from farm.progress import Progress
 
-    cfg = api.load_config(args.config, **_farm_kwargs(args))
+    text = config_mod.read_text(args.config)  # once: the config may be a stream, <(cat c.toml)
+    cfg = config_mod.parse(text, args.config).with_overrides(_overrides(args))
     summary = quantification.run(cfg, Path(args.out), resume=args.resume, force=args.force,
-                                 progress=Progress(mode=_mode(args)), config_text=Path(args.config).read_text())
+                                 progress=Progress(mode=_mode(args)), config_text=text)
     _print_summary(summary, Path(args.out))
     return EXIT_OK
 
@@ -110,7 +114,7 @@ def cmd_report(args) -> int:
 
     if args.overlay:
         if len(args.dir) < 2:
-            raise ValueError("report --overlay: give two or more campaign directories")
+            raise ConfigError("report --overlay: give two or more campaign directories")
         path = api.overlay(args.dir, Path(args.dir[0]) / "plots" / "overlay.png")
         print(f"{'overlay':>18}: {path}")
         return EXIT_OK
@@ -178,7 +182,9 @@ def cmd_schema(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="scenario-farm", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="scenario-farm", description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter,
+                                     epilog=f"exit codes:\n{exits.table_text()}")
     parser.add_argument("--version", action="version", version=f"scenario-farm {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -256,6 +262,11 @@ def main(argv=None) -> int:
 
     parser = build_parser()
     args = parser.parse_args(argv)
+    if not os.environ.get(DEBUG):
+        from farm.native_stderr import install
+
+        install()  # Ray's C++ log lines stay in its session's log files
+    warnings.showwarning = _one_line_warning
     # like `python -m`: 'module:Class' in a config imports from the working directory
     if os.getcwd() not in sys.path:
         sys.path.insert(0, os.getcwd())
@@ -266,9 +277,11 @@ def main(argv=None) -> int:
     try:
         return args.func(args)
     except Exception as exc:  # noqa: BLE001 - the one place where errors become exit codes
-        return report_error(exc)
+        return report_error(exc, _campaign_dir(args))
     except KeyboardInterrupt:
-        print("scenario-farm: interrupted", file=sys.stderr)
+        where = _campaign_dir(args)
+        print(f"scenario-farm: stopped by a signal; the files are as the last checkpoint left them"
+              f"{f' (continue with `scenario-farm resume {where}`)' if where else ''}", file=sys.stderr)
         return EXIT_STOPPED
 
 
@@ -276,37 +289,52 @@ def _terminate(signum, frame):
     raise KeyboardInterrupt
 
 
-def report_error(exc: BaseException) -> int:
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"scenario-farm: warning: {' '.join(str(message).split())}", file=sys.stderr)
+
+
+def _campaign_dir(args) -> str | None:
+    """The campaign directory a command works in, for "resume DIR" hints."""
+    if args.command == "quantify":
+        return args.out
+    return args.dir if args.command == "resume" else None
+
+
+def report_error(exc: BaseException, campaign_dir: str | None = None) -> int:
+    """Print the one line an error ends with; -> its exit code (farm/exits.py)."""
     from farm.quantification import Stopped
 
+    if os.environ.get(DEBUG):
+        traceback.print_exception(exc, file=sys.stderr)
     if isinstance(exc, Stopped):
-        print(f"scenario-farm: {exc}; checkpointed (continue with `scenario-farm resume DIR`)", file=sys.stderr)
+        print(f"scenario-farm: {exc}; checkpointed (continue with `scenario-farm resume {campaign_dir or 'DIR'}`)",
+              file=sys.stderr)
         return EXIT_STOPPED
-    if is_user_error(exc):
-        text = " ".join(str(exc).split()) or type(exc).__name__
+    code = exits.exit_code(exc)
+    text = _one_line(exc)
+    if code == exits.USER:
         print(f"scenario-farm: error: {text}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    fd, path = tempfile.mkstemp(prefix="scenario-farm-bug-", suffix=".txt")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(f"scenario-farm {__version__}\n{' '.join(sys.argv)}\n\n")
-        traceback.print_exception(exc, file=fh)
-    print(f"scenario-farm: internal error ({type(exc).__name__}: {exc}); this is a bug: please report it with "
-          f"the traceback in {path}", file=sys.stderr)
-    return EXIT_BUG
+    elif code == exits.INFRASTRUCTURE:
+        resume = f" (the last checkpoint stands: `scenario-farm resume {campaign_dir}` continues)" \
+            if campaign_dir else ""
+        print(f"scenario-farm: infrastructure error: {text}{resume}", file=sys.stderr)
+    else:
+        fd, path = tempfile.mkstemp(prefix="scenario-farm-bug-", suffix=".txt")
+        with os.fdopen(fd, "w") as fh:
+            fh.write(f"scenario-farm {__version__}\n{' '.join(sys.argv)}\n\n")
+            traceback.print_exception(exc, file=fh)
+        print(f"scenario-farm: internal error: {text}; this is a bug: please report it with the traceback in "
+              f"{path} ({DEBUG}=1 prints it)", file=sys.stderr)
+    return code
 
 
-def is_user_error(exc: BaseException) -> bool:
-    """Errors that say what is wrong with the input, the directory or the environment."""
-    from coordinator.algorithm import EmptySetError
-    from coordinator.domain import DomainError
-    from farm.config import ConfigError
-    from farm.ray_executor import WorkerError
-    from farm.storage import CampaignError
-    from scenarios.base import ScenarioError
+def _one_line(exc: BaseException, limit: int = 600) -> str:
+    """The error's message on one line, its type named unless it is one of ours."""
+    from scenarios.errors import FarmError
 
-    known = (ConfigError, DomainError, CampaignError, ScenarioError, WorkerError, EmptySetError, FileExistsError,
-             ValueError)
-    if isinstance(exc, known):
-        return True
-    # a full disk, a read-only place, a missing file: the environment, named in the message
-    return isinstance(exc, OSError) and exc.errno is not None
+    text = " ".join(str(exc).split())
+    if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
+        text = f"{exc.filename}: {exc.strerror}"  # e.g. "/out/summary.json: No space left on device"
+    if not isinstance(exc, FarmError):
+        text = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."

@@ -14,6 +14,7 @@ import numpy as np
 from coordinator.reference import claimed, compare_boxes, falsify, grid, reference_safe
 from farm.files import read_safe_set, write_json
 from farm.executors import build_simulator
+from scenarios.errors import ConfigError
 
 
 def compare(directory: Path, grid: int | None = None, progress=None) -> dict:
@@ -29,13 +30,13 @@ def compare(directory: Path, grid: int | None = None, progress=None) -> dict:
     CampaignDir(directory).open("quantify")
     cfg = load_frozen_config(directory)
     if grid is not None and not (2 <= grid <= 4096):
-        raise ValueError(f"--grid: {grid} is out of range; allowed [2, 4096] points per axis")
+        raise ConfigError(f"--grid: {grid} is out of range; allowed [2, 4096] points per axis")
     simulated = cfg.scenario.backend != "numpy"
     if simulated and cfg.actions.mode not in ("adversarial", "uniform", "search"):
         # constant or feedback actions quantify a different set than the worst case
-        raise ValueError(f"compare: a black-box SV has no model; its reference is simulated under Gamma*, which "
-                         f"compares with actions.mode = 'adversarial', 'uniform' or 'search', not "
-                         f"{cfg.actions.mode!r}")
+        raise ConfigError(f"compare: a black-box SV has no model; its reference is simulated under Gamma*, which "
+                          f"compares with actions.mode = 'adversarial', 'uniform' or 'search', not "
+                          f"{cfg.actions.mode!r}")
     if simulated and grid is None:
         grid = 24  # every grid point is a 40 s simulation
     backend = build_simulator(spec_of(cfg)).backend

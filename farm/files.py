@@ -20,6 +20,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from scenarios.errors import CampaignError, DataError
 from scenarios.version import __version__
 
 TEMP_PREFIX = "."
@@ -54,6 +55,28 @@ def write_json(path: Path, obj: dict) -> None:
     atomic_write_bytes(Path(path), (json.dumps(obj, indent=2, sort_keys=False) + "\n").encode())
 
 
+def read_json(path: Path, required=()) -> dict:
+    """A JSON object this tool wrote, holding at least the keys ``required``; a missing,
+    damaged or foreign file is a one-line CampaignError naming it."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_bytes())
+    except FileNotFoundError:
+        raise CampaignError(f"{path}: missing") from None
+    except IsADirectoryError:
+        raise CampaignError(f"{path}: a directory, not a file of this tool") from None
+    except (ValueError, RecursionError) as exc:  # UnicodeDecodeError and JSONDecodeError are ValueErrors
+        raise CampaignError(f"{path}: not valid JSON (damaged? {type(exc).__name__}: {exc})") from None
+    except OSError as exc:
+        raise CampaignError(f"{path}: cannot be read ({exc.strerror or type(exc).__name__})") from None
+    if not isinstance(data, dict):
+        raise CampaignError(f"{path}: holds a JSON {type(data).__name__}, not the object this tool wrote (damaged?)")
+    missing = [key for key in required if key not in data]
+    if missing:
+        raise CampaignError(f"{path}: lacks {', '.join(map(repr, missing))} (damaged?)")
+    return data
+
+
 def sha256_file(path: Path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as fh:
@@ -80,24 +103,24 @@ def read_safe_set(path, state_names) -> tuple[np.ndarray, float]:
     try:
         table = pq.read_table(path)
     except FileNotFoundError:
-        raise ValueError(f"{path}: no such safe-set file") from None
+        raise DataError(f"{path}: no such safe-set file") from None
     except (pa.ArrowInvalid, OSError) as exc:
-        raise ValueError(f"{path}: not a readable Parquet safe set ({exc})") from None
+        raise DataError(f"{path}: not a readable Parquet safe set ({exc})") from None
     missing = [c for c in (*state_names, "half_width") if c not in table.column_names]
     if missing:
-        raise ValueError(f"{path}: safe set lacks column(s) {', '.join(missing)} for this scenario")
+        raise DataError(f"{path}: safe set lacks column(s) {', '.join(missing)} for this scenario")
     extra = [c for c in table.column_names if c not in (*state_names, "half_width")]
     if extra:  # e.g. a fleet3 set handed to lead-follow: its v0, v1, p10 mean other things
-        raise ValueError(f"{path}: safe set has column(s) {', '.join(extra)} that are not state variables of "
+        raise DataError(f"{path}: safe set has column(s) {', '.join(extra)} that are not state variables of "
                          f"this scenario ({', '.join(state_names)}); it was written for another scenario")
     try:
         centres = np.stack([table.column(c).to_numpy().astype(float) for c in state_names], axis=1) \
             if table.num_rows else np.empty((0, len(state_names)))
         widths = table.column("half_width").to_numpy().astype(float)
     except (TypeError, ValueError, pa.ArrowException) as exc:
-        raise ValueError(f"{path}: safe-set columns must be numbers ({exc})") from None
+        raise DataError(f"{path}: safe-set columns must be numbers ({exc})") from None
     if not (np.isfinite(centres).all() and np.isfinite(widths).all() and (widths > 0).all()):
-        raise ValueError(f"{path}: safe set holds a non-finite centre or a half_width <= 0; allowed half_width > 0")
+        raise DataError(f"{path}: safe set holds a non-finite centre or a half_width <= 0; allowed half_width > 0")
     if len(widths) and not np.all(widths == widths[0]):
-        raise ValueError(f"{path}: boxes of different half-widths are not supported")
+        raise DataError(f"{path}: boxes of different half-widths are not supported")
     return centres.astype(float), float(widths[0]) if len(widths) else 0.0

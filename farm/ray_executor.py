@@ -30,6 +30,7 @@ from coordinator.coverage import Coverage, Reset
 from coordinator.executor import Chunk, chunk_of, screen_piece, summarize
 from farm.executors import build_simulator
 from farm.ray_session import connect
+from scenarios.errors import FarmError, InfrastructureError
 from scenarios.simulator import SimSpec
 
 RESYNC = "resync"  # a worker's answer when its mirror cannot reach the chunk's version
@@ -69,8 +70,8 @@ def _nbytes(changes) -> int:
     return total
 
 
-class WorkerError(RuntimeError):
-    pass
+class WorkerError(InfrastructureError):
+    """Ray lost the workers of a chunk more often than ``farm.max_retries`` allows."""
 
 
 def _actor_class():
@@ -364,8 +365,10 @@ class RayExecutor:
                 return summary
             except ray.exceptions.RayTaskError as exc:
                 self._queued[job.actor] -= 1
-                cause = exc.cause if getattr(exc, "cause", None) is not None else exc
-                raise WorkerError(f"worker failed on runs from sample index {job.first}: {cause}") from None
+                cause = getattr(exc, "cause", None)
+                if isinstance(cause, FarmError):  # e.g. the user's scenario raised: its own one line
+                    raise cause from None
+                raise  # a bug in the worker's code: the traceback shows where
             except (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError,
                     ray.exceptions.ObjectLostError) as exc:
                 self._queued[job.actor] -= 1

@@ -1,6 +1,7 @@
 """Starting or joining Ray for a campaign: a private local Ray as the CLI starts it
-(loopback only, with ``RAY_SYSTEM_CONFIG``), or a cluster at an address. Benchmarks
-and tests start their local Ray here too, so it has the CLI's settings.
+(loopback only, with ``RAY_SYSTEM_CONFIG``, its processes ended with the driver's), or a
+cluster at an address, checked to answer before anything is written. Benchmarks and
+tests start their local Ray here too, so it has the CLI's settings.
 """
 
 from __future__ import annotations
@@ -8,7 +9,13 @@ from __future__ import annotations
 import logging
 import os
 import signal
+import socket
+import subprocess
+import sys
 import threading
+from pathlib import Path
+
+from scenarios.errors import ConfigError, InfrastructureError
 
 # Return values up to this size come back inside the task's reply instead of through
 # the object store (Ray's default: 100 KB). A chunk's summary is ~150 KB for 1,024
@@ -22,23 +29,87 @@ INLINE_RETURN_BYTES = 256 * 1024
 RAY_SYSTEM_CONFIG = {"max_direct_call_object_size": INLINE_RETURN_BYTES}
 
 
+PROBE_TIMEOUT_S = 3.0  # [s] for a cluster's address to accept a TCP connection
+
+
 def connect(address: str, workers: int) -> None:
     """Start a private local Ray (``address = "local"``) or join a cluster. Local Ray's
     workers get the working directory on their path, as the CLI has it: a config's
-    'module:Class' imports there as it does in the coordinator."""
+    'module:Class' imports there as it does in the coordinator. A SIGTERM while Ray
+    starts is a KeyboardInterrupt (the CLI: "stopped", exit 130)."""
     import ray
 
     if ray.is_initialized():
         return
-    with _keep_sigterm_handler():
-        _init(ray, address, workers)
+    # The executor reports a failed chunk once, as one line; the refs of chunks it drops
+    # (a round's end, a failure) hold the same error, which Ray would print on the
+    # driver as "Unhandled error" with the worker's traceback when they are freed.
+    os.environ.setdefault("RAY_IGNORE_UNHANDLED_ERRORS", "1")
+    target = None if address == "local" else reachable(address)
+    try:
+        with _keep_sigterm_handler():
+            if target is None:
+                start_local(workers)
+            else:
+                ray.init(address=target, log_to_driver=False, configure_logging=False)
+    except SystemExit as exc:
+        # ray.init makes SIGTERM exit the driver at once (sys.exit) until it returns
+        if exc.code != signal.SIGTERM:
+            raise
+        ray.shutdown()
+        raise KeyboardInterrupt from None
+    except (ConfigError, KeyboardInterrupt):
+        raise
+    except Exception as exc:  # noqa: BLE001 - whatever Ray raises while starting or joining
+        ray.shutdown()
+        text = " ".join(str(exc).split())
+        if target is None:
+            raise InfrastructureError(f"Ray did not start on this machine ({type(exc).__name__}: {text})") from None
+        raise ConfigError(f"farm.address: {address!r} answers at {target}, but joining it as a Ray cluster failed "
+                          f"({type(exc).__name__}: {text})") from None
 
 
-def _init(ray, address: str, workers: int) -> None:
-    if address == "local":
-        start_local(workers)
-    else:
-        ray.init(address=address, log_to_driver=False, configure_logging=False)
+def reachable(address: str, timeout: float = PROBE_TIMEOUT_S) -> str:
+    """The address to give ``ray.init`` for ``farm.address`` (``auto`` resolved), checked
+    to accept a connection within ``timeout`` seconds; else a one-line ConfigError. Ray
+    itself waits for an address that answers nothing for ever, retrying."""
+    target = _resolve(address)
+    client = target.startswith("ray://")
+    host, port = _host_port(target.removeprefix("ray://"), address)
+    if not client:  # Ray connects to this host's routable address for a loopback one: probe that
+        from ray._private.services import canonicalize_bootstrap_address
+
+        host, port = _host_port(canonicalize_bootstrap_address(target), address)
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as exc:
+        why = "timed out" if isinstance(exc, TimeoutError) else (exc.strerror or type(exc).__name__).lower()
+        said = f"{address!r}" + (f" ({target})" if target != address else "")
+        raise ConfigError(f"farm.address: nothing answers at {host}:{port} for {said}: {why} within {timeout:g} s; "
+                          f"start the cluster first, or use --address local") from None
+    return target
+
+
+def _resolve(address: str) -> str:
+    """``auto``: the cluster of a Ray job (RAY_ADDRESS) or of `ray start` on this machine
+    (Ray's address file). Not Ray's own fallback, any raylet process found on the
+    machine: on a shared machine that is another user's private Ray."""
+    if address != "auto":
+        return address
+    from ray._private.utils import read_ray_address
+
+    found = os.environ.get("RAY_ADDRESS") or read_ray_address()
+    if not found:
+        raise ConfigError("farm.address: 'auto' found no Ray cluster (no RAY_ADDRESS, and no `ray start` on this "
+                          "machine); start one, give its address, or use --address local")
+    return found
+
+
+def _host_port(text: str, address: str) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ConfigError(f"farm.address: {address!r} is not 'local', 'auto', 'host:port' or 'ray://host:port'")
+    return host.strip("[]"), int(port)
 
 
 def start_local(num_cpus: int, extra_path: str | None = None) -> None:
@@ -54,6 +125,24 @@ def start_local(num_cpus: int, extra_path: str | None = None) -> None:
         ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False, configure_logging=False,
                  _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1", _system_config=RAY_SYSTEM_CONFIG,
                  runtime_env={"env_vars": {"PYTHONPATH": path}})
+    _start_reaper(ray)
+
+
+_reapers: list[subprocess.Popen] = []  # their stdin pipes stay open as long as this process
+
+
+def _start_reaper(ray) -> None:
+    """farm/ray_reaper.py: ends what this Ray started when this process ends, kill -9 included."""
+    node = ray._private.worker._global_node
+    pids = {name: [p.process.pid for p in procs] for name, procs in getattr(node, "all_processes", {}).items()}
+    if not sys.platform.startswith("linux") or not pids.get("raylet"):
+        return
+    others = [pid for name, group in pids.items() if name != "raylet" for pid in group]
+    _reapers[:] = [r for r in _reapers if r.poll() is None]  # those of an earlier Ray here have ended
+    _reapers.append(subprocess.Popen(
+        [sys.executable, "-I", str(Path(__file__).with_name("ray_reaper.py")), str(pids["raylet"][0]),
+         *map(str, others)], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        start_new_session=True))
 
 
 class _keep_sigterm_handler:

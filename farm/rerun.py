@@ -15,7 +15,9 @@ import numpy as np
 import pyarrow.dataset as ds
 
 from farm.executors import build_simulator
+from farm.files import read_json
 from scenarios.base import OUTCOME_NAMES
+from scenarios.errors import CampaignError, ConfigError, DataError
 from scenarios.simulator import SimSpec
 
 
@@ -44,7 +46,7 @@ def _recorded(directory: Path, index: int):
     for path in sorted((directory / "recordings").glob("*.mcap")) + sorted(directory.glob("*.mcap")):
         try:
             rec = read_recording(path)
-        except ValueError as exc:
+        except DataError as exc:
             print(f"scenario-farm: warning: skipped {exc}", file=sys.stderr)
             continue
         if index in rec["runs"]:
@@ -77,10 +79,10 @@ def replay(directory: Path, index: int) -> tuple[bool, str]:
 
     cfg = load_frozen_config(directory)
     if not 0 <= index < 2**63:
-        raise ValueError(f"--sample: {index} is out of range; allowed [0, 2**63)")
+        raise ConfigError(f"--sample: {index} is out of range; allowed [0, 2**63)")
     rows = ds.dataset(directory / "ledger").to_table(filter=ds.field("sample_index") == index).to_pylist()
     if not rows:
-        raise ValueError(f"{directory}: sample {index} is not in the ledger (not committed)")
+        raise CampaignError(f"{directory}: sample {index} is not in the ledger (not committed)")
     row = rows[0]
     spec = SimSpec(cfg.scenario.model_dump(), cfg.actions.model_dump(), cfg.quantify.horizon, cfg.farm.seed)
     simulator = build_simulator(spec)
@@ -104,10 +106,10 @@ def replay(directory: Path, index: int) -> tuple[bool, str]:
 
 
 def _replay_counterexample(directory: Path, index: int) -> tuple[bool, str]:
-    cert = json.loads((directory / "certificate.json").read_text())
+    cert = read_json(directory / "certificate.json")
     ce = cert.get("counterexample")
     if not ce or ce["sample_index"] != index:
-        raise ValueError(f"{directory}: certificate.json holds no counterexample with sample index {index}")
+        raise CampaignError(f"{directory}: certificate.json holds no counterexample with sample index {index}")
     from farm.quantification import load_frozen_config
 
     cfg = load_frozen_config(directory)

@@ -5,6 +5,8 @@ than atoms, a validation domain 1e-7 wide at ``delta = 1e-9`` a lattice of 10^18
 Both used to run until the machine gave out. The estimates here are worst cases (every
 cell of the finest covering alive), so a refusal is never wrong about what was asked;
 the limit is ``farm.max_memory_gb`` (default: three quarters of this machine's memory).
+The farm is checked too: a local Ray gets at most ``ACTORS_PER_CPU`` actors per CPU of
+this machine, and a cluster's address must answer (before any file is written).
 """
 
 from __future__ import annotations
@@ -21,6 +23,10 @@ from farm.config import Config, ConfigError
 BYTES_PER_BOX = 1024
 # A validation lattice holds centres, their index and per-centre verdicts.
 BYTES_PER_CENTRE = 256
+# Actors past the CPUs only share them (a local Ray gives each workers / CPUs of one), and
+# each is a process that takes its memory and seconds to start: 4096 on 2 CPUs committed
+# 7 runs/s. A few per CPU still hide a simulator that waits (docs/benchmarks.md).
+ACTORS_PER_CPU = 4
 
 
 def memory_limit_bytes(cfg: Config) -> float:
@@ -60,8 +66,35 @@ def _fits(cfg: Config, field: str, delta: float, lo, hi, per_cell: int, what: st
                           f"{finest:.3g}, or raise farm.max_memory_gb")
 
 
+def machine_cpus() -> int:
+    """The CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def check_farm(cfg: Config) -> None:
+    """Refuse a local Ray with more actors than ``ACTORS_PER_CPU`` per CPU, or a cluster
+    address that answers nothing (ConfigError, before any file is written)."""
+    farm = cfg.farm
+    if farm.executor != "ray":
+        return
+    if farm.address == "local":
+        most = ACTORS_PER_CPU * machine_cpus()
+        if farm.workers > most:
+            raise ConfigError(f"farm.workers: {farm.workers} actors on a local Ray of {machine_cpus()} CPUs; allowed "
+                              f"[1, {most}] ({ACTORS_PER_CPU} per CPU: more only share the CPUs, each a process of "
+                              f"its own); for more, join a cluster with farm.address")
+        return
+    from farm.ray_session import reachable
+
+    reachable(farm.address)
+
+
 def check_quantify(cfg: Config, lower, upper) -> None:
     """Refuse, with the field named, a quantification that cannot fit (ConfigError)."""
+    check_farm(cfg)
     q = cfg.quantify
     half = float(np.max(np.asarray(upper) - np.asarray(lower))) / 2
     if q.delta0 > half * (1 + 1e-12):
@@ -73,6 +106,7 @@ def check_quantify(cfg: Config, lower, upper) -> None:
 def check_validate(cfg: Config, lo, hi, is_set: bool) -> None:
     """Refuse a validation whose delta-lattice cannot fit, or whose delta exceeds the
     domain (one box would cover it: a single start would 'certify' the whole domain)."""
+    check_farm(cfg)
     v = cfg.validate
     if v.algorithm == "eps" or is_set:  # eps samples Phi itself; a set brings its own centres
         return

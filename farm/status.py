@@ -12,8 +12,8 @@ import json
 import time
 from pathlib import Path
 
-from farm.files import write_json
-from farm.storage import MARKER, CampaignDir
+from farm.files import read_json, write_json
+from farm.storage import MARKER, CampaignDir, CampaignError
 
 EVERY_S = 2.0
 
@@ -71,15 +71,15 @@ def read_status(directory: Path) -> dict | None:
 def describe(directory: Path) -> str:
     directory = Path(directory)
     if not (directory / MARKER).exists() or not (directory / "config.json").exists():
-        raise ValueError(f"{directory}: not a campaign directory (no {MARKER} or config.json)")
+        raise CampaignError(f"{directory}: not a campaign directory (no {MARKER} or config.json)")
     lines = [f"campaign {directory}"]
+    frozen = read_json(directory / "config.json", ("config", "config_hash"))
     try:
-        frozen = json.loads((directory / "config.json").read_text())
         c = frozen["config"]
         lines.append(f"  scenario {c['scenario']['name']} / {c['scenario'].get('sv_policy')} / "
                      f"{c['quantify']['algorithm']}, config hash {frozen['config_hash']}")
-    except (OSError, ValueError, KeyError, TypeError):
-        raise ValueError(f"{directory}/config.json: unreadable") from None
+    except (KeyError, TypeError) as exc:
+        raise CampaignError(f"{directory}/config.json: lacks {exc} (damaged?)") from None
     holder = CampaignDir(directory).holder()
     st = read_status(directory)
     if st is None:
@@ -97,7 +97,7 @@ def describe(directory: Path) -> str:
         if st.get("search_weights"):
             lines.append("  search mixture: " + ", ".join(f"{k} {v:.3f}" for k, v in st["search_weights"].items()))
     if (directory / "summary.json").exists():
-        s = json.loads((directory / "summary.json").read_text())
+        s = read_json(directory / "summary.json", ("boxes", "volume_union", "result_hash", "guarantee"))
         lines.append(f"  finished: {s['boxes']} boxes, volume {s['volume_union']:.6g}, result hash {s['result_hash']}")
         lines.append(f"  {s['guarantee']}")
     return "\n".join(lines)

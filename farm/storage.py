@@ -31,6 +31,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from farm.files import TEMP_MARK, atomic_write, sha256_file, write_json
+from scenarios.errors import CampaignError
 from scenarios.version import __version__
 
 MARKER = ".scenario-farm.json"
@@ -38,9 +39,7 @@ LOCK = ".lock"
 DIRECTORY_FORMAT = 2
 SEGMENT = re.compile(r"segment-(\d{6})\.parquet$")
 
-
-class CampaignError(RuntimeError):
-    """A campaign directory that cannot be used as asked (printed as one line, exit 2)."""
+__all__ = ["CampaignDir", "CampaignError", "Ledger"]
 
 
 class CampaignDir:

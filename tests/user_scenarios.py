@@ -38,3 +38,13 @@ class Raising(UnitSquare):
         if (states[:, 0] > 0.5).any():
             raise ValueError("boom")
         return states
+
+
+class Unbounded(UnitSquare):
+    """Declares an infinite upper bound for b: no finite box Sigma."""
+
+    name = "unbounded"
+    upper = np.array([1.0, np.inf])
+
+    def step(self, states, actions, noise):
+        return states

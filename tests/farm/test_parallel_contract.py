@@ -133,7 +133,8 @@ def test_a_killed_worker_costs_time_not_results(ray_local, reference, tmp_path):
 
 
 def test_an_exception_in_a_scenario_names_the_sample_and_does_not_hang(ray_local, tmp_path):
-    from farm.ray_executor import RayExecutor, WorkerError
+    from farm.ray_executor import RayExecutor
+    from scenarios.errors import ScenarioError
     from scenarios.simulator import SimSpec
 
     spec = SimSpec({"name": "user_scenarios:Raising", "sv_policy": "none"}, {"mode": "uniform"}, 10, 0)
@@ -141,7 +142,7 @@ def test_an_exception_in_a_scenario_names_the_sample_and_does_not_hang(ray_local
     try:
         starts = np.tile([[0.2, 0.2]], (64, 1))
         starts[37] = [0.9, 0.9]
-        with pytest.raises(WorkerError, match=r"ValueError: boom.*sample index 1037 \(start state \[0.9, 0.9\]\)"):
+        with pytest.raises(ScenarioError, match=r"ValueError: boom.*sample index 1037 \(start state \[0.9, 0.9\]\)"):
             for handle in ex.submit(1000, starts):
                 ex.result(handle)
     finally:
