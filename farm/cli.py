@@ -267,6 +267,9 @@ def main(argv=None) -> int:
 
         install()  # Ray's C++ log lines stay in its session's log files
     warnings.showwarning = _one_line_warning
+    from farm import ray_session
+
+    ray_session.on_lost = lambda why: _lost(why, _campaign_dir(args))
     # like `python -m`: 'module:Class' in a config imports from the working directory
     if os.getcwd() not in sys.path:
         sys.path.insert(0, os.getcwd())
@@ -287,6 +290,16 @@ def main(argv=None) -> int:
 
 def _terminate(signum, frame):
     raise KeyboardInterrupt
+
+
+def _lost(why: str, campaign_dir: str | None) -> None:
+    """The local Ray died under a command: our line and exit code, before Ray's own exit 1."""
+    print(f"scenario-farm: infrastructure error: {why}{_resume_hint(campaign_dir)}", file=sys.stderr, flush=True)
+    os._exit(exits.INFRASTRUCTURE)
+
+
+def _resume_hint(campaign_dir: str | None) -> str:
+    return f" (the last checkpoint stands: `scenario-farm resume {campaign_dir}` continues)" if campaign_dir else ""
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
@@ -315,9 +328,7 @@ def report_error(exc: BaseException, campaign_dir: str | None = None) -> int:
     if code == exits.USER:
         print(f"scenario-farm: error: {text}", file=sys.stderr)
     elif code == exits.INFRASTRUCTURE:
-        resume = f" (the last checkpoint stands: `scenario-farm resume {campaign_dir}` continues)" \
-            if campaign_dir else ""
-        print(f"scenario-farm: infrastructure error: {text}{resume}", file=sys.stderr)
+        print(f"scenario-farm: infrastructure error: {text}{_resume_hint(campaign_dir)}", file=sys.stderr)
     else:
         fd, path = tempfile.mkstemp(prefix="scenario-farm-bug-", suffix=".txt")
         with os.fdopen(fd, "w") as fh:

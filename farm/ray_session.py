@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import logging
 import os
+import select
 import signal
 import socket
 import subprocess
 import sys
 import threading
 from pathlib import Path
+from typing import Callable
 
 from scenarios.errors import ConfigError, InfrastructureError
 
@@ -126,6 +128,35 @@ def start_local(num_cpus: int, extra_path: str | None = None) -> None:
                  _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1", _system_config=RAY_SYSTEM_CONFIG,
                  runtime_env={"env_vars": {"PYTHONPATH": path}})
     _start_reaper(ray)
+    _watch(ray)
+
+
+# Called (from a thread) with a one-line reason when this process's local Ray loses its
+# raylet or GCS while connected. Ray's core worker ends the driver with exit code 1 and
+# no word when it next touches the object store of a dead raylet; the CLI sets a hook that
+# says so in its own line and exits with its infrastructure code first.
+on_lost: Callable[[str], None] | None = None
+
+
+def _watch(ray) -> None:
+    """A thread that waits (pidfd: no polling) for the local raylet or GCS to end."""
+    node = ray._private.worker._global_node
+    pids = {name: procs[0].process.pid for name, procs in getattr(node, "all_processes", {}).items()
+            if name in ("raylet", "gcs_server") and procs}
+    try:
+        fds = {os.pidfd_open(pid): (name, pid) for name, pid in pids.items()}
+    except (AttributeError, OSError):  # not Linux >= 5.3
+        return
+
+    def wait() -> None:
+        ready, _, _ = select.select(list(fds), [], [])
+        name, pid = fds[ready[0]]
+        if ray.is_initialized() and on_lost is not None:  # a shutdown disconnects first
+            on_lost(f"the local Ray's {name} (pid {pid}) ended while the campaign ran")
+        for fd in fds:
+            os.close(fd)
+
+    threading.Thread(target=wait, name="ray-watch", daemon=True).start()
 
 
 _reapers: list[subprocess.Popen] = []  # their stdin pipes stay open as long as this process

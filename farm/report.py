@@ -6,13 +6,12 @@ from __future__ import annotations
 
 import base64
 import html
-import json
 from pathlib import Path
 
 import pyarrow.compute as pc
-import pyarrow.dataset as ds
 
-from farm.files import atomic_write_bytes
+from farm.files import atomic_write_bytes, read_json
+from farm.storage import read_ledger
 
 STYLE = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
 h1{font-size:1.5em}h2{font-size:1.15em;margin-top:1.6em;border-bottom:1px solid #ddd}
@@ -24,7 +23,7 @@ td.k{text-align:left;color:#555}img{max-width:100%;border:1px solid #eee;margin:
 
 def _rounds(directory: Path) -> list[dict]:
     """Runs, changes and N_eps-counted runs per round, from the ledger."""
-    table = ds.dataset(directory / "ledger").to_table(columns=["round", "delta", "changed", "counted"])
+    table = read_ledger(directory, columns=["round", "delta", "changed", "counted"])
     out = []
     for rnd in sorted(set(table.column("round").to_pylist())):
         rows = table.filter(pc.equal(table.column("round"), rnd))
@@ -46,7 +45,7 @@ def _table(rows: list[dict]) -> str:
 def write_html(directory, out: Path | None = None) -> Path:
     """Write DIR/report.html (or ``out``) for a finished campaign; -> its path."""
     directory = Path(directory)
-    summary = json.loads((directory / "summary.json").read_text())
+    summary = read_json(directory / "summary.json", ("scenario", "algorithm", "guarantee"))
     title = f"{summary['scenario']} / {summary.get('sv_policy')} / {summary['algorithm']}"
     parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
              f"<style>{STYLE}</style></head><body><h1>Scenario Farm: {html.escape(title)}</h1>",

@@ -7,7 +7,6 @@ in a validation directory, the counterexample of certificate.json.
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 
@@ -16,6 +15,7 @@ import pyarrow.dataset as ds
 
 from farm.executors import build_simulator
 from farm.files import read_json
+from farm.storage import read_ledger
 from scenarios.base import OUTCOME_NAMES
 from scenarios.errors import CampaignError, ConfigError, DataError
 from scenarios.simulator import SimSpec
@@ -80,7 +80,7 @@ def replay(directory: Path, index: int) -> tuple[bool, str]:
     cfg = load_frozen_config(directory)
     if not 0 <= index < 2**63:
         raise ConfigError(f"--sample: {index} is out of range; allowed [0, 2**63)")
-    rows = ds.dataset(directory / "ledger").to_table(filter=ds.field("sample_index") == index).to_pylist()
+    rows = read_ledger(directory, filter=ds.field("sample_index") == index).to_pylist()
     if not rows:
         raise CampaignError(f"{directory}: sample {index} is not in the ledger (not committed)")
     row = rows[0]

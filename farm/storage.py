@@ -39,7 +39,7 @@ LOCK = ".lock"
 DIRECTORY_FORMAT = 2
 SEGMENT = re.compile(r"segment-(\d{6})\.parquet$")
 
-__all__ = ["CampaignDir", "CampaignError", "Ledger"]
+__all__ = ["CampaignDir", "CampaignError", "Ledger", "read_ledger"]
 
 
 class CampaignDir:
@@ -227,3 +227,25 @@ class Ledger:
                 if stem.isdigit() and int(stem) >= len(digests):
                     path.unlink()
         self.digests, self.rows = list(digests), rows
+
+
+def read_ledger(directory: Path, columns=None, filter=None) -> pa.Table:
+    """The committed runs of DIR/ledger, every segment, as one table (``columns`` and a
+    pyarrow.dataset ``filter`` as ``Dataset.to_table`` takes them); a missing ledger or a
+    damaged segment is a one-line CampaignError naming it."""
+    import pyarrow.dataset as ds
+
+    ledger = Path(directory) / "ledger"
+    paths = sorted(str(p) for p in ledger.glob("segment-*.parquet"))
+    if not paths:
+        raise CampaignError(f"{ledger}: no ledger segments (removed?); the campaign's committed runs are gone")
+    try:
+        return ds.dataset(paths, format="parquet").to_table(columns=columns, filter=filter)
+    except (pa.ArrowException, OSError) as exc:
+        for path in paths:  # name the segment at fault
+            try:
+                pq.ParquetFile(path).schema_arrow
+            except (pa.ArrowException, OSError) as bad:
+                raise CampaignError(f"{path}: ledger segment is damaged ({' '.join(str(bad).split())})") from None
+        raise CampaignError(f"{ledger}: the ledger segments do not read as one table (damaged or mixed? "
+                            f"{' '.join(str(exc).split())})") from None

@@ -1,6 +1,7 @@
 """Hostile inputs: every case is a real CLI process on real files, and must end with one
 line `scenario-farm: error: ...` and exit 2 (never a traceback), and touch nothing that
-is not ours. The module grows with every bug found."""
+is not ours; a full disk is the machine's fault (exit 4). The module grows with every
+bug found (issue 34: the tables of configs and of damaged campaign directories)."""
 
 import json
 import os
@@ -13,22 +14,26 @@ import time
 import numpy as np
 import pytest
 
+from pathlib import Path
+
 from small_campaign import lead_follow_toml
 
 GOOD = lead_follow_toml()
+TESTS = Path(__file__).resolve().parents[1]  # user_scenarios.py: 'module:name' imports from the working directory
+LF = '[scenario]\nname = "lead-follow"\nsv_policy = "idm"\n'
+PREFIX = {2: "scenario-farm: error: ", 4: "scenario-farm: infrastructure error: "}
 
 
-def cli(*args, cwd=None, preexec_fn=None, timeout=120):
+def cli(*args, cwd=None, preexec_fn=None, timeout=120, env=None):
     return subprocess.run([sys.executable, "-m", "farm", *map(str, args)], capture_output=True, text=True,
-                          cwd=cwd, preexec_fn=preexec_fn, timeout=timeout)
+                          cwd=cwd, preexec_fn=preexec_fn, timeout=timeout, env=env)
 
 
-def one_line_error(r, *words):
-    assert r.returncode == 2, (r.returncode, r.stdout, r.stderr)
-    lines = [line for line in r.stderr.strip().splitlines()  # progress lines aside
+def one_line_error(r, *words, code=2):
+    assert r.returncode == code, (r.returncode, r.stdout, r.stderr)
+    lines = [line for line in r.stderr.strip().splitlines()  # progress lines and warnings aside
              if not line.startswith("scenario-farm: ") or "error" in line]
-    assert len(lines) == 1 and lines[0].startswith("scenario-farm: error: ") and "Traceback" not in r.stderr, \
-        r.stderr
+    assert len(lines) == 1 and lines[0].startswith(PREFIX[code]) and "Traceback" not in r.stderr, r.stderr
     for w in words:
         assert w in r.stderr, r.stderr
 
@@ -222,9 +227,107 @@ def test_a_failing_write_loses_nothing_and_resume_finishes(tmp_path):
 
     out = tmp_path / "out"
     r = cli("quantify", tmp_path / "c.toml", "--out", out, preexec_fn=small_disk)
-    one_line_error(r, "File too large")
+    one_line_error(r, "File too large", f"scenario-farm resume {out}", code=4)  # the disk's fault, not the input's
     r = cli("resume", out)
     assert r.returncode == 0, r.stderr
     got, want = (json.loads((d / "summary.json").read_text()) for d in (out, tmp_path / "whole"))
     assert got["result_hash"] == want["result_hash"] and got["runs_committed"] == want["runs_committed"]
     assert not [p for p in out.rglob("*") if ".tmp-" in p.name]
+
+
+# -- 4. configs and flags: one line naming the field, before any file is written ----------------
+QUICK = "[quantify]\ndelta0 = 4.0\ndelta_min = 2.0\nepsilon = 0.01\nhorizon = 30\n[farm]\nbatch_size = 256\n"
+
+
+CONFIG_CASES = [
+    # issue 34 point 5: refused up front with the allowed range (beta = 5e-324 ran a whole campaign, then overflowed)
+    ("beta_denormal", "quantify", LF + "[quantify]\nbeta = 5e-324\n", [],
+     ["quantify.beta: 5e-324 is out of range; allowed [1e-100, 1)"]),
+    ("epsilon_denormal", "validate", LF + "[validate]\nepsilon = 5e-324\n", [],
+     ["validate.epsilon: 5e-324 is out of range; allowed [1e-09, 1)"]),
+    ("predicate_os_system", "validate", LF + '[validate]\nalgorithm = "eps"\ndomain_predicate = "os:system"\n', [],
+     ["validate.domain_predicate: 'os:system' raised TypeError", "expected a function states (B, n) -> (B,) bool"]),
+    ("predicate_scalar", "validate", LF + '[validate]\nalgorithm = "eps"\ndomain_predicate = "numpy:sum"\n', [],
+     ["validate.domain_predicate: 'numpy:sum' returned shape ()"]),
+    ("nested_3000_deep", "validate", LF + "x = " + "[" * 3000 + "]" * 3000 + "\n", [],
+     ["nested too deeply to read; allowed at most 32 levels"]),
+    ("nested_tables", "validate", LF + "sumo = " + "{a = " * 40 + "1" + "}" * 40 + "\n", [],
+     ["nested 42 levels deep; allowed at most 32"]),
+    # issue 34 point 8: the policy named, not the scenario; a byte-order mark read as nothing
+    ("feedback_os_system", "quantify", LF + '[actions]\nmode = "feedback"\npolicy = "os:system"\n', [],
+     ["actions.policy: 'os:system' raised TypeError", "states (B, n) -> actions (B, m)"]),
+    ("feedback_wrong_shape", "quantify", LF + '[actions]\nmode = "feedback"\npolicy = "numpy:ravel"\n', [],
+     ["actions.policy: 'numpy:ravel' returned shape (6,)"]),
+    ("byte_order_mark", "validate", "\ufeff" + LF + "[validate]\nepsilon = 2.0\n", [],
+     ["validate.epsilon: 2.0 is out of range"]),
+    ("utf16", "validate", LF.encode("utf-16"), [], ["not UTF-8 text"]),
+    ("infinite_sigma", "quantify", '[scenario]\nname = "user_scenarios:Unbounded"\n', [],
+     ["scenario 'unbounded': Sigma must be a finite box; b has bounds [0, inf]"]),
+    ("not_a_module_path", "validate", '[scenario]\nname = "os.path"\n', [], ["scenario.name: unknown scenario"]),
+    ("negative_checkpoint", "quantify", LF + "[farm]\ncheckpoint_every = -1.0\n", [], ["farm.checkpoint_every"]),
+    ("seed_flag", "quantify", LF, ["--seed", "-1"], ["--seed: -1 is out of range"]),
+    ("workers_flag_zero", "quantify", LF, ["--workers", "0"], ["--workers: 0 is out of range; allowed [1, 4096]"]),
+    # issue 34 point 7: thousands of actors on two cores ran at 7 runs/s
+    ("workers_4096_local_ray", "quantify", LF, ["--executor", "ray", "--workers", "4096"],
+     ["farm.workers: 4096 actors on a local Ray", "4 per CPU"]),
+    # issue 34 point 2: an address that answers nothing, within seconds, before any file
+    ("address_refused", "quantify", LF, ["--executor", "ray", "--address", "127.0.0.1:1"],
+     ["farm.address: nothing answers at", "for '127.0.0.1:1'"]),
+    ("address_ray_client_refused", "quantify", LF, ["--executor", "ray", "--address", "ray://127.0.0.1:9"],
+     ["farm.address: nothing answers at 127.0.0.1:9"]),
+    ("address_garbage", "validate", LF, ["--executor", "ray", "--address", "no-port-here"],
+     ["farm.address: 'no-port-here' is not 'local', 'auto', 'host:port' or 'ray://host:port'"]),
+    ("address_auto_without_cluster", "quantify", LF, ["--executor", "ray", "--address", "auto"],
+     ["farm.address: 'auto' found no Ray cluster"]),
+]
+
+
+@pytest.mark.parametrize("case, command, text, flags, words", CONFIG_CASES, ids=[c[0] for c in CONFIG_CASES])
+def test_bad_configs_and_flags_are_refused_before_any_file(tmp_path, case, command, text, flags, words):
+    cfg = tmp_path / "c.toml"
+    cfg.write_bytes(text if isinstance(text, bytes) else text.encode())
+    out = tmp_path / "out"
+    env = {k: v for k, v in os.environ.items() if k != "RAY_ADDRESS"}
+    env["RAY_TMPDIR"] = str(tmp_path / "ray")  # no `ray start` recorded there: 'auto' finds nothing
+    t0 = time.monotonic()
+    r = cli(command, cfg, "--out", out, *flags, cwd=TESTS, env=env)
+    one_line_error(r, *words)
+    assert not out.exists()
+    if case.startswith("address"):  # a bounded wait: the probe's 3 s plus start-up (slow on a loaded machine)
+        assert time.monotonic() - t0 < 60
+    if case.startswith(("feedback", "infinite", "byte_order")):
+        assert "scenario 'lead-follow'" not in r.stderr and "delta_min" not in r.stderr
+        assert "Invalid statement" not in r.stderr
+
+
+def test_a_feedback_policy_that_raises_mid_campaign_is_named_with_its_run(tmp_path):
+    (tmp_path / "c.toml").write_text(LF + '[actions]\nmode = "feedback"\npolicy = "user_scenarios:raising_policy"\n'
+                                     + QUICK)
+    r = cli("quantify", tmp_path / "c.toml", "--out", tmp_path / "out", cwd=TESTS)
+    one_line_error(r, "actions.policy: 'user_scenarios:raising_policy' raised ValueError: policy boom on sample index")
+    assert "scenario 'lead-follow'" not in r.stderr
+
+
+def test_a_config_given_as_a_stream_is_read_once_and_frozen_whole(tmp_path):
+    """`quantify <(cat c.toml)`: the frozen config.toml was 0 bytes (the stream was read twice)."""
+    text = LF + QUICK
+    read, write = os.pipe()
+    os.write(write, text.encode())
+    os.close(write)
+    try:
+        r = subprocess.run([sys.executable, "-m", "farm", "quantify", f"/dev/fd/{read}", "--out", str(tmp_path / "out"),
+                            "--quiet"], capture_output=True, text=True, pass_fds=(read,), timeout=300)
+    finally:
+        os.close(read)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "out" / "config.toml").read_text() == text
+
+
+def test_checkpoint_every_zero_is_raised_to_the_minimum_with_one_warning(tmp_path):
+    (tmp_path / "c.toml").write_text(LF + QUICK)
+    r = cli("quantify", tmp_path / "c.toml", "--out", tmp_path / "out", "--checkpoint-every", "0", "--quiet")
+    assert r.returncode == 0, r.stderr
+    warned = [line for line in r.stderr.splitlines() if line.startswith("scenario-farm: warning: ")]
+    assert len(warned) == 1 and "farm.checkpoint_every: 0 s is below the minimum" in warned[0], r.stderr
+    frozen = json.loads((tmp_path / "out" / "config.json").read_text())["config"]
+    assert frozen["farm"]["checkpoint_every"] == 1.0

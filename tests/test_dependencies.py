@@ -1,0 +1,56 @@
+"""Every third-party package the code imports is declared in pyproject.toml (pydantic
+arrived through Ray and was not), and the version has one source."""
+
+import ast
+import sys
+import tomllib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("farm", "coordinator", "scenarios")
+# import name -> distribution name, where they differ
+DISTRIBUTION = {"yaml": "pyyaml"}
+
+
+def imported_packages() -> dict[str, str]:
+    found = {}
+    for package in PACKAGES:
+        for path in sorted((ROOT / package).rglob("*.py")):
+            for node in ast.walk(ast.parse(path.read_text())):
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
+                    [node.module] if isinstance(node, ast.ImportFrom) and node.module and node.level == 0 else []
+                for name in names:
+                    top = name.split(".")[0]
+                    if top not in sys.stdlib_module_names and top not in PACKAGES:
+                        found.setdefault(DISTRIBUTION.get(top, top), str(path.relative_to(ROOT)))
+    return found
+
+
+def declared() -> set[str]:
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    specs = project["dependencies"] + [d for extra in project["optional-dependencies"].values() for d in extra]
+    names = set()
+    for spec in specs:
+        name = spec.split(";")[0]
+        for stop in "[<>=! ":
+            name = name.split(stop)[0]
+        names.add(name.strip().lower())
+    return names
+
+
+def test_every_third_party_import_is_declared():
+    missing = {name: where for name, where in imported_packages().items() if name.lower() not in declared()}
+    assert not missing, f"imported but not declared in pyproject.toml: {missing}"
+    assert "pydantic" in imported_packages()  # the check sees what it checks
+
+
+def test_the_version_has_one_source():
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert "version" not in project["project"] and "version" in project["project"]["dynamic"]
+    assert project["tool"]["setuptools"]["dynamic"]["version"] == {"attr": "scenarios.version.__version__"}
+    import subprocess
+
+    from scenarios.version import __version__
+
+    out = subprocess.run([sys.executable, "-m", "farm", "--version"], capture_output=True, text=True, cwd=ROOT)
+    assert out.stdout.strip() == f"scenario-farm {__version__}", out.stderr
