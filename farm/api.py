@@ -16,6 +16,7 @@ What these functions write is a normal campaign directory: every CLI command acc
 from __future__ import annotations
 
 import tempfile
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -25,6 +26,7 @@ from farm import config as config_mod
 from farm.config import Config
 from farm.files import read_json, read_safe_set, write_json
 from farm.storage import CampaignDir, CampaignError
+from scenarios.errors import DataError
 
 
 def load_config(source, **overrides) -> Config:
@@ -149,7 +151,10 @@ class QuantifyResult:
 
         runs = []
         for rec in sorted((self.directory / "recordings").glob("runs-*.mcap")):
-            runs += [r["trajectory"] for r in read_recording(rec)["runs"].values()]
+            try:
+                runs += [r["trajectory"] for r in read_recording(rec)["runs"].values()]
+            except DataError as exc:  # a damaged recording must not hide the others (as in replay)
+                warnings.warn(f"skipped {exc}", stacklevel=2)
         if not runs:
             return None
         return draw_failures(Path(path) if path else self.directory / "plots" / "failures.png", self._scenario(),
