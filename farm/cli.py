@@ -30,8 +30,11 @@ def _overrides(args) -> dict:
 
 
 def _add_farm_flags(p, seed=True):
-    p.add_argument("--workers", type=int, help="Ray actors (overrides farm.workers)")
-    p.add_argument("--address", help="'local' (start Ray here) or 'auto' (join the cluster) (farm.address)")
+    p.add_argument("--workers", type=int, help="Ray actors; a local Ray takes at most 4 per CPU (overrides "
+                                               "farm.workers)")
+    p.add_argument("--address", help="'local' (start Ray here), 'auto' (join the cluster of RAY_ADDRESS or `ray "
+                                     "start`), 'host:port' or 'ray://host:port'; one that answers nothing within 3 s "
+                                     "is refused (farm.address)")
     p.add_argument("--executor", choices=["ray", "local"], help="overrides farm.executor")
     if seed:
         p.add_argument("--seed", type=int, help="campaign seed (overrides farm.seed)")
@@ -204,7 +207,8 @@ def build_parser() -> argparse.ArgumentParser:
     g = p.add_mutually_exclusive_group()
     g.add_argument("--resume", action="store_true", help="continue the campaign in a non-empty --out")
     g.add_argument("--force", action="store_true", help="replace the campaign in --out (only a campaign directory)")
-    p.add_argument("--checkpoint-every", type=float, help="seconds between checkpoints (farm.checkpoint_every)")
+    p.add_argument("--checkpoint-every", type=float, help="seconds between checkpoints, at least 1 "
+                                                          "(farm.checkpoint_every)")
     _add_farm_flags(p)
     _add_output_flags(p)
     p.set_defaults(func=cmd_quantify)

@@ -154,12 +154,13 @@ class FarmConfig(Section):
     """[farm]: where and how runs are simulated."""
 
     executor: Annotated[Literal["ray", "local"], Field(**_fixed())] = "local"
-    workers: Annotated[int, Field(ge=1, le=4096, **_fixed("Ray actors"))] = 2
-    address: Annotated[str, Field(min_length=1, **_fixed("'local' or a Ray address ('auto')"))] = "local"
+    workers: Annotated[int, Field(ge=1, le=4096, **_fixed("Ray actors (a local Ray: at most 4 per CPU)"))] = 2
+    address: Annotated[str, Field(min_length=1, **_fixed(
+        "'local', 'auto', 'host:port' or 'ray://host:port' (must answer within 3 s)"))] = "local"
     batch_size: Annotated[int, Field(ge=1, le=10_000_000, description="runs per drawn batch")] = 1024
     pipeline_depth: Annotated[int, Field(ge=1, le=64, description="batches drawn ahead")] = 2
     seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = 0
-    checkpoint_every: Annotated[float, Field(ge=0.0, le=1e9, **_fixed("seconds"))] = 30.0
+    checkpoint_every: Annotated[float, Field(ge=0.0, le=1e9, **_fixed("seconds (below 1: 1, with a warning)"))] = 30.0
     max_retries: Annotated[int, Field(ge=0, le=100, **_fixed())] = 3
     max_memory_gb: Annotated[float | None, Field(gt=0.0, le=1e6, **_fixed(
         "refuse a campaign whose worst-case memory estimate exceeds this (default: 3/4 of this machine's "

@@ -60,7 +60,7 @@ def read_json(path: Path, required=()) -> dict:
     damaged or foreign file is a one-line CampaignError naming it."""
     path = Path(path)
     try:
-        data = json.loads(path.read_bytes())
+        data = json.loads(path.read_bytes().decode("utf-8"))  # what this tool writes
     except FileNotFoundError:
         raise CampaignError(f"{path}: missing") from None
     except IsADirectoryError:
