@@ -1,28 +1,24 @@
 """Every third-party package the code imports is declared in pyproject.toml (pydantic
 arrived through Ray and was not), and the version has one source."""
 
-import ast
 import sys
 import tomllib
-from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+from source_imports import ROOT, source_imports
+
 PACKAGES = ("farm", "coordinator", "scenarios")
 # import name -> distribution name, where they differ
 DISTRIBUTION = {"yaml": "pyyaml"}
 
 
 def imported_packages() -> dict[str, str]:
+    """Third-party distribution -> a file that imports it."""
     found = {}
     for package in PACKAGES:
-        for path in sorted((ROOT / package).rglob("*.py")):
-            for node in ast.walk(ast.parse(path.read_text())):
-                names = [a.name for a in node.names] if isinstance(node, ast.Import) else \
-                    [node.module] if isinstance(node, ast.ImportFrom) and node.module and node.level == 0 else []
-                for name in names:
-                    top = name.split(".")[0]
-                    if top not in sys.stdlib_module_names and top not in PACKAGES:
-                        found.setdefault(DISTRIBUTION.get(top, top), str(path.relative_to(ROOT)))
+        for path, _, name in source_imports(package):
+            top = name.split(".")[0]
+            if top not in sys.stdlib_module_names and top not in PACKAGES:
+                found.setdefault(DISTRIBUTION.get(top, top), str(path))
     return found
 
 
