@@ -51,9 +51,9 @@ class Section(BaseModel):
 
 Probability = Annotated[float, Field(gt=0.0, lt=1.0)]
 # N_eps = ln(beta) / ln(1 - epsilon) runs in a row (Lemma 2), and beta is split further over
-# certification attempts: below these bounds N_eps or a split beta overflows or underflows
-# a float (beta = 5e-324 ran a whole campaign, then failed), and above 10^12 runs N_eps
-# exceeds any quantify.budget.
+# certification attempts: below these bounds a split beta underflows to 0 and N_eps to
+# infinity (found only when the certification starts), or N_eps exceeds 10^12 runs, more
+# than any quantify.budget.
 Epsilon = Annotated[float, Field(ge=1e-9, lt=1.0)]
 Beta = Annotated[float, Field(ge=1e-100, lt=1.0)]
 Positive = Annotated[float, Field(gt=0.0)]

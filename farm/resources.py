@@ -23,9 +23,9 @@ from farm.config import Config, ConfigError
 BYTES_PER_BOX = 1024
 # A validation lattice holds centres, their index and per-centre verdicts.
 BYTES_PER_CENTRE = 256
-# Actors past the CPUs only share them (a local Ray gives each workers / CPUs of one), and
-# each is a process that takes its memory and seconds to start: 4096 on 2 CPUs committed
-# 7 runs/s. A few per CPU still hide a simulator that waits (docs/benchmarks.md).
+# Actors past the CPUs only share them (a local Ray gives each CPUs / workers of one), and
+# each is a process that takes its memory and seconds to start; a few per CPU still hide
+# a simulator that waits rather than computes (docs/benchmarks.md, branch errors).
 ACTORS_PER_CPU = 4
 
 
