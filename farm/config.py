@@ -19,6 +19,7 @@ import difflib
 import hashlib
 import json
 import math
+import os
 import tomllib
 import warnings
 from pathlib import Path
@@ -31,7 +32,10 @@ from scenarios.errors import ConfigError
 
 _SPE = SPESettings()  # the algorithm's defaults are the config's: written once
 MAX_DEPTH = 32  # tables and lists nested deeper than this are no config of ours
-MIN_CHECKPOINT_S = 1.0  # [s] farm.checkpoint_every below this is raised to it (with a warning)
+# [s] farm.checkpoint_every below this is raised to it, with a warning; the environment
+# variable lowers it for tests that interrupt a campaign at many moments
+MIN_CHECKPOINT_S = 1.0
+MIN_CHECKPOINT_ENV = "SCENARIO_FARM_MIN_CHECKPOINT_S"
 
 __all__ = ["Config", "ConfigError", "ConfigWarning", "load", "normalize", "parse", "read_text", "schema"]
 
@@ -171,11 +175,12 @@ class FarmConfig(Section):
     def _not_every_chunk(cls, seconds: float) -> float:
         # a checkpoint costs a Parquet segment, an npz and their fsyncs; at every chunk that
         # is most of the campaign's time (docs/benchmarks.md)
-        if seconds < MIN_CHECKPOINT_S:
+        least = float(os.environ.get(MIN_CHECKPOINT_ENV, MIN_CHECKPOINT_S))
+        if seconds < least:
             warnings.warn(f"farm.checkpoint_every: {seconds:g} s is below the minimum; checkpointing every "
-                          f"{MIN_CHECKPOINT_S:g} s instead (more often costs more time than a kill can lose)",
+                          f"{least:g} s instead (more often costs more time than a kill can lose)",
                           ConfigWarning, stacklevel=2)
-            return MIN_CHECKPOINT_S
+            return least
         return seconds
 
 
