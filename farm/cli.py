@@ -10,6 +10,7 @@ import argparse
 import json
 import os
 import signal
+import stat
 import sys
 import tempfile
 import traceback
@@ -283,6 +284,10 @@ def main(argv=None) -> int:
     signal.signal(signal.SIGTERM, _terminate)
     try:
         return args.func(args)
+    except BrokenPipeError as exc:
+        if _stdout_closed():  # the reader went away (`scenario-farm status DIR | head -1`): nothing to say
+            return EXIT_OK
+        return report_error(exc, _campaign_dir(args))
     except Exception as exc:  # noqa: BLE001 - the one place where errors become exit codes
         return report_error(exc, _campaign_dir(args))
     except KeyboardInterrupt:
@@ -290,6 +295,18 @@ def main(argv=None) -> int:
         print(f"scenario-farm: stopped by a signal; the files are as the last checkpoint left them"
               f"{f' (continue with `scenario-farm resume {where}`)' if where else ''}", file=sys.stderr)
         return EXIT_STOPPED
+
+
+def _stdout_closed() -> bool:
+    """Whether the broken pipe is stdout's (its reader went away); if so stdout is pointed
+    at /dev/null, so that the interpreter's final flush does not fail again."""
+    try:
+        if not stat.S_ISFIFO(os.fstat(sys.stdout.fileno()).st_mode):
+            return False
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return True
+    except (OSError, ValueError):
+        return False
 
 
 def _terminate(signum, frame):

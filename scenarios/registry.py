@@ -22,7 +22,7 @@ import inspect
 from importlib.metadata import entry_points
 
 from scenarios.base import EXTERNAL_SV, Scenario
-from scenarios.errors import ConfigError
+from scenarios.errors import ConfigError, FarmError, ScenarioError
 
 SCENARIOS: dict[str, str | type] = {
     "lead-follow": "scenarios.lead_follow:LeadFollow",
@@ -96,10 +96,14 @@ def make_scenario(name: str, sv_policy: str | None = None, failure_facets=None, 
     cls = scenario_class(name)
     try:
         return cls(sv_policy=sv_policy, failure_facets=failure_facets, disturbance=disturbance)
+    except FarmError:
+        raise
     except TypeError as exc:
         raise ConfigError(f"scenario.name: {name!r} could not be constructed ({exc}); a Scenario subclass's __init__ "
                           f"must accept the keywords sv_policy, failure_facets and disturbance (or not be defined)") \
             from None
+    except Exception as exc:  # noqa: BLE001 - the user's scenario class: its attributes or __init__
+        raise ScenarioError(f"scenario.name: constructing {name!r} raised {type(exc).__name__}: {exc}") from None
 
 
 def make_backend(scenario: dict):
@@ -118,4 +122,9 @@ def make_backend(scenario: dict):
     sc = make_scenario(scenario["name"], sv_policy, scenario.get("failure_facets"), scenario.get("disturbance", 0.0))
     if external is not None:
         sc.sv_policy_name = external
-    return cls(sc, scenario.get(name))
+    try:
+        return cls(sc, scenario.get(name))
+    except FarmError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a user's back end class
+        raise ScenarioError(f"scenario.backend: constructing {name!r} raised {type(exc).__name__}: {exc}") from None

@@ -56,3 +56,30 @@ def raising_policy(states):
     if (states[:, 0] > 18.0).any():
         raise ValueError("policy boom")
     return np.zeros((len(states), 1))
+
+
+class BrokenInit(UnitSquare):
+    """Its constructor fails, as one needing a licence server might."""
+
+    name = "broken-init"
+
+    def __init__(self, **kwargs):
+        raise RuntimeError("no licence server")
+
+    def step(self, states, actions, noise):
+        return states
+
+
+class NoBounds(Scenario):
+    """Forgets Sigma's bounds."""
+
+    name = "no-bounds"
+    state_names = ("a",)
+    failure_sides = {"a": False}
+    action_names = ("u",)
+    action_lower = np.array([0.0])
+    action_upper = np.array([1.0])
+    adversarial_actions = np.array([[1.0]])
+
+    def step(self, states, actions, noise):
+        return states

@@ -203,6 +203,15 @@ def test_damaged_or_tampered_campaign_files(campaign, tmp_path, damage):
     assert snapshot(out) == before
 
 
+def test_a_reader_that_goes_away_is_no_error(campaign):
+    """`scenario-farm status DIR | head -1`: the closed pipe is the reader's choice."""
+    proc = subprocess.Popen([sys.executable, "-m", "farm", "status", str(campaign)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    proc.stdout.close()  # before the child writes a line
+    assert proc.wait(120) == 0
+    assert proc.stderr.read() == ""
+
+
 def test_garbage_status_json_is_reported_and_rewritten(campaign, tmp_path):
     out = copy_of(campaign, tmp_path)
     (out / "status.json").write_text("\x00garbage")
@@ -263,6 +272,10 @@ CONFIG_CASES = [
     ("utf16", "validate", LF.encode("utf-16"), [], ["not UTF-8 text"]),
     ("infinite_sigma", "quantify", '[scenario]\nname = "user_scenarios:Unbounded"\n', [],
      ["scenario 'unbounded': Sigma must be a finite box; b has bounds [0, inf]"]),
+    ("scenario_init_raises", "validate", '[scenario]\nname = "user_scenarios:BrokenInit"\n', [],
+     ["scenario.name: constructing 'user_scenarios:BrokenInit' raised RuntimeError: no licence server"]),
+    ("scenario_without_bounds", "validate", '[scenario]\nname = "user_scenarios:NoBounds"\n', [],
+     ["raised AttributeError", "'lower'"]),
     ("not_a_module_path", "validate", '[scenario]\nname = "os.path"\n', [], ["scenario.name: unknown scenario"]),
     ("negative_checkpoint", "quantify", LF + "[farm]\ncheckpoint_every = -1.0\n", [], ["farm.checkpoint_every"]),
     ("seed_flag", "quantify", LF, ["--seed", "-1"], ["--seed: -1 is out of range"]),
