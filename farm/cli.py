@@ -1,7 +1,7 @@
 """``scenario-farm`` (also ``python -m farm``): a thin layer over ``farm.api``.
 
-Every error ends as one line on stderr and an exit code (farm/exits.py has the table);
-``SCENARIO_FARM_DEBUG=1`` also prints the traceback, and keeps Ray's own log lines.
+Every error ends as one line on stderr and an exit code (farm/exits.py: the table and the
+lines); ``SCENARIO_FARM_DEBUG=1`` also prints the traceback, and keeps Ray's own log lines.
 """
 
 from __future__ import annotations
@@ -12,8 +12,6 @@ import os
 import signal
 import stat
 import sys
-import tempfile
-import traceback
 import warnings
 from pathlib import Path
 
@@ -21,8 +19,7 @@ from farm import exits
 from scenarios.errors import ConfigError
 from scenarios.version import __version__
 
-EXIT_OK, EXIT_COUNTEREXAMPLE, EXIT_STOPPED = exits.OK, exits.FINDING, exits.STOPPED
-DEBUG = "SCENARIO_FARM_DEBUG"  # set to 1: tracebacks and Ray's log lines on stderr
+EXIT_OK, EXIT_COUNTEREXAMPLE = exits.OK, exits.FINDING
 
 
 def _overrides(args) -> dict:
@@ -267,14 +264,14 @@ def main(argv=None) -> int:
 
     parser = build_parser()
     args = parser.parse_args(argv)
-    if not os.environ.get(DEBUG):
+    if not os.environ.get(exits.DEBUG):
         from farm.native_stderr import install
 
         install()  # Ray's C++ log lines stay in its session's log files
     warnings.showwarning = _one_line_warning
     from farm import ray_session
 
-    ray_session.on_lost = lambda why: _lost(why, _campaign_dir(args))
+    ray_session.on_lost = lambda why: exits.lost(why, _campaign_dir(args))
     # like `python -m`: 'module:Class' in a config imports from the working directory
     if os.getcwd() not in sys.path:
         sys.path.insert(0, os.getcwd())
@@ -287,14 +284,11 @@ def main(argv=None) -> int:
     except BrokenPipeError as exc:
         if _stdout_closed():  # the reader went away (`scenario-farm status DIR | head -1`): nothing to say
             return EXIT_OK
-        return report_error(exc, _campaign_dir(args))
+        return exits.report(exc, _campaign_dir(args))
     except Exception as exc:  # noqa: BLE001 - the one place where errors become exit codes
-        return report_error(exc, _campaign_dir(args))
+        return exits.report(exc, _campaign_dir(args))
     except KeyboardInterrupt:
-        where = _campaign_dir(args)
-        print(f"scenario-farm: stopped by a signal; the files are as the last checkpoint left them"
-              f"{f' (continue with `scenario-farm resume {where}`)' if where else ''}", file=sys.stderr)
-        return EXIT_STOPPED
+        return exits.interrupted(_campaign_dir(args))
 
 
 def _stdout_closed() -> bool:
@@ -313,16 +307,6 @@ def _terminate(signum, frame):
     raise KeyboardInterrupt
 
 
-def _lost(why: str, campaign_dir: str | None) -> None:
-    """The local Ray died under a command: our line and exit code, before Ray's own exit 1."""
-    print(f"scenario-farm: infrastructure error: {why}{_resume_hint(campaign_dir)}", file=sys.stderr, flush=True)
-    os._exit(exits.INFRASTRUCTURE)
-
-
-def _resume_hint(campaign_dir: str | None) -> str:
-    return f" (the last checkpoint stands: `scenario-farm resume {campaign_dir}` continues)" if campaign_dir else ""
-
-
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):
     print(f"scenario-farm: warning: {' '.join(str(message).split())}", file=sys.stderr)
 
@@ -332,41 +316,3 @@ def _campaign_dir(args) -> str | None:
     if args.command == "quantify":
         return args.out
     return args.dir if args.command == "resume" else None
-
-
-def report_error(exc: BaseException, campaign_dir: str | None = None) -> int:
-    """Print the one line an error ends with; -> its exit code (farm/exits.py)."""
-    from farm.quantification import Stopped
-
-    if os.environ.get(DEBUG):
-        traceback.print_exception(exc, file=sys.stderr)
-    if isinstance(exc, Stopped):
-        print(f"scenario-farm: {exc}; checkpointed (continue with `scenario-farm resume {campaign_dir or 'DIR'}`)",
-              file=sys.stderr)
-        return EXIT_STOPPED
-    code = exits.exit_code(exc)
-    text = _one_line(exc)
-    if code == exits.USER:
-        print(f"scenario-farm: error: {text}", file=sys.stderr)
-    elif code == exits.INFRASTRUCTURE:
-        print(f"scenario-farm: infrastructure error: {text}{_resume_hint(campaign_dir)}", file=sys.stderr)
-    else:
-        fd, path = tempfile.mkstemp(prefix="scenario-farm-bug-", suffix=".txt")
-        with os.fdopen(fd, "w") as fh:
-            fh.write(f"scenario-farm {__version__}\n{' '.join(sys.argv)}\n\n")
-            traceback.print_exception(exc, file=fh)
-        print(f"scenario-farm: internal error: {text}; this is a bug: please report it with the traceback in "
-              f"{path} ({DEBUG}=1 prints it)", file=sys.stderr)
-    return code
-
-
-def _one_line(exc: BaseException, limit: int = 600) -> str:
-    """The error's message on one line, its type named unless it is one of ours."""
-    from scenarios.errors import FarmError
-
-    text = " ".join(str(exc).split())
-    if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
-        text = f"{exc.filename}: {exc.strerror}"  # e.g. "/out/summary.json: No space left on device"
-    if not isinstance(exc, FarmError):
-        text = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
-    return text if len(text) <= limit else text[: limit - 3] + "..."

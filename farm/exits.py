@@ -1,17 +1,27 @@
-"""Exit codes of ``scenario-farm``, and which one an error ends with.
+"""Exit codes of ``scenario-farm``, which one an error ends with, and its one line.
 
 The table is a public interface (scripts branch on it): README.md and
-``scenario-farm --help`` show it as ``TABLE`` has it.
+``scenario-farm --help`` show it as ``TABLE`` has it. The lines:
+
+    scenario-farm: error: <what is wrong with the input, and what is allowed>          (2)
+    scenario-farm: internal error: <type: message>; ... the traceback in <file>        (3)
+    scenario-farm: infrastructure error: <what failed> (the last checkpoint stands ...) (4)
+    scenario-farm: stopped ...                                                          (130)
 """
 
 from __future__ import annotations
 
 import errno
+import os
 import sys
+import tempfile
+import traceback
 
 from scenarios.errors import FarmError, InfrastructureError, UserError
+from scenarios.version import __version__
 
 OK, FINDING, USER, BUG, INFRASTRUCTURE, STOPPED = 0, 1, 2, 3, 4, 130
+DEBUG = "SCENARIO_FARM_DEBUG"  # set to 1: tracebacks, and Ray's log lines on stderr
 
 TABLE = (
     (OK, "done: certified, or the campaign finished"),
@@ -58,3 +68,62 @@ def _ray_error(exc: BaseException) -> int | None:
         cause = getattr(exc, "cause", None)
         return exit_code(cause) if isinstance(cause, FarmError) else BUG
     return INFRASTRUCTURE
+
+
+# -- the lines ------------------------------------------------------------------------------
+def report(exc: BaseException, campaign_dir: str | None = None) -> int:
+    """Print the one line ``exc`` ends a command with (its traceback too under DEBUG);
+    -> the exit code. ``campaign_dir``: the directory a resume would continue."""
+    from farm.quantification import Stopped
+
+    if os.environ.get(DEBUG):
+        traceback.print_exception(exc, file=sys.stderr)
+    if isinstance(exc, Stopped):
+        _say(f"{exc}; checkpointed (continue with `scenario-farm resume {campaign_dir or 'DIR'}`)")
+        return STOPPED
+    code, text = exit_code(exc), one_line(exc)
+    if code == USER:
+        _say(f"error: {text}")
+    elif code == INFRASTRUCTURE:
+        _say(f"infrastructure error: {text}{_resume_hint(campaign_dir)}")
+    else:
+        fd, path = tempfile.mkstemp(prefix="scenario-farm-bug-", suffix=".txt")
+        with os.fdopen(fd, "w") as fh:
+            fh.write(f"scenario-farm {__version__}\n{' '.join(sys.argv)}\n\n")
+            traceback.print_exception(exc, file=fh)
+        _say(f"internal error: {text}; this is a bug: please report it with the traceback in {path} ({DEBUG}=1 "
+             f"prints it)")
+    return code
+
+
+def interrupted(campaign_dir: str | None = None) -> int:
+    """A signal stopped the command before a campaign's own handler could (e.g. while Ray starts)."""
+    where = f" (continue with `scenario-farm resume {campaign_dir}`)" if campaign_dir else ""
+    _say(f"stopped by a signal; the files are as the last checkpoint left them{where}")
+    return STOPPED
+
+
+def lost(why: str, campaign_dir: str | None = None) -> None:
+    """The local Ray died under a command: our line and exit code at once, before Ray's
+    core worker ends the process with its own exit code 1 and no word."""
+    _say(f"infrastructure error: {why}{_resume_hint(campaign_dir)}")
+    sys.stderr.flush()
+    os._exit(INFRASTRUCTURE)
+
+
+def one_line(exc: BaseException, limit: int = 600) -> str:
+    """The error's message on one line, its type named unless it is one of ours."""
+    text = " ".join(str(exc).split())
+    if isinstance(exc, OSError) and exc.filename is not None and exc.strerror:
+        text = f"{exc.filename}: {exc.strerror}"  # e.g. "/out/summary.json: No space left on device"
+    if not isinstance(exc, FarmError):
+        text = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _resume_hint(campaign_dir: str | None) -> str:
+    return f" (the last checkpoint stands: `scenario-farm resume {campaign_dir}` continues)" if campaign_dir else ""
+
+
+def _say(text: str) -> None:
+    print(f"scenario-farm: {text}", file=sys.stderr)
