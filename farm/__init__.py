@@ -11,8 +11,18 @@ scenario sampling, on a Ray farm. The Python API (``farm.api``):
 Runtime pieces: config, executors (in-process and Ray), campaign storage, CLI.
 """
 
-from farm.api import Certificate, QuantifyResult, compare, load_config, open_campaign, overlay, quantify, validate
 from scenarios.version import __version__
 
 __all__ = ["Certificate", "QuantifyResult", "__version__", "compare", "load_config", "open_campaign", "quantify",
            "overlay", "validate"]
+
+
+def __getattr__(name: str):
+    # the API is imported when first asked for, not with the package: the CLI's own
+    # modules (farm.cli, farm.exits) load in a fraction of a second, so its signal
+    # handlers and error lines are in place before pydantic, scipy and the coordinator load
+    if name in __all__:
+        from farm import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'farm' has no attribute {name!r}")

@@ -260,6 +260,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    # SIGTERM outside a campaign's own handler (start-up, finishing) ends like Ctrl-C: the
+    # files stay as the last checkpoint left them, and the exit says "stopped"
+    signal.signal(signal.SIGTERM, _terminate)
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # before a command ran
+        return exits.interrupted()
+
+
+def _main(argv) -> int:
     from farm.memory import keep_freed_memory
 
     parser = build_parser()
@@ -276,9 +286,6 @@ def main(argv=None) -> int:
     if os.getcwd() not in sys.path:
         sys.path.insert(0, os.getcwd())
     keep_freed_memory()  # the coordinator's batch queries allocate like a simulator's steps
-    # SIGTERM outside a campaign's own handler (start-up, finishing) ends like Ctrl-C: the
-    # files stay as the last checkpoint left them, and the exit says "stopped"
-    signal.signal(signal.SIGTERM, _terminate)
     try:
         return args.func(args)
     except BrokenPipeError as exc:
