@@ -10,13 +10,13 @@ import logging
 import os
 import select
 import signal
-import socket
 import subprocess
 import sys
 import threading
 from pathlib import Path
 from typing import Callable
 
+from farm.ray_address import reachable
 from scenarios.errors import ConfigError, InfrastructureError
 
 # Return values up to this size come back inside the task's reply instead of through
@@ -29,9 +29,6 @@ from scenarios.errors import ConfigError, InfrastructureError
 # (deploy/), read by each Ray process when it starts.
 INLINE_RETURN_BYTES = 256 * 1024
 RAY_SYSTEM_CONFIG = {"max_direct_call_object_size": INLINE_RETURN_BYTES}
-
-
-PROBE_TIMEOUT_S = 3.0  # [s] for a cluster's address to accept a TCP connection
 
 
 def connect(address: str, workers: int) -> None:
@@ -69,49 +66,6 @@ def connect(address: str, workers: int) -> None:
             raise InfrastructureError(f"Ray did not start on this machine ({type(exc).__name__}: {text})") from None
         raise ConfigError(f"farm.address: {address!r} answers at {target}, but joining it as a Ray cluster failed "
                           f"({type(exc).__name__}: {text})") from None
-
-
-def reachable(address: str, timeout: float = PROBE_TIMEOUT_S) -> str:
-    """The address to give ``ray.init`` for ``farm.address`` (``auto`` resolved), checked
-    to accept a connection within ``timeout`` seconds; else a one-line ConfigError. Ray
-    itself waits for an address that answers nothing for ever, retrying."""
-    target = _resolve(address)
-    client = target.startswith("ray://")
-    host, port = _host_port(target.removeprefix("ray://"), address)
-    if not client:  # Ray connects to this host's routable address for a loopback one: probe that
-        from ray._private.services import canonicalize_bootstrap_address
-
-        host, port = _host_port(canonicalize_bootstrap_address(target), address)
-    try:
-        socket.create_connection((host, port), timeout=timeout).close()
-    except OSError as exc:
-        why = "timed out" if isinstance(exc, TimeoutError) else (exc.strerror or type(exc).__name__).lower()
-        said = f"{address!r}" + (f" ({target})" if target != address else "")
-        raise ConfigError(f"farm.address: nothing answers at {host}:{port} for {said}: {why} within {timeout:g} s; "
-                          f"start the cluster first, or use --address local") from None
-    return target
-
-
-def _resolve(address: str) -> str:
-    """``auto``: the cluster of a Ray job (RAY_ADDRESS) or of `ray start` on this machine
-    (Ray's address file). Not Ray's own fallback, any raylet process found on the
-    machine: on a shared machine that is another user's private Ray."""
-    if address != "auto":
-        return address
-    from ray._private.utils import read_ray_address
-
-    found = os.environ.get("RAY_ADDRESS") or read_ray_address()
-    if not found:
-        raise ConfigError("farm.address: 'auto' found no Ray cluster (no RAY_ADDRESS, and no `ray start` on this "
-                          "machine); start one, give its address, or use --address local")
-    return found
-
-
-def _host_port(text: str, address: str) -> tuple[str, int]:
-    host, sep, port = text.rpartition(":")
-    if not sep or not host or not port.isdigit() or not 0 < int(port) < 65536:
-        raise ConfigError(f"farm.address: {address!r} is not 'local', 'auto', 'host:port' or 'ray://host:port'")
-    return host.strip("[]"), int(port)
 
 
 def start_local(num_cpus: int, extra_path: str | None = None) -> None:
