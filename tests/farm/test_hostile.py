@@ -22,6 +22,7 @@ GOOD = lead_follow_toml()
 TESTS = Path(__file__).resolve().parents[1]  # user_scenarios.py: 'module:name' imports from the working directory
 LF = '[scenario]\nname = "lead-follow"\nsv_policy = "idm"\n'
 PREFIX = {2: "scenario-farm: error: ", 4: "scenario-farm: infrastructure error: "}
+EVERY_CHUNK = {**os.environ, "SCENARIO_FARM_MIN_CHECKPOINT_S": "0"}  # checkpoint_every = 0 as asked: many segments
 
 
 def cli(*args, cwd=None, preexec_fn=None, timeout=120, env=None):
@@ -53,7 +54,7 @@ def campaign(tmp_path_factory):
     """A finished small campaign to damage (copied per test)."""
     d = tmp_path_factory.mktemp("campaign")
     (d / "c.toml").write_text(GOOD + "checkpoint_every = 0.0\n")
-    r = cli("quantify", d / "c.toml", "--out", d / "out")
+    r = cli("quantify", d / "c.toml", "--out", d / "out", env=EVERY_CHUNK)
     assert r.returncode == 0, r.stderr
     return d / "out"
 
@@ -227,7 +228,7 @@ LIMIT = 60_000  # bytes: more than the config files, less than the first checkpo
 
 def test_a_failing_write_loses_nothing_and_resume_finishes(tmp_path):
     (tmp_path / "c.toml").write_text(GOOD.replace("delta_min = 2.0", "delta_min = 1.0") + "checkpoint_every = 0.0\n")
-    whole = cli("quantify", tmp_path / "c.toml", "--out", tmp_path / "whole")
+    whole = cli("quantify", tmp_path / "c.toml", "--out", tmp_path / "whole", env=EVERY_CHUNK)
     assert whole.returncode == 0, whole.stderr
 
     def small_disk():
@@ -235,7 +236,7 @@ def test_a_failing_write_loses_nothing_and_resume_finishes(tmp_path):
         resource.setrlimit(resource.RLIMIT_FSIZE, (LIMIT, LIMIT))
 
     out = tmp_path / "out"
-    r = cli("quantify", tmp_path / "c.toml", "--out", out, preexec_fn=small_disk)
+    r = cli("quantify", tmp_path / "c.toml", "--out", out, preexec_fn=small_disk, env=EVERY_CHUNK)
     one_line_error(r, "File too large", f"scenario-farm resume {out}", code=4)  # the disk's fault, not the input's
     r = cli("resume", out)
     assert r.returncode == 0, r.stderr
