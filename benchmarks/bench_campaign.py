@@ -51,8 +51,8 @@ def main() -> None:
     print(f"lead-follow idm SPE campaign, delta 2 -> {args.delta_min:g}, certify {not args.no_certify}: "
           f"{wall:.1f} s wall including result files and plots, peak memory {peak_gb:.2f} GB = "
           f"{peak_bytes / 2**30:.2f} GiB "
-          f"({'; '.join(verdict) or 'no target'}); {s['runs_committed']:,} committed runs, {s['boxes']:,} boxes, "
-          f"volume {s['volume_union']:.0f}, result {s['result_hash']}")
+          f"({'; '.join(verdict) or 'no target'}); {s.runs_committed:,} committed runs, {s.boxes:,} boxes, "
+          f"volume {s.volume_union:.0f}, result {s.result_hash}")
 
 
 if __name__ == "__main__":

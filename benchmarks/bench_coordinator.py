@@ -80,10 +80,9 @@ def query_rate(boxes: int, q: np.ndarray | None = None, repeats: int = 7) -> tup
 
 
 def campaign_scaling() -> tuple[list[tuple[int, float]], float]:
-    from coordinator.campaign import Campaign
-    from coordinator.sample_size import n_eps
+    from coordinator.campaign import Campaign, CampaignSettings
     from coordinator.spe import SPE, SPESettings
-    from farm.executors import LocalExecutor
+    from farm.local_executor import LocalExecutor
     from scenarios import make_scenario
     from scenarios.simulator import SimSpec
 
@@ -103,11 +102,10 @@ def campaign_scaling() -> tuple[list[tuple[int, float]], float]:
     points = []
     t_start = time.perf_counter()
 
-    def on_batch(c):
+    def on_chunk(c):
         points.append((c.counters.committed, time.perf_counter() - t_start - sim_time[0]))
 
-    Campaign(algo, executor, n_eps=n_eps(0.001, 0.1), budget=2_000_000, batch_size=1024, pipeline_depth=2,
-             seed=0, on_batch=on_batch).run()
+    Campaign(algo, executor, CampaignSettings(epsilon=0.001, beta=0.1, budget=2_000_000), observers=[on_chunk]).run()
     runs = np.array([p[0] for p in points], dtype=float)
     secs = np.array([p[1] for p in points])
     keep = runs >= runs[-1] / 30  # fit the part where fixed start-up costs are negligible

@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from farm.executors import build_simulator
+from farm.simulators import build_simulator
 from scenarios.simulator import SimSpec
 from scenarios.streams import RunStreams
 from scenarios.rollout import run_scenario

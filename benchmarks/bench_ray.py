@@ -24,34 +24,30 @@ def campaign_config(executor="local", workers=1, backend="numpy", delta_min=0.5)
     return config_mod.normalize({
         "scenario": {"name": "lead-follow", "sv_policy": "idm", "backend": backend},
         "actions": {"mode": "uniform"},
-        "quantify": {"delta0": 2.0, "delta_min": delta_min, "epsilon": 0.001, "beta": 0.1, "horizon": 50},
+        "quantify": {"delta0": 2.0, "delta_min": delta_min, "epsilon": 0.001, "beta": 0.1, "horizon": 50,
+                     "certify": False},
         "farm": {"executor": executor, "workers": workers, "seed": 0}})
 
 
 def run_campaign(cfg):
     """-> (counters, wall seconds of the campaign loop, worker stats or None, result hash)."""
-    from coordinator.baselines import make_algorithm
-    from coordinator.campaign import Campaign
-    from coordinator.sample_size import n_eps
-    from coordinator.results import result_hash
-    from farm.executors import build_simulator
-    from farm.quantification import spec_of
-    from farm.ray_executor import make_executor
+    from farm.campaign_setup import build_algorithm, build_campaign, spec_of
+    from farm.executors import make_executor
+    from farm.simulators import build_simulator
 
     spec = spec_of(cfg)
     sim = build_simulator(spec)
-    q, farm = cfg.quantify, cfg.farm
-    algo = make_algorithm("spe", sim.scenario, q.settings(), farm.seed, sim.deterministic)
-    ex = make_executor(farm.executor, spec, farm.workers, "local", 3)
-    if hasattr(ex, "pids"):
+    algo = build_algorithm(cfg, sim)
+    ex = make_executor(cfg.farm, spec)
+    ray_actors = cfg.farm.executor == "ray"
+    if ray_actors:
         ex.pids()  # actors up: start-up is not the campaign's
     t0 = time.perf_counter()
-    c = Campaign(algo, ex, n_eps=n_eps(q.epsilon, q.beta), budget=q.budget, batch_size=farm.batch_size,
-                 pipeline_depth=farm.pipeline_depth, seed=farm.seed).run()
+    c = build_campaign(cfg, algo, sim, ex).run()
     wall = time.perf_counter() - t0
-    stats = ex.worker_stats() if hasattr(ex, "worker_stats") else None
+    stats = ex.worker_stats() if ray_actors else None
     ex.close()
-    return c, wall, stats, result_hash(*algo.result())
+    return c, wall, stats, algo.result().result_hash
 
 
 def idle(stats, wall) -> str:

@@ -31,29 +31,25 @@ def campaign_config(workers: int, batch: int | None = None, depth: int | None = 
     return config_mod.normalize({
         "scenario": {"name": "lead-follow", "sv_policy": "idm", "backend": backend},
         "actions": {"mode": "uniform"},
-        "quantify": {"delta0": 2.0, "delta_min": delta_min, "epsilon": 0.001, "beta": 0.1, "horizon": 50},
+        "quantify": {"delta0": 2.0, "delta_min": delta_min, "epsilon": 0.001, "beta": 0.1, "horizon": 50,
+                     "certify": False},
         "farm": farm})
 
 
 def run_campaign(cfg) -> dict:
-    from coordinator.baselines import make_algorithm
-    from coordinator.campaign import Campaign
-    from coordinator.sample_size import n_eps
-    from farm.executors import build_simulator
-    from farm.quantification import spec_of
-    from farm.ray_executor import RayExecutor
+    from farm.campaign_setup import build_algorithm, build_campaign, spec_of
+    from farm.executors import make_executor
+    from farm.simulators import build_simulator
 
     spec = spec_of(cfg)
     sim = build_simulator(spec)
-    q, farm = cfg.quantify, cfg.farm
-    algo = make_algorithm("spe", sim.scenario, q.settings(), farm.seed, sim.deterministic)
+    algo = build_algorithm(cfg, sim)
     t0 = time.perf_counter()
-    ex = RayExecutor(spec, farm.workers, "local", pipeline_depth=farm.pipeline_depth)
+    ex = make_executor(cfg.farm, spec)
     pids = ex.pids()  # the actors are up
     startup = time.perf_counter() - t0
     workers_cpu0 = _cpu_seconds(pids)
-    campaign = Campaign(algo, ex, n_eps=n_eps(q.epsilon, q.beta), budget=q.budget, batch_size=farm.batch_size,
-                        pipeline_depth=farm.pipeline_depth, seed=farm.seed)
+    campaign = build_campaign(cfg, algo, sim, ex)
     cpu0, main0, t0 = time.process_time(), time.thread_time(), time.perf_counter()
     c = campaign.run()
     wall, cpu, main_cpu = time.perf_counter() - t0, time.process_time() - cpu0, time.thread_time() - main0
@@ -61,11 +57,9 @@ def run_campaign(cfg) -> dict:
     stats = ex.worker_stats()
     busy = np.array([s["busy_s"] for s in stats])
     ex.close()
-    from coordinator.results import result_hash
-
-    return {"workers": farm.workers, "committed": c.committed, "wall_s": wall, "cpu_s": cpu, "main_cpu_s": main_cpu, "startup_s": startup,
+    return {"workers": cfg.farm.workers, "committed": c.committed, "wall_s": wall, "cpu_s": cpu, "main_cpu_s": main_cpu, "startup_s": startup,
             "rate": c.committed / wall, "idle": 1 - busy.mean() / wall,
-            "worker_busy_s": float(busy.sum()), "workers_cpu_s": workers_cpu, "hash": result_hash(*algo.result())}
+            "worker_busy_s": float(busy.sum()), "workers_cpu_s": workers_cpu, "hash": algo.result().result_hash}
 
 
 def _cpu_seconds(pids: list[int]) -> float:

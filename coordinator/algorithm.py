@@ -8,13 +8,19 @@
                               the state now
     apply(event)              tell: a run that changes the state (prune, explore, ...)
     record(chunk, rows, ids, starts)  tell: the committed runs of a chunk
-    end_round(executor)       the round ended by the N_eps rule: decay delta (the executor
-                              screens stored states for experience replay)
+    end_round()               the round ended by the N_eps rule: decay delta
+    replay_pieces(), apply_replay(pieces, found)   experience replay at a round end: the
+                              algorithm names its stored runs, the driver has the executor
+                              screen them, the algorithm applies what is new
+    begin_certification(), certify_runs(...)   the certification round, for an algorithm
+                              that ``certifies``
 
 Everything a run is screened against lives in ``coverage`` and changes only through
 ``coverage.apply``, so that workers can screen runs on mirrors of it (see
 coordinator/coverage.py). ``version`` counts changes; a run counts toward N_eps only if
 it was drawn at the current version.
+
+The shared conformance suite every algorithm passes is ``coordinator/testing.py``.
 """
 
 from __future__ import annotations
@@ -25,6 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.coverage import Coverage, Rescreen
+from coordinator.safe_set import SafeSet
+from scenarios.base import Scenario
 from scenarios.errors import UserError
 from scenarios.streams import PURPOSE_START, RunStreams
 
@@ -51,8 +59,17 @@ class Event:
 
 
 class Algorithm(ABC):
+    """A quantification algorithm (paper Alg. 5-8) over explicit state."""
+
     name: str = ""
+    scenario: Scenario
     decays: bool = True  # delta shrinks round by round (False: a single round)
+    # can end with a certification round (the final set checked as validate checks it)
+    certifies: bool = False
+    # a run is a function of its start state (one adversarial action, no disturbance):
+    # certification then runs every final centre once
+    deterministic: bool = False
+    certifying: bool = False  # in the certification round now
     coverage: Coverage
     version: int = 0
     round: int = 0
@@ -88,25 +105,36 @@ class Algorithm(ABC):
     def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray, starts: np.ndarray) -> None:
         """The committed runs of a chunk (e.g. for experience replay)."""
 
-    def required_quiet(self, n_eps: int) -> int:
-        """Runs in a row that must change nothing to end the current round."""
-        return n_eps
-
-    # Certification round (SPE): after the last round, check the final set the way
-    # validate checks a set; algorithms without it leave the campaign done.
-    certifying: bool = False
-    enumerates: bool = False  # certification runs every centre once (deterministic systems)
-
-    def begin_certification(self) -> None:
-        raise NotImplementedError
-
-    def certify_runs(self, chunk, rows: np.ndarray, start_ids: np.ndarray, trusted: np.ndarray) -> int:
-        raise NotImplementedError
-
     @abstractmethod
-    def end_round(self, executor=None) -> bool:
+    def end_round(self) -> bool:
         """Decay delta (the round ended by the N_eps rule); False after the last round."""
 
+    def replay_pieces(self) -> list:
+        """Experience replay, right after ``end_round``: the stored runs whose states the
+        executor should screen at the new resolution (``coordinator.experience_replay.Stored``);
+        empty when the algorithm keeps none."""
+        return []
+
+    def apply_replay(self, pieces: list, found: list) -> None:
+        """Experience replay: per piece, the (states, run positions) the executor found new."""
+
+    # -- certification: the final set checked the way validate checks a set --------------
+    @property
+    def enumerates(self) -> bool:
+        """Certification checks every centre once (a deterministic system, VAL^delta)."""
+        return self.certifying and self.deterministic
+
+    @abstractmethod
+    def begin_certification(self) -> None:
+        """Enter the certification round (only when ``certifies``)."""
+
+    @abstractmethod
+    def certify_runs(self, chunk, rows: np.ndarray, start_ids: np.ndarray, trusted: np.ndarray) -> int:
+        """Enumerating certification: quiet runs ``rows`` of ``chunk`` (``trusted``: their
+        screening's witnesses are current) certify their start centres. Returns the row
+        after which every alive centre is certified, or -1."""
+
+    # -- the end ----------------------------------------------------------------------------
     def stop_committing(self) -> None:
         """The campaign is done: no run will be committed any more. Drop what serves
         only commits and is not part of ``state`` (indexes), before the last checkpoint
@@ -117,9 +145,9 @@ class Algorithm(ABC):
         its checkpoints need, before the result files and plots are made. ``result``,
         ``counts`` and ``failure_points`` still answer; ``state`` need not."""
 
-    def result(self) -> tuple[np.ndarray, float]:
-        """The quantified set: (M, n) alive centres and the half-width."""
-        return self.vertices.alive_points(), self.delta
+    def result(self) -> SafeSet:
+        """The quantified set: a box of half-width delta around every alive centre."""
+        return SafeSet.uniform(self.vertices.alive_points(), self.delta, self.scenario.state_names)
 
     def failure_points(self) -> np.ndarray:
         """(F, n) start states of runs that failed and pruned (PhiBar), if kept."""
@@ -132,6 +160,7 @@ class Algorithm(ABC):
     def sampling_description(self) -> str:
         return "start states uniform over the alive centres"
 
+    # -- persistence ------------------------------------------------------------------------
     @abstractmethod
     def state(self) -> dict[str, np.ndarray]:
         """The whole algorithm state as named numpy arrays (no pickle)."""
@@ -143,6 +172,19 @@ class Algorithm(ABC):
     # ``state_epoch``: a checkpoint writes only their new rows
     append_only: tuple[str, ...] = ()
     state_epoch: int = 0
+
+
+class NoCertification:
+    """For an algorithm that does not certify (``certifies = False``): the driver never
+    asks, so these say so if it does."""
+
+    certifies = False
+
+    def begin_certification(self) -> None:
+        raise NotImplementedError(f"{type(self).__name__} does not certify")
+
+    def certify_runs(self, chunk, rows, start_ids, trusted) -> int:
+        raise NotImplementedError(f"{type(self).__name__} does not certify")
 
 
 def uniform_pick(ids: np.ndarray, streams: RunStreams) -> np.ndarray:

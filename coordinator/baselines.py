@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from coordinator.algorithm import Algorithm, Event, greedy_uncovered, uniform_pick
+from coordinator.algorithm import Algorithm, Event, NoCertification, greedy_uncovered, uniform_pick
 from coordinator.coverage import Coverage, Insert, Kill, Recell, Reset
 from coordinator.lattice import Lattice
 from scenarios.base import Scenario
@@ -22,7 +22,7 @@ from scenarios.streams import PURPOSE_START, RunStreams
 RESTART_INDEX = 2**62  # stream index of the very first AE start state (no run has it)
 
 
-class _CoverageOnly(Algorithm):
+class _CoverageOnly(NoCertification, Algorithm):
     """Shared parts of algorithms whose whole state is one covering + scalars."""
 
     append_only = ("vertices.points",)
@@ -102,7 +102,7 @@ class AdaptiveExploration(_CoverageOnly):
         self.coverage.apply(Insert(states[greedy_uncovered(states, self.delta)]), self.version)
         return "explored"
 
-    def end_round(self, executor=None) -> bool:
+    def end_round(self) -> bool:
         if self.final_round:
             return False
         self.version += 1
@@ -144,7 +144,7 @@ class DeltaPruning(_CoverageOnly):
         self.coverage.apply(Kill(np.array([event.start_id])), self.version)
         return "pruned"
 
-    def end_round(self, executor=None) -> bool:
+    def end_round(self) -> bool:
         return False
 
 
@@ -182,7 +182,7 @@ class VanillaSampling(_CoverageOnly):
         self._replace(self._new_box(RunStreams.of(self.seed, [event.index])))
         return "rejected"
 
-    def end_round(self, executor=None) -> bool:
+    def end_round(self) -> bool:
         return False
 
     def _extra_state(self):

@@ -16,25 +16,58 @@
   version). A run drawn before the last change still has its evidence used, but does not
   count. At a round end, runs after the N_eps-th, and all chunks in flight, are dropped
   and their indices re-used: the committed sequence depends only on the config and seed.
-- With ``certify``, the last round is followed by a certification round (SPE: the final
-  set checked as validate checks it; its count is N_eps, or every final centre once for
-  a deterministic system). A change there re-opens the set and restarts the count.
+- At a round end the driver decays the algorithm's resolution and runs experience
+  replay: the algorithm names its stored runs, the executor screens them where they are,
+  the algorithm applies what is new.
+- With ``certify``, the last round is followed by a certification round (the final set
+  checked as validate checks it; its count is N_eps split over attempts, or every final
+  centre once for a deterministic system). A change there re-opens the set and restarts
+  the count.
 """
 
 from __future__ import annotations
 
 import time
 from collections import deque
-from dataclasses import dataclass, field
-from typing import Callable
+from dataclasses import asdict, dataclass, field
+from typing import Callable, Iterable
 
 import numpy as np
 
+from coordinator.adversary import AdversarySearch
 from coordinator.algorithm import Algorithm, Event
+from coordinator.commit_log import CommitLog
 from coordinator.coverage import Rescreen
-from coordinator.executor import Chunk
+from coordinator.executor import Chunk, Executor
+from coordinator.sample_size import n_eps, n_eps_attempt
 from scenarios.base import FAILURE, OUTCOME_NAMES
 from scenarios.streams import RunStreams
+
+
+@dataclass(frozen=True)
+class CampaignSettings:
+    """What the driver needs besides the algorithm and the executor (the config's
+    quantify.epsilon, beta, budget, certify, farm.batch_size, pipeline_depth, seed and
+    record.quantify_runs)."""
+
+    epsilon: float = 0.001
+    beta: float = 0.1
+    budget: int = 2_000_000
+    batch_size: int = 1024
+    pipeline_depth: int = 2
+    seed: int = 0
+    certify: bool = False
+    record_limit: int = 0  # state-changing failures kept for the MCAP recording
+
+    @property
+    def n_eps(self) -> int:
+        """Quiet runs in a row that end a round (Lemma 2)."""
+        return n_eps(self.epsilon, self.beta)
+
+    def certification_quiet(self, attempt: int) -> int:
+        """Quiet runs in a row that certify at sampled attempt ``attempt`` (1, 2, ...): beta
+        split over the attempts, so that the set finally exported keeps it."""
+        return n_eps_attempt(self.epsilon, self.beta, attempt)
 
 
 @dataclass
@@ -71,81 +104,37 @@ class Counters:
     attempts: int = 0  # certification attempts (a change during certification starts the next)
 
 
-class CommitLog:
-    """Columns of the committed-run record since the last flush (the run ledger).
-
-    Per chunk, what every row shares (first sample index, round, delta) is kept once and
-    expanded at ``take``: a campaign shorter than ``farm.checkpoint_every`` holds the log
-    of all its runs (2.2 M at delta_min 0.125), and those columns were 20 of 51 bytes a
-    run."""
-
-    COLUMNS = ("sample_index", "round", "delta", "start", "outcome", "steps", "changed", "counted")
-
-    def __init__(self):
-        self.shared: list[tuple[int, int, int, float]] = []  # (first sample index, rows, round, delta)
-        self.start: list[np.ndarray] = []
-        self.outcome: list[np.ndarray] = []
-        self.steps: list[np.ndarray] = []
-        self.changed: list[np.ndarray] = []
-        self.counted: list[np.ndarray] = []
-
-    def add(self, first_index: int, starts: np.ndarray, chunk: Chunk, rows: np.ndarray, rnd: int, delta: float,
-            changed: np.ndarray, counted: np.ndarray) -> None:
-        """``rows`` are the chunk's first rows, 0..k-1 (a chunk is committed in order)."""
-        if len(rows) == 0:
-            return
-        self.shared.append((first_index, len(rows), rnd, delta))
-        self.start.append(starts[rows])
-        self.outcome.append(chunk.outcomes[rows].astype(np.int8))
-        self.steps.append((chunk.lengths[rows] - 1).astype(np.int32))
-        self.changed.append(changed)
-        self.counted.append(counted)
-
-    def take(self) -> dict[str, np.ndarray] | None:
-        if not self.shared:
-            return None
-        first, rows, rounds, deltas = (np.array(c) for c in zip(*self.shared))
-        within = np.arange(int(rows.sum())) - np.repeat(np.cumsum(rows) - rows, rows)
-        out = {"sample_index": np.repeat(first.astype(np.int64), rows) + within,
-               "round": np.repeat(rounds.astype(np.int32), rows), "delta": np.repeat(deltas.astype(float), rows)}
-        self.shared.clear()
-        for name in self.COLUMNS[3:]:  # a column's pieces go as it is joined: ~1x the log held, not 2x
-            pieces = getattr(self, name)
-            out[name] = np.concatenate(pieces)
-            pieces.clear()
-        return {name: out[name] for name in self.COLUMNS}
+Observer = Callable[["Campaign"], None]
 
 
 class Campaign:
     """Drive ``algorithm`` with ``executor`` until the last round ends by the N_eps rule
-    or ``budget`` runs are committed."""
+    or ``settings.budget`` runs are committed. ``observers`` are called after every
+    committed chunk (progress, status, checkpoints); ``adversary`` (actions.mode =
+    "search") sees every committed run and re-weights the action mixture at round ends."""
 
-    def __init__(self, algorithm: Algorithm, executor, *, n_eps: int, budget: int, batch_size: int,
-                 pipeline_depth: int, seed: int, on_batch: Callable[["Campaign"], None] | None = None,
-                 record_limit: int = 0, certify: bool = False,
-                 certify_quiet: Callable[[int], int] | None = None, adversary=None):
+    def __init__(self, algorithm: Algorithm, executor: Executor | None, settings: CampaignSettings,
+                 observers: Iterable[Observer] = (), adversary: AdversarySearch | None = None,
+                 restored: "DriverState | None" = None):
+        """``restored``: continue where a checkpoint left off (the algorithm and the
+        adversary hold their restored state already). ``executor`` None: a finished
+        campaign read back, which runs nothing."""
         self.algorithm = algorithm
         self.executor = executor
-        self.n_eps = n_eps
-        self.budget = budget
-        self.batch_size = batch_size
-        self.depth = pipeline_depth
-        self.seed = seed
-        self.on_batch = on_batch
-        self.counters = Counters()
+        self.settings = settings
+        self.observers = list(observers)
+        self.adversary = adversary
+        self.certify = settings.certify and algorithm.certifies
+        self.counters = restored.counters if restored is not None else Counters()
+        self.pending: deque[Pending] = deque(restored.pending if restored is not None else ())
+        self.final_distribution = restored.final_distribution if restored is not None else ""
         self.log = CommitLog()
-        self.pending: deque[Pending] = deque()
-        self.final_distribution = ""
-        self.record_limit = record_limit
-        self.certify = certify
-        # the quiet runs attempt i of a sampled certification needs (default: n_eps); the
-        # driver splits beta over the attempts so that the set finally exported keeps it
-        self.certify_quiet = certify_quiet
         self.recordings: list[dict] = []  # runs to record, since the last flush
         self._stop = False
-        # actions.mode = "search" (coordinator/adversary.py): sees every committed run and
-        # re-weights the action mixture at each round end; None for a fixed policy
-        self.adversary = adversary
+
+    @property
+    def n_eps(self) -> int:
+        return self.settings.n_eps
 
     # -- drawing ------------------------------------------------------------------------
     def _next_draw_index(self) -> int:
@@ -155,13 +144,14 @@ class Campaign:
         return self.counters.committed
 
     def _fill(self) -> None:
-        """Keep ``depth`` batches drawn and submitted (fewer when the budget ends)."""
-        while len(self.pending) < self.depth:
+        """Keep ``pipeline_depth`` batches drawn and submitted (fewer when the budget ends)."""
+        s = self.settings
+        while len(self.pending) < s.pipeline_depth:
             first = self._next_draw_index()
-            size = min(self.batch_size, self.budget - first)
+            size = min(s.batch_size, s.budget - first)
             if size <= 0:
                 break
-            streams = RunStreams.of(self.seed, np.arange(first, first + size, dtype=np.uint64))
+            streams = RunStreams.of(s.seed, np.arange(first, first + size, dtype=np.uint64))
             starts, ids = self.algorithm.draw(streams)
             self.pending.append(Pending(first, starts, ids, self.algorithm.version))  # len(starts) may be < size
         for p in self.pending:
@@ -169,11 +159,6 @@ class Campaign:
                 first = p.first_index + p.done
                 p.handles = self.executor.submit(first, p.starts[p.done :], self.algorithm.coverage,
                                                  actions=self._actions())
-
-    def _next_mixture(self) -> None:
-        """A round ended and another follows: it samples the re-weighted search mixture."""
-        if self.adversary is not None:
-            self.adversary.end_round(self.counters.committed)
 
     def _actions(self) -> dict | None:
         return self.adversary.policy.state() if self.adversary is not None else None
@@ -233,7 +218,7 @@ class Campaign:
         """Keep the trajectory of a state-changing failure for the MCAP recording (the
         runs worth looking at), up to ``record_limit`` per campaign."""
         c = self.counters
-        if c.recorded >= self.record_limit or chunk.outcomes[row] != FAILURE:
+        if c.recorded >= self.settings.record_limit or chunk.outcomes[row] != FAILURE:
             return
         self.recordings.append({"sample_index": chunk.first_index + row, "trajectory": chunk.trajectory(row, start),
                                 "outcome": OUTCOME_NAMES[int(chunk.outcomes[row])]})
@@ -243,6 +228,10 @@ class Campaign:
     def stop(self) -> None:
         """Ask the loop to return at the next chunk boundary (e.g. on SIGINT)."""
         self._stop = True
+
+    @property
+    def stopping(self) -> bool:
+        return self._stop
 
     def run(self) -> Counters:
         c = self.counters
@@ -260,51 +249,68 @@ class Campaign:
             c.runs_simulated += len(chunk)
             c.steps_simulated += chunk.steps
             committed_before = c.committed
-            round_ended = self._commit(p, chunk)
-            if round_ended:
+            if self._commit(p, chunk):
                 c.runs_dropped += len(chunk) - (c.committed - committed_before)
-                self._drop_in_flight()
-                c.round_ends.append(c.committed)
-                c.rounds_completed += 1
-                if self.algorithm.final_round and self.certify and not self.algorithm.certifying:
-                    self._next_mixture()
-                    self.algorithm.begin_certification()
-                    c.attempts = 1
-                    c.quiet = 0
-                    c.escaped_in_streak = 0
-                elif self.algorithm.final_round:
-                    self.final_distribution = self.algorithm.sampling_description()
-                    c.converged = True
-                    c.done = True
-                else:
-                    self._next_mixture()
-                    self.algorithm.end_round(self.executor)
-                    c.quiet = 0
-                    c.escaped_in_streak = 0
-                    self._certify_at_once()
+                self._end_round()
             else:
                 if p.done == len(p):
                     self.pending.popleft()
-                if c.committed >= self.budget:
+                if c.committed >= self.settings.budget:
                     c.done = True
             c.elapsed_s = time.monotonic() - started
-            if self.on_batch is not None:
-                self.on_batch(self)
+            for observe in self.observers:
+                observe(self)
         c.elapsed_s = time.monotonic() - started
         return c
 
+    def _end_round(self) -> None:
+        """The N_eps rule ended a round: drop what is in flight, then certify, finish, or
+        start the next round."""
+        c, algo = self.counters, self.algorithm
+        self._drop_in_flight()
+        c.round_ends.append(c.committed)
+        c.rounds_completed += 1
+        if algo.final_round and self.certify and not algo.certifying:
+            self._next_mixture()
+            algo.begin_certification()
+            c.attempts = 1
+        elif algo.final_round:
+            self.final_distribution = algo.sampling_description()
+            c.converged = True
+            c.done = True
+            return
+        else:
+            self._next_mixture()
+            algo.end_round()
+            self._experience_replay()
+            self._certify_at_once()
+        c.quiet = 0
+        c.escaped_in_streak = 0
+
+    def _experience_replay(self) -> None:
+        """The algorithm names its stored runs, the executor screens their states where
+        they are held, the algorithm adds what is new at the new resolution."""
+        pieces = self.algorithm.replay_pieces()
+        found = self.executor.screen_stored(pieces, self.algorithm.coverage) if pieces else []
+        self.algorithm.apply_replay(pieces, found)
+
+    def _next_mixture(self) -> None:
+        """A round ended and another follows: it samples the re-weighted search mixture."""
+        if self.adversary is not None:
+            self.adversary.end_round(self.counters.committed)
+
     def quiet_needed(self) -> int:
         """Runs in a row that must change nothing to end the current round."""
-        if self.algorithm.certifying and self.certify_quiet is not None:
-            return self.certify_quiet(max(self.counters.attempts, 1))
-        return self.algorithm.required_quiet(self.n_eps)
+        if self.algorithm.certifying:
+            return self.settings.certification_quiet(max(self.counters.attempts, 1))
+        return self.settings.n_eps
 
     def _certify_at_once(self) -> None:
         """A deterministic system's last round is its certification: every final centre
         run once (VAL^delta) is exact, so the N_eps rule's epsilon-almost statement, and
         the runs spent on it, would add nothing."""
         algo = self.algorithm
-        if self.certify and getattr(algo, "deterministic", False) and algo.final_round and not algo.certifying:
+        if self.certify and algo.deterministic and algo.final_round and not algo.certifying:
             algo.begin_certification()
             self.counters.attempts = 1
 
@@ -315,18 +321,32 @@ class Campaign:
         self.pending.clear()
 
     # -- persistence --------------------------------------------------------------------
-    def pending_state(self) -> dict:
-        """Draws not yet committed, so that a resumed campaign re-simulates exactly them."""
-        out = {"pending.count": np.array(len(self.pending))}
+    def state(self) -> tuple[dict[str, np.ndarray], dict]:
+        """The driver's state: arrays (the draws not yet committed, so that a resumed
+        campaign re-simulates exactly them) and JSON-able metadata (the counters)."""
+        arrays = {"pending.count": np.array(len(self.pending))}
         for i, p in enumerate(self.pending):
-            out[f"pending.{i}.first_index"] = np.array(p.first_index + p.done)
-            out[f"pending.{i}.starts"] = p.starts[p.done :]
-            out[f"pending.{i}.start_ids"] = p.start_ids[p.done :]
-            out[f"pending.{i}.version"] = np.array(p.version)
-        return out
+            arrays[f"pending.{i}.first_index"] = np.array(p.first_index + p.done)
+            arrays[f"pending.{i}.starts"] = p.starts[p.done :]
+            arrays[f"pending.{i}.start_ids"] = p.start_ids[p.done :]
+            arrays[f"pending.{i}.version"] = np.array(p.version)
+        meta = {"counters": asdict(self.counters), "final_distribution": self.final_distribution}
+        return arrays, meta
 
-    def load_pending(self, state: dict) -> None:
-        self.pending.clear()
-        for i in range(int(state["pending.count"])):
-            self.pending.append(Pending(int(state[f"pending.{i}.first_index"]), state[f"pending.{i}.starts"],
-                                        state[f"pending.{i}.start_ids"], int(state[f"pending.{i}.version"])))
+
+@dataclass
+class DriverState:
+    """A campaign driver's state read back from ``Campaign.state()``'s output, to start a
+    ``Campaign`` where a checkpoint left off."""
+
+    counters: Counters
+    pending: list[Pending]
+    final_distribution: str = ""
+
+    @classmethod
+    def read(cls, arrays: dict[str, np.ndarray], meta: dict) -> "DriverState":
+        """Raises KeyError, TypeError or ValueError when the checkpoint is damaged."""
+        pending = [Pending(int(arrays[f"pending.{i}.first_index"]), arrays[f"pending.{i}.starts"],
+                           arrays[f"pending.{i}.start_ids"], int(arrays[f"pending.{i}.version"]))
+                   for i in range(int(arrays["pending.count"]))]
+        return cls(Counters(**meta["counters"]), pending, meta.get("final_distribution", ""))

@@ -9,14 +9,12 @@ change if its witnesses survived, and only centres whose witnesses were pruned (
 centres) need a run again. That is VAL^delta (every centre once) on the final set,
 without re-running what a change did not touch.
 
-Cost: a campaign at delta_min = 0.125 certifies ~1.8 M centres with ~83 M witnesses and
-prunes thousands of times, so nothing here is proportional to all entries per call:
+Cost: a fine campaign certifies millions of centres with tens of millions of witnesses
+and prunes thousands of times, so nothing here is proportional to all entries per call:
 entries append into growing buffers, and a prune finds the entries that named a killed
 centre through a reverse index (witness -> entries) kept as a few sorted runs merged in
 tiers (the logarithmic method: a witness is merged O(log W) times; a lookup is a binary
-search per run). It replaced one index rebuilt only when the entries appended since
-outnumbered those it covered, with a linear scan of those for every prune: 120 s of a
-190 s campaign at delta_min 0.125.
+search per run). docs/benchmarks.md has what the simpler indexes cost.
 """
 
 from __future__ import annotations
@@ -176,20 +174,17 @@ class _SortedRuns:
     at tier 0; ``TIER`` runs of one tier merge into one of the next (a stable sort of
     their concatenation, which numpy does as a merge of the sorted runs it finds:
     timsort), so a pair is merged log_TIER(adds) times and a lookup searches at most
-    (TIER - 1) runs per tier. Merging two runs at a time (a binary counter, with a
-    binary-search merge) spent ~18 s of the certified delta_min 0.125 campaign.
+    (TIER - 1) runs per tier: fewer merges per pair than merging two runs at a time.
 
     A run of ``FINAL_SIZE`` pairs or more is merged no more and kept as compressed
     sparse rows: its distinct keys (int32), where each key's values start, and the
     values (int32). A key recurs ~20 times in such a run (witnesses of neighbouring
-    centres, drawn close together), so it costs ~4.4 bytes per pair instead of 8: the
-    83 M pairs of the certified delta_min 0.125 campaign take ~0.4 GB, not 0.66. Merges
+    centres, drawn close together), so it costs about half the bytes of its pairs. Merges
     stay below TIER x FINAL_SIZE pairs, and hold about 1.5x their pairs at once: a merge
     lets each input go once it is copied, and compression reads the pairs' halves in
-    place (the last merges, 4 x 12 M pairs into 48 M, holding inputs, concatenation and
-    the sort's buffer at once, made that campaign's peak memory; then the merge into a
-    compressed run, with int64 temporaries). A lookup pays a binary search in each of a
-    few more runs."""
+    place (the last merges, holding inputs, concatenation and the sort's buffer at once,
+    would otherwise make a fine campaign's peak memory). A lookup pays a binary search in
+    each of a few more runs."""
 
     TIER = 4
     FINAL_SIZE = 1 << 22

@@ -161,8 +161,8 @@ class Coverage:
         of inserts, kills and failures is applied as one insert, one failure insert and
         one kill: the index ends the same (a dense cell names its newest alive centre
         point, a chain lists alive points newest first, kills only take away what was
-        there), with a few dozen array operations per stretch instead of per change; every
-        worker applies every change, so 32 workers paid 27x the one-worker cost."""
+        there), with a few dozen array operations per stretch instead of per change: every
+        worker applies every change, so the per-change cost is paid once per worker."""
         pending = [entry for entry in changes if entry[0] > self.seq]
         at = 0
         while at < len(pending):

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.lattice import Lattice
-from coordinator.spatial import PointIndex
+from coordinator.safe_set import SafeSet
 from scenarios.streams import PURPOSE_START, RunStreams
 from scenarios.base import FACET_TOLERANCE, Scenario
 from scenarios.errors import ConfigError, ScenarioError
@@ -31,32 +31,32 @@ class Domain:
     hi: np.ndarray
     cuts_a: np.ndarray  # (c, n): Phi = {lo <= sigma <= hi, cuts_a @ sigma <= cuts_b}
     cuts_b: np.ndarray  # (c,)
-    set_centres: np.ndarray | None = None  # or the union of boxes centre +- set_half_width
-    set_half_width: float = 0.0
+    safe_set: SafeSet | None = None  # or the union of a set's boxes
     predicate: object = None  # and, optionally, a membership function (B, n) -> (B,) bool
     predicate_name: str = ""
 
     # -- construction -------------------------------------------------------------------
     @staticmethod
-    def of_set(scenario: Scenario, centres: np.ndarray, half_width: float) -> "Domain":
-        """Phi = the union of the boxes centre +- half_width (e.g. a quantified safe set)."""
-        if len(centres) == 0:
+    def of_set(scenario: Scenario, safe_set: SafeSet) -> "Domain":
+        """Phi = the union of a set's boxes (e.g. a quantified safe set)."""
+        if len(safe_set) == 0:
             raise DomainError("validate.domain_set: the set holds no boxes")
-        if not half_width > 0:
-            raise DomainError(f"validate.domain_set: half_width {half_width!r} is out of range; allowed (0, inf)")
-        return Domain(scenario, np.maximum(centres.min(0) - half_width, scenario.lower),
-                      np.minimum(centres.max(0) + half_width, scenario.upper),
-                      np.zeros((0, scenario.n)), np.zeros(0), np.asarray(centres, float), float(half_width))
+        if not safe_set.finest > 0:
+            raise DomainError(f"validate.domain_set: half_width {safe_set.finest!r} is out of range; allowed (0, inf)")
+        reach = safe_set.half_widths[:, None]
+        return Domain(scenario, np.maximum((safe_set.centres - reach).min(0), scenario.lower),
+                      np.minimum((safe_set.centres + reach).max(0), scenario.upper),
+                      np.zeros((0, scenario.n)), np.zeros(0), safe_set)
 
     @staticmethod
-    def from_config(scenario: Scenario, section: dict, set_boxes: tuple | None = None) -> "Domain":
-        """The domain of a ``[validate]`` section; ``set_boxes`` = (centres, half_width) of
-        the set that ``validate.domain_set`` names, read by the caller."""
+    def from_config(scenario: Scenario, section: dict, safe_set: SafeSet | None = None) -> "Domain":
+        """The domain of a ``[validate]`` section; ``safe_set``: the set that
+        ``validate.domain_set`` names, read by the caller."""
         names = scenario.state_names
         if section.get("domain_set"):
             if section.get("domain") or section.get("constraints"):
                 raise DomainError("validate.domain_set: give either domain_set or domain/constraints, not both")
-            return Domain.of_set(scenario, *set_boxes)
+            return Domain.of_set(scenario, safe_set)
         lo, hi = scenario.lower.copy(), scenario.upper.copy()
         for name, bounds in (section.get("domain") or {}).items():
             if name not in names:
@@ -99,19 +99,11 @@ class Domain:
     # -- geometry -------------------------------------------------------------------------
     @property
     def is_set(self) -> bool:
-        return self.set_centres is not None
-
-    def _set_index(self) -> PointIndex:
-        idx = getattr(self, "_index", None)
-        if idx is None:
-            idx = PointIndex(self.scenario.n, 2 * self.set_half_width, self.lo)
-            idx.insert(self.set_centres)
-            self._index = idx
-        return idx
+        return self.safe_set is not None
 
     def contains(self, points: np.ndarray) -> np.ndarray:
         if self.is_set:
-            return self._set_index().any_within(points, self.set_half_width)
+            return self.safe_set.contains(points)
         tol = FACET_TOLERANCE
         inside = ((points >= self.lo - tol) & (points <= self.hi + tol)).all(axis=1)
         if len(self.cuts_b):
@@ -148,9 +140,7 @@ class Domain:
 
     def volume(self) -> float:
         if self.is_set:
-            from coordinator.volume import union_volume
-
-            return union_volume(self.set_centres, self.set_half_width)
+            return self.safe_set.volume_union()
         box = float(np.prod(self.hi - self.lo))
         if not len(self.cuts_b) and self.predicate is None:
             return box
@@ -172,13 +162,15 @@ class Domain:
     def lattice(self, delta: float, band: float | None = None) -> np.ndarray:
         """delta-covering centres of Phi (Definition 1). A set domain's own box centres
         (its covering is the one it was built on: Definition 1 asks only that *some*
-        delta-covering works); otherwise the tiling of the bounding box, kept where the
-        centre lies in Phi (and in the band, if given)."""
+        delta-covering works, and delta at least every box's half-width makes them
+        one); otherwise the tiling of the bounding box, kept where the centre lies in
+        Phi (and in the band, if given)."""
         if self.is_set:
-            if delta < self.set_half_width * (1 - 1e-12):
-                raise DomainError(f"validate.delta: {delta:g} is below the set's box half-width "
-                                  f"{self.set_half_width:g}; allowed [{self.set_half_width:g}, inf)")
-            return self.set_centres
+            widest = self.safe_set.coarsest
+            if delta < widest * (1 - 1e-12):
+                raise DomainError(f"validate.delta: {delta:g} is below the set's largest box half-width "
+                                  f"{widest:g}; allowed [{widest:g}, inf)")
+            return np.asarray(self.safe_set.centres)
         centres = Lattice.tiling(self.lo, self.hi, delta).box_centres(delta)
         keep = self.contains(centres)
         if band is not None:
@@ -188,8 +180,9 @@ class Domain:
     # -- sampling ---------------------------------------------------------------------------
     def sample(self, streams: RunStreams, band: float | None = None) -> np.ndarray:
         """i.i.d. uniform in Phi (or its band): rejection from the bounding box, attempt k
-        of run i using draw k of its start stream. For a set domain a box is picked
-        uniformly and a point accepted with probability 1/(boxes covering it), which is
+        of run i using draw k of its start stream. For a set domain a box is picked with
+        probability proportional to its volume (uniformly, when the boxes share one size)
+        and a point in it accepted with probability 1/(boxes covering it), which is
         exactly uniform on the union."""
         n = self.scenario.n
         out = np.full((len(streams), n), np.nan)
@@ -200,8 +193,8 @@ class Domain:
             sub = streams.subset(todo)
             if self.is_set:
                 u = sub.uniform(attempt, PURPOSE_START, n + 2)
-                box = np.minimum((u[:, 0] * len(self.set_centres)).astype(np.int64), len(self.set_centres) - 1)
-                pts = self.set_centres[box] + self.set_half_width * (2 * u[:, 1 : n + 1] - 1)
+                box = self._pick_box(u[:, 0])
+                pts = self.safe_set.centres[box] + self.safe_set.half_widths[box, None] * (2 * u[:, 1 : n + 1] - 1)
                 pts = np.clip(pts, self.scenario.lower, self.scenario.upper)
                 ok = u[:, n + 1] * self._cover_count(pts) <= 1.0
             else:
@@ -215,18 +208,27 @@ class Domain:
         raise DomainError("validate.domain: rejection sampling accepts too rarely (the domain or its band is "
                           "a tiny part of its bounding box); enlarge it or drop validate.boundary")
 
+    def _pick_box(self, u: np.ndarray) -> np.ndarray:
+        """A box per uniform number u, with probability proportional to its volume."""
+        boxes = len(self.safe_set)
+        if self.safe_set.is_uniform:
+            return np.minimum((u * boxes).astype(np.int64), boxes - 1)
+        cdf = np.cumsum(self.safe_set.half_widths ** self.scenario.n)
+        return np.minimum(np.searchsorted(cdf, u * cdf[-1], side="right"), boxes - 1)
+
     def _cover_count(self, pts: np.ndarray) -> np.ndarray:
+        """How many of the set's boxes hold each point (at least 1)."""
         from scipy.spatial import cKDTree
 
-        tree = getattr(self, "_tree", None)
-        if tree is None:
-            tree = self._tree = cKDTree(self.set_centres)
-        hits = tree.query_ball_point(pts, self.set_half_width + 1e-12, p=np.inf, return_length=True)
+        trees = getattr(self, "_trees", None)
+        if trees is None:
+            trees = self._trees = [(width, cKDTree(centres)) for width, centres in self.safe_set.by_width()]
+        hits = sum(tree.query_ball_point(pts, width + 1e-12, p=np.inf, return_length=True) for width, tree in trees)
         return np.maximum(hits, 1)
 
     def describe(self) -> str:
         if self.is_set:
-            return f"a union of {len(self.set_centres)} boxes of half-width {self.set_half_width:g}"
+            return f"a union of {len(self.safe_set)} boxes of {self.safe_set.describe_widths()}"
         names = self.scenario.state_names
         parts = [f"{nm} in [{a:g}, {b:g}]" for nm, a, b in zip(names, self.lo, self.hi)]
         for row, b in zip(self.cuts_a, self.cuts_b):

@@ -4,8 +4,8 @@ which centres run next, and when every alive centre holds a certificate.
 A pass draws the alive centres that are not certified and not yet drawn in it, in id
 order; when none is left, a new pass starts (centres in flight or invalidated by a
 prune are drawn again). The answers are those of scanning every centre at each batch,
-but a batch costs O(its runs), not O(centres): at delta_min 0.125 a scan of 1.8 M
-centres per 1,024-run batch and per committed chunk was ~20 s of the campaign.
+but a batch costs O(its runs), not O(centres): a scan of every centre per batch and per
+committed chunk dominates a fine campaign (docs/benchmarks.md).
 
 - ``next``: a cursor; every centre the pass could still draw is at or after it or among
   the centres reopened (certificate lost) below it, which ``reopened`` is told of.

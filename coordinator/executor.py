@@ -28,7 +28,8 @@ leaves them where they were simulated until then.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from abc import ABC, abstractmethod
+from typing import Any, Callable
 
 import numpy as np
 
@@ -75,18 +76,33 @@ class Chunk:
         return np.concatenate(parts)
 
 
-class Executor(Protocol):
-    workers: int
+class Executor(ABC):
+    """Where runs are simulated (the contract above). Every executor passes the shared
+    conformance suite (farm/testing.py: the same committed sequence as in-process, cancel,
+    close, a worker failure)."""
 
-    def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None) -> list: ...
+    name: str = ""
+    workers: int = 1
 
-    def result(self, handle) -> Chunk: ...
+    @abstractmethod
+    def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None) -> list:
+        """Simulate runs ``first_index, first_index + 1, ...`` from ``starts``; one handle per chunk."""
 
-    def cancel(self, handle) -> None: ...
+    @abstractmethod
+    def result(self, handle) -> Chunk:
+        """Wait for one chunk."""
 
-    def screen_stored(self, pieces: list, screen) -> list[tuple[np.ndarray, np.ndarray]]: ...
+    @abstractmethod
+    def cancel(self, handle) -> None:
+        """Drop a chunk: it is not committed."""
 
-    def close(self) -> None: ...
+    @abstractmethod
+    def screen_stored(self, pieces: list, screen) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Experience replay: each stored piece's states that are new under ``screen``."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """End the workers; the executor takes no more work."""
 
 
 def summarize(batch: RunBatch, screen) -> tuple[dict, tuple[np.ndarray, np.ndarray]]:

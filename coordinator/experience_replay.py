@@ -91,13 +91,14 @@ class ReplayBuffer:
             self.pieces.append(Stored(chunk.keep_visited(kept, takes[keep]), chunk.first_index + kept, kept,
                                       takes[keep], parents[keep], starts[ok[keep]]))
 
-    def replay_candidates(self, executor, coverage) -> tuple[np.ndarray, np.ndarray]:
-        """Every stored state that is new now, in the order stored, with its run's vertex."""
-        if not self.pieces:
-            return np.empty((0, self.n)), np.empty(0, dtype=np.int64)
-        found = executor.screen_stored(self.pieces, coverage)
+    @staticmethod
+    def candidates(pieces: list, found: list) -> tuple[np.ndarray, np.ndarray]:
+        """Every stored state that is new now, in the order stored, with its run's vertex
+        (``found``: per piece, what the executor screened as new)."""
+        if not pieces:
+            return np.empty((0, 0)), np.empty(0, dtype=np.int64)
         states = [s for s, _ in found]
-        parents = [piece.parents[run] for piece, (_, run) in zip(self.pieces, found)]
+        parents = [piece.parents[run] for piece, (_, run) in zip(pieces, found)]
         return np.concatenate(states), np.concatenate(parents)
 
     def release(self) -> None:

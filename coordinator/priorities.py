@@ -73,8 +73,8 @@ class FailureDistances:
     @staticmethod
     def _nearest(vertices: np.ndarray, failures: np.ndarray) -> np.ndarray:
         """d(v, failures) for each vertex: brute force for few pairs (between two draws a
-        campaign adds a few vertices: a KD-tree of every failure, built for them, cost
-        ~0.15 ms a draw), a KD-tree otherwise. Both are the float64 max over axes of
+        campaign adds a few vertices, too few to pay for a KD-tree of every failure), a
+        KD-tree otherwise. Both are the float64 max over axes of
         |v - f| and its min over f: the same values."""
         if len(vertices) * len(failures) <= BRUTE_FORCE_PAIRS:
             return _linf(vertices[:, None, :], failures[None, :, :]).min(axis=1)

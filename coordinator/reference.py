@@ -53,14 +53,25 @@ def reference_safe(backend, points: np.ndarray) -> np.ndarray:
 
 def falsify(backend, safe_points: np.ndarray, tries: int = 4, horizon: int = 200, seed: int = 0) -> int:
     """How many reference-safe points fail under some random action sequence."""
-    if len(safe_points) == 0:
-        return 0
-    broken = np.zeros(len(safe_points), dtype=bool)
+    return int(falsified(backend, safe_points, slice(None), tries, horizon, seed).sum())
+
+
+def falsified(backend, safe_points: np.ndarray, rows, tries: int = 4, horizon: int = 200,
+              seed: int = 0) -> np.ndarray:
+    """Which of ``safe_points[rows]`` (a slice or index array) fail under one of
+    ``tries`` random action sequences. Try k of point i is run (seed, k *
+    len(safe_points) + i), so any split of the points into ``rows`` gives the answer of
+    the whole (a first part can be timed for an estimate)."""
+    total = len(safe_points)
+    index = np.arange(total)[rows]
+    points = safe_points[rows]
+    broken = np.zeros(len(points), dtype=bool)
+    if len(points) == 0:
+        return broken
     for k in range(tries):
-        idx = np.arange(k * len(safe_points), (k + 1) * len(safe_points))
-        batch = run_scenario(backend, safe_points, horizon, UniformActions(), RunStreams.of(seed, idx))
+        batch = run_scenario(backend, points, horizon, UniformActions(), RunStreams.of(seed, k * total + index))
         broken |= batch.outcomes == FAILURE
-    return int(broken.sum())
+    return broken
 
 
 def grid(scenario: Scenario, points_per_axis: int | None = None) -> np.ndarray:
@@ -70,41 +81,33 @@ def grid(scenario: Scenario, points_per_axis: int | None = None) -> np.ndarray:
     return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, scenario.n)
 
 
-def claimed(scenario: Scenario, centres: np.ndarray, half_width: float, points: np.ndarray) -> np.ndarray:
-    from coordinator.spatial import PointIndex
-
-    index = PointIndex(scenario.n, 2 * half_width, scenario.lower)
-    if len(centres):
-        index.insert(centres)
-    return index.any_within(points, half_width)
-
-
-def compare_boxes(backend, centres: np.ndarray, half_width: float,
-                  grid_points_per_axis: int | None = None, truth: np.ndarray | None = None) -> dict:
+def compare_boxes(backend, safe_set, grid_points_per_axis: int | None = None, truth: np.ndarray | None = None) -> dict:
     """IoU, precision (claimed volume truly safe), recall (true safe volume claimed) and
-    the l-inf Hausdorff distance between the quantified set and the reference, on a grid.
+    the l-inf Hausdorff distance between the quantified set (a ``SafeSet``) and the
+    reference, on a grid.
 
     ``missed_depth_boxes`` / ``overclaimed_depth_boxes``: how deep into the reference's
     safe (unsafe) region the errors reach: the largest l-inf distance from a missed
     (wrongly claimed) grid point to the nearest grid point on the other side, in box
-    widths (2 x ``half_width``). A box that straddles the boundary is pruned or kept
-    whole, so errors up to 1 box width plus a grid cell (``grid_cell_boxes``, its widest
-    axis) are the boxes' boundary layer; more means a region away from the boundary was
-    missed or claimed."""
+    widths (2 x the smallest half-width). A box that straddles the boundary is pruned or
+    kept whole, so errors up to 1 box width plus a grid cell (``grid_cell_boxes``, its
+    widest axis) are the boxes' boundary layer; more means a region away from the
+    boundary was missed or claimed."""
     scenario = backend.scenario
     points = grid(scenario, grid_points_per_axis)
     truth = reference_safe(backend, points) if truth is None else truth
-    got = claimed(scenario, centres, half_width, points)
+    got = safe_set.contains(points)
     both = (got & truth).sum()
     spacing = (scenario.upper - scenario.lower) / round(len(points) ** (1 / scenario.n))
     cell = float(np.prod(spacing))
+    box_width = 2 * safe_set.finest
     out = {"grid_points": int(len(points)), "iou": float(both / max((got | truth).sum(), 1)),
            "precision": float(both / max(got.sum(), 1)), "recall": float(both / max(truth.sum(), 1)),
            "claimed_volume": float(got.sum() * cell), "reference_volume": float(truth.sum() * cell),
            "hausdorff": hausdorff(points[got], points[truth]),
-           "missed_depth_boxes": _depth(points[truth & ~got], points[~truth]) / (2 * half_width),
-           "overclaimed_depth_boxes": _depth(points[got & ~truth], points[truth]) / (2 * half_width),
-           "grid_cell_boxes": float(spacing.max() / (2 * half_width))}
+           "missed_depth_boxes": _depth(points[truth & ~got], points[~truth]) / box_width,
+           "overclaimed_depth_boxes": _depth(points[got & ~truth], points[truth]) / box_width,
+           "grid_cell_boxes": float(spacing.max() / box_width)}
     return out
 
 

@@ -7,9 +7,8 @@ number u: u * total picks a block against the blocks' totals, the rest of it pic
 centre inside the block against that block's running sums. Between two draws only the
 blocks whose centres changed (killed, added, moved nearer a failure) are summed again,
 and every block when d* (the largest distance among the candidates) changes, which is
-rare: 7 times in a lead-follow campaign of 1.8 M centres, against 1,614 changes of
-state. Rebuilding one cumulative sum over all centres at every change took 24 s of that
-campaign's 45; this takes under one.
+rare against the changes of state; rebuilding one cumulative sum over all centres at
+every change would dominate a fine campaign (docs/benchmarks.md).
 
 The draw is exact for rho: block b is picked with probability W_b / W, centre i in it
 with w_i / W_b. It regroups the sums of one cumulative sum over all candidates, so it

@@ -13,9 +13,9 @@ known failure or not. A deterministic system runs every final centre once (VAL^d
 otherwise start states are drawn uniformly over the final centres (VAL^eps-delta) until
 N_eps runs in a row pass. A run that fails or leaves the set re-opens SPE: a failure
 prunes as usual, a new state is explored as usual, and a run that leaves only toward a
-known failure prunes its start's tree as a failure would (measured: removing the start
-alone, with or without adding it to PhiBar, makes certification peel or churn for many
-more runs), without adding it to PhiBar: it did not fail.
+known failure prunes its start's tree as a failure would (removing the start alone, with
+or without adding it to PhiBar, makes certification peel or churn for many more runs:
+docs/benchmarks.md), without adding it to PhiBar: it did not fail.
 Certification then starts again, so the set exported is the one the last one passed.
 """
 
@@ -66,8 +66,8 @@ class SPESettings:
 class SPE(Algorithm):
     name = "spe"
     decays = True
-    # certificates' entries too: ~350 MB at delta_min 0.125, written whole at every
-    # checkpoint before
+    certifies = True
+    # certificates' entries too: the bulk of a certified campaign's state
     append_only = ("vertices.points", "failures.points", "graph.parent", "replay.index", "replay.take",
                    "replay.parent", "replay.start", "cert.vertex", "cert.offsets", "cert.witness")
 
@@ -208,11 +208,6 @@ class SPE(Algorithm):
             chosen = uniform_pick(ids, streams)
         return self.vertices.points[chosen].copy(), chosen
 
-    @property
-    def enumerates(self) -> bool:
-        """Certification checks every centre once (a deterministic system, VAL^delta)."""
-        return self.certifying and self.deterministic
-
     def certify_runs(self, chunk, rows: np.ndarray, start_ids: np.ndarray, trusted: np.ndarray) -> int:
         """Deterministic certification: quiet runs ``rows`` of ``chunk`` (``trusted``: their
         screening's witnesses are current) certify their start centres. Returns the row
@@ -274,16 +269,17 @@ class SPE(Algorithm):
     def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray, starts: np.ndarray) -> None:
         """Keep committed, non-failing runs for experience replay (coordinator/experience_replay.py).
         Runs of the final round (and of certification) are not kept: no round end
-        follows to replay them, and they are most of a campaign's runs (at delta_min
-        0.125 on lead-follow, 1.46 M of 1.81 M, whose trajectories took ~0.5 GB)."""
+        follows to replay them, and they are most of a campaign's runs and of the memory
+        their trajectories would hold."""
         if self.final_round:
             return
         self.replay.add(chunk, rows, start_ids, starts, self.vertices.count)
 
     # -- round end ---------------------------------------------------------------------
-    def end_round(self, executor=None) -> bool:
-        """Decay delta (lines 25-27), then experience replay with ``executor`` screening
-        the stored states where they are."""
+    def end_round(self) -> bool:
+        """Decay delta (lines 25-27): the surviving boxes split into their children at
+        the new delta, except children within delta of a failure. Experience replay
+        follows (``replay_pieces``, ``apply_replay``)."""
         if self.final_round:
             return False
         new_delta = max(self.settings.gamma * self.delta, self.settings.delta_min)
@@ -296,16 +292,22 @@ class SPE(Algorithm):
             children = children[~self.failures.any_within(children, new_delta)]
         self._add_roots(children)
         self.round += 1
-        if self.settings.replay and executor is not None:
-            self._replay(executor)
-        if self.final_round:
-            self.replay.release()  # no round end follows: the stored states are not needed
         return True
 
-    def _replay(self, executor) -> int:
-        """Experience replay: re-apply line 15 to every stored state at the new delta,
-        in the order stored (the stored states that are new now come from the executor)."""
-        states, parents = self.replay.replay_candidates(executor, self.coverage)
+    def replay_pieces(self) -> list:
+        """Experience replay: every stored run, for its states that are new at the new delta."""
+        return list(self.replay.pieces) if self.settings.replay else []
+
+    def apply_replay(self, pieces: list, found: list) -> None:
+        """Re-apply line 15 to every stored state that is new at the new delta, in the
+        order stored (``found``: per piece, its new states and their runs' positions, as
+        the executor screened them)."""
+        states, parents = self.replay.candidates(pieces, found)
+        self._add_replayed(states, parents)
+        if self.final_round:
+            self.replay.release()  # no round end follows: the stored states are not needed
+
+    def _add_replayed(self, states: np.ndarray, parents: np.ndarray) -> int:
         added = 0
         for lo in range(0, len(states), REPLAY_CHUNK):
             part, part_parents = states[lo : lo + REPLAY_CHUNK], parents[lo : lo + REPLAY_CHUNK]
@@ -320,10 +322,10 @@ class SPE(Algorithm):
         return added
 
     def stop_committing(self) -> None:
-        self.certificates.release_index()  # ~0.37 GB at delta_min 0.125, certified
+        self.certificates.release_index()  # the reverse index: large, and only prunes use it
 
     def release(self) -> None:
-        self.certificates.release()  # its entries, ~0.35 GB more
+        self.certificates.release()  # its entries
 
     # -- output ---------------------------------------------------------------------------
     def counts(self) -> dict:

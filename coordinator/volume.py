@@ -1,13 +1,16 @@
-"""Volumes of a quantified set: the union of equal l-inf boxes centre +- h.
+"""Volumes of a quantified set: the union of l-inf boxes centre +- half-width, each box
+with its own half-width.
 
-``union_volume`` is exact. Space is cut into cells of side 2h aligned with the boxes'
-most common lattice; a cell equal to one box is full, every other cell is resolved by
-coordinate compression over the few box pieces that reach into it (an equal box always
-meets at most 2^n cells, and pieces in one cell share most of their coordinates).
+``union_volume`` is exact. Space is cut into cells of side 2f, f the smallest
+half-width, aligned with the boxes' most common lattice; a box whose faces lie on cell
+faces fills whole cells (one cell for a box of half-width f, k^n for one of k f), every
+other cell is resolved by coordinate compression over the few box pieces that reach into
+it (a box of half-width w meets at most (ceil(w / f) + 1)^n cells, and pieces in one
+cell share most of their coordinates).
 
 ``hull_volume`` is the volume of the convex hull of the union (the paper's
-"cardinality"): conv(union) = conv(centres) + cube, so only the centres on their own
-hull matter.
+"cardinality"): for boxes of one size conv(union) = conv(centres) + cube, so only the
+centres on their own hull matter, size by size.
 """
 
 from __future__ import annotations
@@ -18,64 +21,92 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 
-def _origin(centres: np.ndarray, h: float) -> np.ndarray:
-    """The alignment shared by most boxes (their lower corners modulo 2h)."""
-    residue = np.round(np.mod(centres - h, 2 * h) / (2 * h) * 1e6).astype(np.int64)
-    origin = np.empty(centres.shape[1])
-    for axis in range(centres.shape[1]):
+def _origin(lower: np.ndarray, side: float) -> np.ndarray:
+    """The alignment shared by most boxes (their lower corners modulo ``side``)."""
+    residue = np.round(np.mod(lower, side) / side * 1e6).astype(np.int64)
+    origin = np.empty(lower.shape[1])
+    for axis in range(lower.shape[1]):
         # the smallest most common residue (residues lie in [0, 1e6])
-        origin[axis] = np.argmax(np.bincount(residue[:, axis])) / 1e6 * 2 * h
+        origin[axis] = np.argmax(np.bincount(residue[:, axis])) / 1e6 * side
     return origin
 
 
-CHUNK = 1 << 18  # boxes per pass: temporaries stay ~50 MB however large the set
+CHUNK = 1 << 18  # boxes (or cells of boxes) per pass: temporaries stay ~50 MB however large the set
 
 
-def union_volume(centres: np.ndarray, h: float, origin=None, bounds=None) -> float:
-    """Exact volume of the union of boxes centre +- h, clipped to ``bounds`` (lo, hi)
-    when given: the safe set lives in Sigma, boxes may overhang it."""
+def _widths(centres: np.ndarray, half_widths) -> np.ndarray:
+    """(M,) half-widths from a scalar or one per box."""
+    return np.broadcast_to(np.asarray(half_widths, dtype=float), (len(centres),))
+
+
+def union_volume(centres: np.ndarray, half_widths, origin=None, bounds=None) -> float:
+    """Exact volume of the union of boxes centre +- half-width (``half_widths``: one
+    per box, or one for all), clipped to ``bounds`` (lo, hi) when given: the safe set
+    lives in Sigma, boxes may overhang it."""
     centres = np.asarray(centres, dtype=float)
     if len(centres) == 0:
         return 0.0
     n = centres.shape[1]
-    side = 2 * h
-    origin = _origin(centres, h) if origin is None else np.asarray(origin, dtype=float)
+    widths = _widths(centres, half_widths)
+    finest = float(widths.min())
+    uniform = float(widths.max()) == finest  # every box one cell: no sizes to tell apart
+    side = 2 * finest
+    # a box spans ratio = w / f cells per axis when its faces are on cell faces
+    ratio = widths / finest
+    whole = np.round(ratio).astype(np.int64)
+    integral = None if uniform else np.abs(ratio - whole) < 1e-9
+    lower = centres - widths[:, None]
+    origin = _origin(lower, side) if origin is None else np.asarray(origin, dtype=float)
     blo, bhi = (None, None) if bounds is None else (np.asarray(b, dtype=float) for b in bounds)
-    keys = _CellKeys(np.floor((centres.min(axis=0) - h - origin) / side).astype(np.int64) - 1,
-                     np.floor((centres.max(axis=0) - h - origin) / side).astype(np.int64) + 2)
-    # an aligned, unclipped box is exactly its cell: the cell is full, and it reaches
-    # into no other cell with positive volume; the other ("ragged") boxes are cut into
+    reach = int(np.ceil(ratio.max() - 1e-9))
+    keys = _CellKeys(np.floor((lower.min(axis=0) - origin) / side).astype(np.int64) - 1,
+                     np.floor((lower.max(axis=0) - origin) / side).astype(np.int64) + 1 + reach)
+    # an aligned, unclipped box is exactly its cells: they are full, and it reaches into
+    # no other cell with positive volume; the other ("ragged") boxes are cut into
     # pieces, one per cell they reach into
     full_keys, ragged = [], []
     for first in range(0, len(centres), CHUNK):
-        lo = centres[first : first + CHUNK] - h
+        lo = lower[first : first + CHUNK]
         rel = (lo - origin) / side
         aligned = (np.abs(rel - np.round(rel)) < 1e-9).all(axis=1)
-        if bounds is not None:  # only unclipped boxes fill a cell
-            aligned &= ((lo >= blo - 1e-12) & (lo + side <= bhi + 1e-12)).all(axis=1)
-        full_keys.append(keys(np.round(rel[aligned]).astype(np.int64)))
+        if not uniform:
+            aligned &= integral[first : first + CHUNK]
+        if bounds is not None:  # only unclipped boxes fill their cells
+            aligned &= ((lo >= blo - 1e-12) & (lo + 2 * widths[first : first + CHUNK, None] <= bhi + 1e-12)).all(axis=1)
+        cells = np.round(rel[aligned]).astype(np.int64)
+        if uniform:
+            full_keys.append(keys(cells))
+        else:
+            k = whole[first : first + CHUNK][aligned]
+            for size in np.unique(k):
+                full_keys += _spanned_keys(keys, cells[k == size], int(size))
         ragged.append(first + np.flatnonzero(~aligned))
-    full_keys = np.sort(np.concatenate(full_keys))
+    full_keys = np.sort(np.concatenate(full_keys)) if full_keys else np.zeros(0, dtype=np.int64)
     full_keys = full_keys[np.r_[True, full_keys[1:] != full_keys[:-1]]] if len(full_keys) else full_keys
     ragged = np.concatenate(ragged)
-    lo, hi = centres[ragged] - h, centres[ragged] + h
+    lo, hi = lower[ragged], centres[ragged] + widths[ragged, None]
     base = np.floor((lo - origin) / side + 1e-9).astype(np.int64)
+    spans = np.ceil(ratio[ragged] - 1e-9).astype(np.int64) + 1  # cells a box can meet per axis
     if bounds is not None:
         lo, hi = np.maximum(lo, blo), np.minimum(hi, bhi)
         keep = (hi - lo > 1e-12).all(axis=1)
-        lo, hi, base = lo[keep], hi[keep], base[keep]
+        lo, hi, base, spans = lo[keep], hi[keep], base[keep], spans[keep]
     # every (box, cell) piece of a ragged box in a cell that is not full
     piece_box, piece_key, piece_cell = [], [], []
-    for shift in itertools.product((0, 1), repeat=n):
-        cells = base + np.array(shift)
-        cell_lo = origin + cells * side
-        inter = (np.minimum(hi, cell_lo + side) - np.maximum(lo, cell_lo) > 1e-12).all(axis=1)
-        k = keys(cells[inter])
-        pos = np.minimum(np.searchsorted(full_keys, k), max(len(full_keys) - 1, 0))
-        open_ = ~(full_keys[pos] == k) if len(full_keys) else np.ones(len(k), dtype=bool)
-        piece_box.append(np.flatnonzero(inter)[open_])
-        piece_key.append(k[open_])
-        piece_cell.append(cells[inter][open_])
+    for span in np.unique(spans):
+        of_span = np.flatnonzero(spans == span)
+        for shift in itertools.product(range(int(span)), repeat=n):
+            cells = base[of_span] + np.array(shift)
+            cell_lo = origin + cells * side
+            inter = (np.minimum(hi[of_span], cell_lo + side) - np.maximum(lo[of_span], cell_lo) > 1e-12).all(axis=1)
+            k = keys(cells[inter])
+            pos = np.minimum(np.searchsorted(full_keys, k), max(len(full_keys) - 1, 0))
+            open_ = ~(full_keys[pos] == k) if len(full_keys) else np.ones(len(k), dtype=bool)
+            piece_box.append(of_span[inter][open_])
+            piece_key.append(k[open_])
+            piece_cell.append(cells[inter][open_])
+    if not piece_box:
+        piece_box, piece_key, piece_cell = [np.zeros(0, np.int64)], [np.zeros(0, np.int64)], [np.zeros((0, n), np.int64)]
     piece_box, piece_key, piece_cell = (np.concatenate(a) for a in (piece_box, piece_key, piece_cell))
     order = np.argsort(piece_key, kind="stable")
     piece_box, piece_key, piece_cell = piece_box[order], piece_key[order], piece_cell[order]
@@ -86,6 +117,17 @@ def union_volume(centres: np.ndarray, h: float, origin=None, bounds=None) -> flo
         cell_lo = origin + piece_cell[first] * side
         total += _compressed_union(np.maximum(lo[boxes], cell_lo), np.minimum(hi[boxes], cell_lo + side))
     return float(total)
+
+
+def _spanned_keys(keys: "_CellKeys", corners: np.ndarray, size: int) -> list[np.ndarray]:
+    """Keys of the cells of aligned boxes ``size`` cells wide whose lowest cells are
+    ``corners`` (k, n), in passes of at most CHUNK cells."""
+    if size == 1:
+        return [keys(corners)]
+    offsets = np.array(list(itertools.product(range(size), repeat=corners.shape[1])), dtype=np.int64)
+    step = max(1, CHUNK // len(offsets))
+    return [keys((corners[at : at + step, None, :] + offsets[None]).reshape(-1, corners.shape[1]))
+            for at in range(0, len(corners), step)]
 
 
 class _CellKeys:
@@ -117,42 +159,39 @@ def _compressed_union(lo: np.ndarray, hi: np.ndarray) -> float:
     return float((cell_volume * covered).sum())
 
 
-def hull_volume(centres: np.ndarray, h: float, bounds=None) -> float:
-    """Convex-hull volume of the union of boxes (clipped to ``bounds`` when given). Only
-    boxes centred on the hull of the centres, or clipped by the bounds, can contribute
-    hull vertices, so only their corners are handed to qhull."""
+def hull_volume(centres: np.ndarray, half_widths, bounds=None) -> float:
+    """Convex-hull volume of the union of boxes (clipped to ``bounds`` when given). Of
+    the boxes of one half-width only those centred on the hull of their centres, or
+    clipped by the bounds, can contribute hull vertices, so only their corners are
+    handed to qhull."""
     centres = np.asarray(centres, dtype=float)
     if len(centres) == 0:
         return 0.0
     n = centres.shape[1]
-    try:
-        on_hull = np.zeros(len(centres), dtype=bool)
-        on_hull[ConvexHull(centres).vertices if len(centres) > n else slice(None)] = True
-    except QhullError:  # flat set of centres: every centre may be on the hull
-        on_hull = np.ones(len(centres), dtype=bool)
-    corners = np.array(list(itertools.product((-h, h), repeat=n)))
+    widths = _widths(centres, half_widths)
+    on_hull = np.zeros(len(centres), dtype=bool)
+    for width in np.unique(widths):
+        group = np.flatnonzero(widths == width)
+        try:
+            on_hull[group[ConvexHull(centres[group]).vertices] if len(group) > n else group] = True
+        except QhullError:  # flat set of centres: every centre may be on the hull
+            on_hull[group] = True
+    unit = np.array(list(itertools.product((-1.0, 1.0), repeat=n)))
     if bounds is not None:
         blo, bhi = (np.asarray(b, dtype=float) for b in bounds)
-        on_hull |= ((centres - h < blo) | (centres + h > bhi)).any(axis=1)
-        points = (centres[on_hull][:, None, :] + corners[None, :, :]).reshape(-1, n)
+        on_hull |= ((centres - widths[:, None] < blo) | (centres + widths[:, None] > bhi)).any(axis=1)
+    points = (centres[on_hull][:, None, :] + widths[on_hull][:, None, None] * unit[None, :, :]).reshape(-1, n)
+    if bounds is not None:
         points = np.unique(np.clip(points, blo, bhi), axis=0)
-    else:
-        points = (centres[on_hull][:, None, :] + corners[None, :, :]).reshape(-1, n)
     return float(ConvexHull(points).volume)
 
 
-def raster_iou(a: tuple[np.ndarray, float], b: tuple[np.ndarray, float], lower, upper, points_per_axis: int = 60):
-    """IoU of two unions of boxes, measured on a regular grid of cell midpoints over
-    [lower, upper] (exact membership at each point)."""
-    from coordinator.spatial import PointIndex
-
+def raster_iou(a, b, lower, upper, points_per_axis: int = 60) -> float:
+    """IoU of two safe sets (``coordinator.safe_set.SafeSet``), measured on a regular
+    grid of cell midpoints over [lower, upper] (exact membership at each point)."""
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
     axes = [lo + (hi - lo) * (np.arange(points_per_axis) + 0.5) / points_per_axis for lo, hi in zip(lower, upper)]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, len(lower))
-    inside = []
-    for centres, h in (a, b):
-        index = PointIndex(len(lower), 2 * h, lower)
-        index.insert(centres)
-        inside.append(index.any_within(grid, h))
+    inside = [a.contains(grid), b.contains(grid)]
     union = (inside[0] | inside[1]).sum()
     return float((inside[0] & inside[1]).sum() / union) if union else 1.0

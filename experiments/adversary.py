@@ -54,8 +54,8 @@ def run_case(label, scenario, quantify, grid, mode, certify, root: Path) -> dict
     wall = time.monotonic() - t0
     metrics = api.compare(out, grid=grid)
     summary = result.summary
-    row = {"case": label, "mode": mode, "certify": certify, "runs": summary["runs_committed"],
-           "converged": summary["converged"], "boxes": summary["boxes"], "delta0": quantify["delta0"],
+    row = {"case": label, "mode": mode, "certify": certify, "runs": summary.runs_committed,
+           "converged": summary.converged, "boxes": summary.boxes, "delta0": quantify["delta0"],
            "delta_min": quantify["delta_min"],
            "precision": metrics["precision"], "recall": metrics["recall"], "iou": metrics["iou"],
            "missed_depth_boxes": metrics["missed_depth_boxes"],

@@ -24,7 +24,6 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import beta as beta_dist
 
-from coordinator.spatial import PointIndex
 from farm import api
 from scenarios.base import FAILURE
 from scenarios.simulator import SimSpec, Simulator
@@ -40,12 +39,11 @@ VALIDATE = {"algorithm": "eps-delta", "epsilon": 0.001, "beta": 0.1, "horizon": 
 MC_SEED = 10**9  # apart from every campaign and validation seed
 
 
-def violation_rate(centres: np.ndarray, h: float, runs: int, batch: int = 20_000) -> tuple[int, int]:
-    """Violations (failure or a state farther than h from every centre) among ``runs``
-    runs from centres drawn uniformly: the event certification and validate test."""
+def violation_rate(safe_set, runs: int, batch: int = 20_000) -> tuple[int, int]:
+    """Violations (failure or a state outside every box) among ``runs`` runs from the
+    box centres drawn uniformly: the event certification and validate test."""
     sim = Simulator(SimSpec(SCENARIO, ACTIONS, QUANTIFY["horizon"], MC_SEED))
-    index = PointIndex(centres.shape[1], 2 * h, centres.min(axis=0) - h)
-    index.insert(centres)
+    centres = safe_set.centres
     bad = 0
     for first in range(0, runs, batch):
         idx = np.arange(first, min(first + batch, runs), dtype=np.uint64)
@@ -53,7 +51,7 @@ def violation_rate(centres: np.ndarray, h: float, runs: int, batch: int = 20_000
         starts = centres[np.minimum((u * len(centres)).astype(np.int64), len(centres) - 1)]
         b = sim.simulate(0, starts, indices=idx)
         states, offsets = b.visited()
-        out = ~index.any_within(states, h)
+        out = ~safe_set.contains(states)
         run = np.repeat(np.arange(len(idx)), np.diff(offsets))
         left = np.bincount(run[out], minlength=len(idx)) > 0
         bad += int(np.count_nonzero(left | (b.outcomes == FAILURE)))
@@ -64,14 +62,14 @@ def one_seed(seed: int, mc: int, workdir: Path) -> dict:
     t = time.time()
     result = api.quantify({"scenario": SCENARIO, "actions": ACTIONS, "quantify": QUANTIFY,
                            "farm": {"executor": "local", "seed": seed}}, out=workdir / f"s{seed}")
-    bad, n = violation_rate(result.centres, result.half_width, mc)
+    bad, n = violation_rate(result.safe_set, mc)
     cert = api.validate({"scenario": SCENARIO, "actions": ACTIONS,
-                         "validate": {**VALIDATE, "delta": result.half_width,
+                         "validate": {**VALIDATE, "delta": result.safe_set.half_width,
                                       "domain_set": str(workdir / f"s{seed}" / "safe_set.parquet")},
                          "farm": {"executor": "local", "seed": 10_000 + seed}})
-    row = {"seed": seed, "boxes": result.summary["boxes"], "runs": result.summary["runs_committed"],
+    row = {"seed": seed, "boxes": result.summary.boxes, "runs": result.summary.runs_committed,
            "violations": bad, "mc_runs": n, "p": bad / n, "validate_certified": cert.certified,
-           "validate_runs": cert["n_run"], "seconds": round(time.time() - t, 1)}
+           "validate_runs": cert.n_run, "seconds": round(time.time() - t, 1)}
     print(json.dumps(row), flush=True)
     return row
 

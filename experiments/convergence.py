@@ -20,10 +20,9 @@ from pathlib import Path
 import numpy as np
 
 from coordinator.baselines import make_algorithm
-from coordinator.campaign import Campaign
-from coordinator.sample_size import n_eps
+from coordinator.campaign import Campaign, CampaignSettings
 from coordinator.spe import SPESettings
-from farm.executors import LocalExecutor
+from farm.local_executor import LocalExecutor
 from scenarios.simulator import SimSpec
 from scenarios import make_scenario
 from scenarios.backend import NumpyBackend
@@ -57,27 +56,26 @@ def study(delta_min: float = 0.5, budget: int = 1_500_000, snapshots: int = 12, 
         marks = np.unique(np.geomspace(2_000, min(budget, 60_000) if algorithm == 'vs' else budget, snapshots).astype(int))
         curve = []
 
-        def on_batch(c, algo=algo, curve=curve, marks=marks):
+        def on_chunk(c, algo=algo, curve=curve, marks=marks):
             if len(curve) < len(marks) and c.counters.committed >= marks[len(curve)]:
-                centres, h = algo.result()
-                m = compare_boxes(NumpyBackend(scenario), centres, h, grid_points_per_axis=grid)
+                m = compare_boxes(NumpyBackend(scenario), algo.result(), grid_points_per_axis=grid)
                 curve.append((c.counters.committed, m["iou"], m["claimed_volume"], m["reference_volume"]))
 
         t0 = time.perf_counter()
         # VS draws a new box after every failure: most runs change its state, so it is
         # given a smaller budget (it is incomplete anyway: Theorem 5)
         run_budget = min(budget, 60_000) if algorithm == "vs" else budget
-        counters = Campaign(algo, ex, n_eps=n_eps(0.001, 0.1), budget=run_budget, batch_size=1024, pipeline_depth=2,
-                            seed=0, on_batch=on_batch).run()
+        settings = CampaignSettings(epsilon=0.001, beta=0.1, budget=run_budget, batch_size=1024, pipeline_depth=2)
+        counters = Campaign(algo, ex, settings, observers=[on_chunk]).run()
         wall = time.perf_counter() - t0
-        centres, h = algo.result()
-        m = compare_boxes(NumpyBackend(scenario), centres, h, grid_points_per_axis=grid)
+        safe_set = algo.result()
+        m = compare_boxes(NumpyBackend(scenario), safe_set, grid_points_per_axis=grid)
         curve.append((counters.committed, m["iou"], m["claimed_volume"], m["reference_volume"]))
         curves[label] = curve
         rows.append({"variant": label, "runs": counters.committed, "converged": counters.converged,
                      "iou": m["iou"], "precision": m["precision"], "recall": m["recall"],
                      "volume_error": (m["claimed_volume"] - m["reference_volume"]) / m["reference_volume"],
-                     "boxes": len(centres), "delta": h, "seconds": wall})
+                     "boxes": len(safe_set), "delta": safe_set.half_width, "seconds": wall})
         print(json.dumps(rows[-1]), flush=True)
     return rows, curves
 

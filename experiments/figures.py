@@ -21,6 +21,8 @@ import sys
 import time
 from pathlib import Path
 
+from farm.summary import Summary
+
 ROOT = Path(__file__).resolve().parents[1]
 FIGURES = ROOT / "docs" / "figures"
 RUNS = ROOT / "runs" / "figures"
@@ -89,7 +91,7 @@ def run() -> dict:
         cfg = config_for(name)
         commands.append(sh("quantify", str(cfg.relative_to(ROOT)), "--out", f"runs/figures/{name}", "--force",
                            "--executor", "local", "--quiet"))
-        summaries[name] = json.loads((RUNS / name / "summary.json").read_text())
+        summaries[name] = Summary.read(RUNS / name).to_json()
     commands.append(sh("report", "runs/figures/lf-brake", "runs/figures/lf-idm", "--overlay"))
     commands.append(sh("report", "runs/figures/lf-idm"))  # adds plots/failures.png
     FIGURES.mkdir(parents=True, exist_ok=True)

@@ -20,7 +20,7 @@ from scipy import stats
 from coordinator.domain import Domain
 from coordinator.validation import Checker, plan
 from farm import api
-from farm.executors import LocalExecutor
+from farm.local_executor import LocalExecutor
 from scenarios.simulator import SimSpec
 from scenarios.streams import RunStreams
 
@@ -56,7 +56,7 @@ def experiment(seeds: int, b: float) -> dict:
     for seed in range(seeds):
         cert = api.validate(config(b, seed))
         wrong += cert.certified
-        n = cert["n_required"]
+        n = cert.n_required
     lo, hi = stats.binomtest(wrong, seeds).proportion_ci(0.95, method="exact")
     return {"epsilon": EPS, "beta": BETA, "n_eps": n, "cut_b": b, "true_violation_rate": p_true,
             "true_rate_mc_runs": mc_runs, "predicted_false_certification": (1 - p_true) ** n,

@@ -16,11 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from coordinator.baselines import make_algorithm
-from coordinator.campaign import Campaign
-from coordinator.sample_size import n_eps
-from coordinator.spatial import PointIndex
+from coordinator.campaign import Campaign, CampaignSettings
 from coordinator.spe import SPESettings
-from farm.executors import LocalExecutor
+from farm.local_executor import LocalExecutor
 from scenarios.simulator import SimSpec
 from scenarios import make_scenario
 from scenarios.base import CONTINUE, FAILURE
@@ -49,7 +47,8 @@ def quantified(scenario_name, policy, horizon, delta_min):
     sc = make_scenario(scenario_name, sv_policy=policy)
     algo = make_algorithm("spe", sc, SPESettings(delta0=2.0, delta_min=delta_min), 0)
     ex = LocalExecutor(SimSpec({"name": scenario_name, "sv_policy": policy}, {"mode": "adversarial"}, horizon, 0))
-    Campaign(algo, ex, n_eps=n_eps(0.001, 0.1), budget=3_000_000, batch_size=1024, pipeline_depth=2, seed=0).run()
+    settings = CampaignSettings(epsilon=0.001, beta=0.1, budget=3_000_000, batch_size=1024, pipeline_depth=2)
+    Campaign(algo, ex, settings).run()
     return sc, algo.result()
 
 
@@ -62,10 +61,8 @@ def main() -> None:
         truth = adversary_reference(make_scenario("lead-follow", sv_policy=policy), grid)
         for delta_min in (1.0, 0.5):
             for horizon in (5, 10, 20, 50, 100):
-                scenario, (centres, h) = quantified("lead-follow", policy, horizon, delta_min)
-                index = PointIndex(3, 2 * h, scenario.lower)
-                index.insert(centres)
-                claimed = index.any_within(grid, h)
+                _, safe_set = quantified("lead-follow", policy, horizon, delta_min)
+                claimed = safe_set.contains(grid)
                 row = {"policy": policy, "delta_min": delta_min, "K": horizon,
                        "unsafe_claimed_fraction_of_claimed": float((claimed & ~truth).sum() / claimed.sum()),
                        "unsafe_claimed_fraction_of_sigma": float((claimed & ~truth).mean()),

@@ -10,11 +10,10 @@ import time
 from pathlib import Path
 
 from coordinator.baselines import make_algorithm
-from coordinator.campaign import Campaign
-from coordinator.sample_size import n_eps
+from coordinator.campaign import Campaign, CampaignSettings
 from coordinator.reference import compare_boxes
 from coordinator.spe import SPESettings
-from farm.executors import LocalExecutor
+from farm.local_executor import LocalExecutor
 from scenarios.simulator import SimSpec
 from scenarios import make_scenario
 from scenarios.backend import NumpyBackend
@@ -28,11 +27,11 @@ def main() -> None:
             algo = make_algorithm("spe", sc, SPESettings(delta0=2.0, delta_min=0.5, reachable=mode), 0)
             ex = LocalExecutor(SimSpec({"name": "lead-follow", "sv_policy": policy}, {"mode": "uniform"}, 50, 0))
             t0 = time.perf_counter()
-            c = Campaign(algo, ex, n_eps=n_eps(0.001, 0.1), budget=3_000_000, batch_size=1024, pipeline_depth=2,
-                         seed=0).run()
-            centres, h = algo.result()
-            m = compare_boxes(NumpyBackend(sc), centres, h, grid_points_per_axis=100)
-            row = {"policy": policy, "reachable": mode, "runs": c.committed, "boxes": len(centres),
+            settings = CampaignSettings(epsilon=0.001, beta=0.1, budget=3_000_000, batch_size=1024, pipeline_depth=2)
+            c = Campaign(algo, ex, settings).run()
+            safe_set = algo.result()
+            m = compare_boxes(NumpyBackend(sc), safe_set, grid_points_per_axis=100)
+            row = {"policy": policy, "reachable": mode, "runs": c.committed, "boxes": len(safe_set),
                    "iou": m["iou"], "precision": m["precision"], "recall": m["recall"],
                    "seconds": round(time.perf_counter() - t0, 1)}
             rows.append(row)

@@ -34,7 +34,7 @@ def campaign(example: str, delta_min: float, tmp: Path) -> dict:
     raw["quantify"]["certify"] = False  # the paper's SPE: no certification round
     raw["farm"]["executor"] = "local"
     cfg = config_mod.normalize(raw)
-    s = run(cfg, tmp / f"{example}-{delta_min}", resume=False)
+    s = run(cfg, tmp / f"{example}-{delta_min}", resume=False).to_json()
     return {k: s[k] for k in KEYS if k in s}
 
 

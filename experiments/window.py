@@ -21,13 +21,11 @@ import json
 import time
 from pathlib import Path
 
-from coordinator.baselines import make_algorithm
-from coordinator.campaign import Campaign
 from coordinator.sample_size import n_eps
 from coordinator.reference import compare_boxes, grid, reference_safe
 from farm import config as config_mod
-from farm.executors import LocalExecutor
-from farm.quantification import spec_of
+from farm.local_executor import LocalExecutor
+from farm.campaign_setup import build_algorithm, build_campaign, spec_of
 from farm.ray_executor import busy_at_most
 
 from experiment import machine_stamp, main
@@ -54,9 +52,7 @@ def run(batch: int, depth: int, delta_min: float, certify: bool, truth: dict, se
     call (it depends on neither delta nor the window)."""
     cfg = config(batch, depth, delta_min, certify, seed)
     executor = LocalExecutor(spec_of(cfg))
-    q = cfg.quantify
-    algo = make_algorithm("spe", executor.simulator.scenario, q.settings(), cfg.farm.seed,
-                          executor.simulator.deterministic)
+    algo = build_algorithm(cfg, executor.simulator)
     kinds: dict[str, int] = {}
     apply = algo.apply
 
@@ -68,24 +64,23 @@ def run(batch: int, depth: int, delta_min: float, certify: bool, truth: dict, se
         return kind
 
     algo.apply = counting_apply
-    campaign = Campaign(algo, executor, n_eps=n_eps(q.epsilon, q.beta), budget=q.budget, batch_size=batch,
-                        pipeline_depth=depth, seed=cfg.farm.seed, certify=q.certify)
+    campaign = build_campaign(cfg, algo, executor.simulator, executor)
     t0 = time.perf_counter()
     c = campaign.run()
     seconds = time.perf_counter() - t0
     ends = c.round_ends
     rounds = [b - a for a, b in zip([0] + ends[:-1], ends)]
-    centres, half_width = algo.result()
+    safe_set = algo.result()
     backend = executor.simulator.backend
     if "safe" not in truth:
         truth["safe"] = reference_safe(backend, grid(backend.scenario))
-    metrics = compare_boxes(backend, centres, half_width, truth=truth["safe"])
+    metrics = compare_boxes(backend, safe_set, truth=truth["safe"])
     stale = sum(v for k, v in kinds.items() if "in flight" in k)
     return {"seed": seed, "delta_min": delta_min, "certify": certify, "batch_size": batch, "pipeline_depth": depth,
             "in_flight": batch * depth, "busy_at_most_of_32": busy_at_most(32, depth, batch),
             "committed": c.committed, "rounds": rounds, "converged": c.converged, "changes": c.changes,
             "changes_start_pruned_in_flight": stale, "changes_by_kind": dict(sorted(kinds.items())),
-            "boxes": int(len(centres)), "iou": metrics["iou"], "precision": metrics["precision"],
+            "boxes": len(safe_set), "iou": metrics["iou"], "precision": metrics["precision"],
             "recall": metrics["recall"], "seconds_in_process": round(seconds, 2)}
 
 

@@ -4,17 +4,21 @@ scenario sampling, on a Ray farm. The Python API (``farm.api``):
     quantify(config, out=None, ...)  -> QuantifyResult   find the maximal safe set
     validate(config, out=None, ...)  -> Certificate      certify a claimed domain
     compare(directory_or_result)     -> dict             against the reference safe set
+    export_openscenario(directory)   -> dict             failing runs and the set as OpenSCENARIO
     open_campaign(directory)         -> QuantifyResult   a finished campaign
     overlay([dir1, dir2], path)      -> Path             campaigns on the same slices
     load_config(source, **overrides) -> Config           TOML path or string, dict
+
+Results: ``SafeSet`` (the boxes: contains, volumes, result_hash, Parquet), ``Summary``
+(summary.json) and ``Certificate`` (certificate.json), frozen dataclasses.
 
 Runtime pieces: config, executors (in-process and Ray), campaign storage, CLI.
 """
 
 from scenarios.version import __version__
 
-__all__ = ["Certificate", "QuantifyResult", "__version__", "compare", "load_config", "open_campaign", "quantify",
-           "overlay", "validate"]
+__all__ = ["Certificate", "QuantifyResult", "SafeSet", "Summary", "__version__", "compare", "export_openscenario",
+           "load_config", "open_campaign", "quantify", "overlay", "validate"]
 
 
 def __getattr__(name: str):
@@ -22,7 +26,7 @@ def __getattr__(name: str):
     # modules (farm.cli, farm.exits) load in a fraction of a second, so its signal
     # handlers and error lines are in place before pydantic, scipy and the coordinator load
     if name in __all__:
-        from farm import api
+        from farm import api  # it imports SafeSet and Summary too
 
         return getattr(api, name)
     raise AttributeError(f"module 'farm' has no attribute {name!r}")

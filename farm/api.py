@@ -17,15 +17,18 @@ from __future__ import annotations
 
 import tempfile
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from farm import config as config_mod
 from farm.config import Config
-from farm.files import read_json, read_safe_set, write_json
+from coordinator.safe_set import SafeSet
+from farm.certificate import Certificate, certificate_of
+from farm.files import write_json
 from farm.storage import CampaignDir, CampaignError
+from farm.summary import Summary
 from scenarios.errors import DataError
 
 
@@ -39,79 +42,71 @@ def load_config(source, **overrides) -> Config:
 
 
 # -- quantification -----------------------------------------------------------------------
-SUMMARY_KEYS = ("scenario", "boxes", "volume_union", "volume_hull", "result_hash", "guarantee", "delta_final")
 @dataclass(frozen=True)
 class QuantifyResult:
-    """A finished quantification: the safe set (a union of boxes centre +- half_width),
-    its figures and guarantee, and the campaign directory that holds it all."""
+    """A finished quantification: its safe set (a ``SafeSet``: a union of boxes centre
+    +- half-width), its summary (summary.json as a ``Summary``), and the campaign
+    directory that holds it all."""
 
     directory: Path
-    summary: dict
-    state_names: tuple[str, ...]
-    centres: np.ndarray  # (M, n)
-    half_width: float
-    _index: list = field(default_factory=list, repr=False, compare=False)
+    summary: Summary
+    safe_set: SafeSet
 
     @classmethod
     def load(cls, directory, side: str | None = None) -> "QuantifyResult":
         directory = Path(directory)
         CampaignDir(directory).open("quantify")
-        if not (directory / "summary.json").exists():
-            raise CampaignError(f"{directory}: the campaign has not finished (no summary.json); see "
-                                f"`scenario-farm status {directory}`")
-        summary = read_json(directory / "summary.json", SUMMARY_KEYS)
-        from farm.quantification import load_frozen_config
+        summary = Summary.read(directory)
         from scenarios.registry import scenario_class
 
-        cfg = load_frozen_config(directory)
+        cfg = CampaignDir(directory).frozen_config()
         names = scenario_class(cfg.scenario.name).state_names
         path = directory / (f"safe_set_{side}_side.parquet" if side else "safe_set.parquet")
-        centres, h = read_safe_set(path, names)
-        return cls(directory, summary, tuple(names), centres, h)
+        return cls(directory, summary, SafeSet.from_parquet(path, names))
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return self.safe_set.state_names
+
+    @property
+    def centres(self) -> np.ndarray:
+        """(M, n) box centres."""
+        return self.safe_set.centres
+
+    @property
+    def half_width(self) -> float:
+        """The boxes' half-width (``safe_set.half_widths``: one per box, when sizes mix)."""
+        return self.safe_set.half_width
 
     @property
     def guarantee(self) -> str:
         """The guarantee in plain words (summary.json ``guarantee``)."""
-        return self.summary["guarantee"]
+        return self.summary.guarantee
 
     @property
     def guarantee_formal(self) -> str:
         """The same in the paper's terms (summary.json ``guarantee_formal``)."""
-        return self.summary.get("guarantee_formal", "")
+        return self.summary.guarantee_formal
 
     @property
     def volume_union(self) -> float:
-        return self.summary["volume_union"]
+        return self.summary.volume_union
 
     @property
     def volume_hull(self) -> float:
-        return self.summary["volume_hull"]
+        return self.summary.volume_hull
 
     @property
     def result_hash(self) -> str:
-        return self.summary["result_hash"]
+        return self.summary.result_hash
 
     def contains(self, states) -> np.ndarray:
         """(B, n) states -> (B,) bool: inside the quantified safe set (l-inf boxes)."""
-        from coordinator.spatial import PointIndex
-
-        states = np.atleast_2d(np.asarray(states, dtype=float))
-        if states.shape[1] != len(self.state_names):
-            raise ValueError(f"contains: states need {len(self.state_names)} columns ({', '.join(self.state_names)}), "
-                             f"got {states.shape[1]}")
-        if not self._index:
-            index = PointIndex(len(self.state_names), 2 * self.half_width, self.centres.min(0) if len(self.centres)
-                               else np.zeros(len(self.state_names)))
-            if len(self.centres):
-                index.insert(self.centres)
-            self._index.append(index)
-        return self._index[0].any_within(states, self.half_width)
+        return self.safe_set.contains(states)
 
     def table(self):
         """The safe set as a pyarrow Table (the columns of safe_set.parquet)."""
-        import pyarrow.parquet as pq
-
-        return pq.read_table(self.directory / "safe_set.parquet")
+        return self.safe_set.to_table(self.safe_set.metadata)
 
     def export_graph(self, path=None) -> Path:
         """The SPE exploration graph as GraphML (networkx): one node per vertex ever
@@ -123,11 +118,11 @@ class QuantifyResult:
 
         state, _ = Journal(self.directory).read(["algo.graph.parent", "algo.vertices.points", "algo.vertices.alive"])
         if "algo.graph.parent" not in state:
-            raise CampaignError(f"{self.directory}: algorithm {self.summary.get('algorithm')!r} keeps no "
+            raise CampaignError(f"{self.directory}: algorithm {self.summary.algorithm!r} keeps no "
                                 f"exploration graph (only spe does)")
         parent = state["algo.graph.parent"]
         points, alive = state["algo.vertices.points"], state["algo.vertices.alive"].astype(bool)
-        graph = nx.DiGraph(scenario=self.summary.get("scenario", ""), delta=float(self.half_width))
+        graph = nx.DiGraph(scenario=self.summary.scenario, delta=self.safe_set.finest)
         for v in range(len(parent)):
             graph.add_node(int(v), alive=bool(alive[v]),
                            **{name: float(points[v, i]) for i, name in enumerate(self.state_names)})
@@ -158,24 +153,23 @@ class QuantifyResult:
         if not runs:
             return None
         return draw_failures(Path(path) if path else self.directory / "plots" / "failures.png", self._scenario(),
-                             self.centres, self.half_width, runs[:64])
+                             self.safe_set, runs[:64])
 
     def _scenario(self):
-        from farm.quantification import load_frozen_config, spec_of
+        from farm.campaign_setup import spec_of
         from scenarios.registry import make_backend
 
-        return make_backend(spec_of(load_frozen_config(self.directory)).scenario).scenario
+        return make_backend(spec_of(CampaignDir(self.directory).frozen_config()).scenario).scenario
 
     def plot(self, out_dir=None) -> list[Path]:
         """Redraw the figures (into DIR/plots by default); -> the files written."""
         from farm.plots import draw
-        from farm.quantification import load_frozen_config, spec_of
+        from farm.campaign_setup import spec_of
         from scenarios.registry import make_backend
 
-        cfg = load_frozen_config(self.directory)
+        cfg = CampaignDir(self.directory).frozen_config()
         scenario = make_backend(spec_of(cfg).scenario).scenario
-        return draw(Path(out_dir) if out_dir else self.directory / "plots", scenario, self.centres, self.half_width,
-                    self.summary)
+        return draw(Path(out_dir) if out_dir else self.directory / "plots", scenario, self.safe_set, self.summary)
 
 
 def quantify(config, out=None, *, resume: bool = False, force: bool = False, progress: bool = False,
@@ -207,54 +201,26 @@ def _is_file(source) -> bool:
 
 
 # -- validation ------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Certificate:
-    """The answer of a validation: certified, or the first counterexample. ``data`` is
-    the content of certificate.json."""
-
-    data: dict
-
-    @property
-    def certified(self) -> bool:
-        return self.data["verdict"] == "certified"
-
-    @property
-    def guarantee(self) -> str:
-        """The verdict in plain words (certificate.json ``guarantee``)."""
-        return self.data["guarantee"]
-
-    @property
-    def statement(self) -> str:
-        """The verdict in the paper's terms (``guarantee_formal``)."""
-        return self.data["statement"]
-
-    @property
-    def counterexample(self) -> dict | None:
-        return self.data["counterexample"]
-
-    def __getitem__(self, key):
-        return self.data[key]
-
-
 def validate(config, *, out=None, force: bool = False, progress=None, **overrides) -> Certificate:
     """Certify the domain of ``config``'s [validate] section or find the first
     counterexample; with ``out``, write certificate.json (and counterexample.mcap)."""
     from coordinator.domain import Domain
     from coordinator.guarantee import validated
     from coordinator.validation import plan, validate as run_validation
-    from farm.executors import build_simulator
-    from farm.ray_executor import make_executor
+    from farm.simulators import build_simulator
+    from farm.executors import make_executor
     from farm.resources import check_validate
     from scenarios.simulator import SimSpec
-    from scenarios.version import __version__
 
     cfg = load_config(config, **overrides)
     v, farm_cfg = cfg.validate, cfg.farm
     spec = SimSpec(cfg.scenario.model_dump(), cfg.actions.model_dump(), v.horizon, farm_cfg.seed)
     simulator = build_simulator(spec)
     scenario, policy = simulator.scenario, simulator.policy
-    set_boxes = read_safe_set(v.domain_set, scenario.state_names) if v.domain_set else None
-    domain = Domain.from_config(scenario, v.model_dump(), set_boxes)
+    from farm.openscenario.ranges import validate_section
+
+    safe_set = SafeSet.from_parquet(v.domain_set, scenario.state_names) if v.domain_set else None
+    domain = Domain.from_config(scenario, validate_section(v, scenario), safe_set)
     check_validate(cfg, domain.lo, domain.hi, domain.is_set)
     p = plan(domain, v.algorithm, v.epsilon, v.beta, v.delta, v.boundary, simulator.deterministic)
     directory = CampaignDir(out) if out is not None else None
@@ -267,8 +233,7 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
             raise CampaignError(f"{out}: a {marker.get('kind')} directory; choose another --out")
         if (Path(out) / "certificate.json").exists() and not force:
             raise CampaignError(f"{out}/certificate.json exists; pass --force to replace it")
-    executor = make_executor(farm_cfg.executor, spec, farm_cfg.workers, farm_cfg.address, farm_cfg.max_retries,
-                             check_step_bound=v.boundary, pipeline_depth=farm_cfg.pipeline_depth)
+    executor = make_executor(farm_cfg, spec, check_step_bound=v.boundary)
     try:
         result = run_validation(domain, p, executor, seed=farm_cfg.seed, delta=v.delta, batch_size=farm_cfg.batch_size,
                                 pipeline_depth=farm_cfg.pipeline_depth, progress=progress)
@@ -277,17 +242,7 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
     g = validated(scenario, policy, result, algorithm=p.algorithm, plan_description=p.description,
                   epsilon=v.epsilon, beta=v.beta, delta=v.delta, horizon=v.horizon, seed=farm_cfg.seed,
                   adversarial=cfg.actions.mode == "adversarial")
-    # only the parameters the algorithm used: VAL^eps has no delta, VAL^delta no epsilon/beta
-    used = {"delta": ("delta",), "eps": ("epsilon", "beta"), "eps-delta": ("epsilon", "beta", "delta")}[p.algorithm]
-    cert = {"verdict": result["verdict"], "guarantee": g.plain, "guarantee_formal": g.formal,
-            "statement": g.formal, "algorithm": p.algorithm,
-            **{name: getattr(v, name) for name in used}, "horizon": v.horizon, "n_required": p.n_required,
-            "n_run": result["n_run"], "runs_simulated": result["runs_simulated"],
-            "steps_simulated": result["steps_simulated"], "seed": farm_cfg.seed,
-            "config_hash": config_mod.config_hash(cfg), "scenario": cfg.scenario.name,
-            "sv_policy": scenario.sv_policy_name, "domain": domain.describe(), "sampling": p.description,
-            "actions": policy.description, "boundary": v.boundary,
-            "counterexample": result["counterexample"], "scenario_farm_version": __version__}
+    cert = certificate_of(cfg, p, result, g, scenario, policy, domain)
     if directory is not None:
         if directory.path.exists() and directory.marker() is not None:
             directory.open("validate")
@@ -296,15 +251,15 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
             directory.create("validate", force=force)
         try:
             write_json(directory.path / "config.json", {"config": cfg.model_dump(mode="json"),
-                                                        "config_hash": cert["config_hash"]})
-            write_json(directory.path / "certificate.json", cert)
-            if result["counterexample"] and cfg.record.counterexamples:
+                                                        "config_hash": cert.config_hash})
+            cert.write(directory.path)
+            if cert.counterexample and cfg.record.counterexamples:
                 from farm.rerun import record_counterexample
 
                 record_counterexample(directory.path / "counterexample.mcap", scenario, cert)
         finally:
             directory.unlock()
-    return Certificate(cert)
+    return cert
 
 
 # -- comparison -------------------------------------------------------------------------------
@@ -314,20 +269,40 @@ def overlay(results, path) -> Path:
     from farm.plots import draw_overlay
 
     results = [r if isinstance(r, QuantifyResult) else open_campaign(r) for r in results]
-    names = {r.summary["scenario"] for r in results}
+    names = {r.summary.scenario for r in results}
     if len(names) != 1:
         raise CampaignError(f"overlay: the campaigns quantify different scenarios ({', '.join(sorted(names))})")
-    labels = [f"{r.summary.get('sv_policy')} / {r.summary.get('actions', '')} ({r.directory.name})" for r in results]
-    return draw_overlay(Path(path), results[0]._scenario(), [(r.centres, r.half_width) for r in results], labels)
+    labels = [f"{r.summary.sv_policy} / {r.summary.actions} ({r.directory.name})" for r in results]
+    return draw_overlay(Path(path), results[0]._scenario(), [r.safe_set for r in results], labels)
 
 
-def compare(target, *, grid: int | None = None, progress=None) -> dict:
+def compare(target, *, grid: int | None = None, grid_total: int | None = None, estimate_only: bool = False,
+            progress=None) -> dict:
     """A finished campaign (directory or QuantifyResult) against the reference safe set:
-    IoU, precision, recall, Hausdorff; writes compare.json and plots/compare.png."""
+    IoU, precision, recall, Hausdorff; writes compare.json and plots/compare.png. The
+    reference grid: ``grid`` points per axis or ``grid_total`` points in all (default
+    ~1.5e6 for a model reference, 24^3 for one simulated with a black-box back end).
+    ``progress`` (a farm.progress.Progress) is told the runs it will take and the time
+    estimated from a first batch before the rest; ``estimate_only`` returns that plan
+    ({"reference_runs", "figure_runs", "estimated_s", ...}) and writes nothing."""
     from farm.compare import compare as run_compare
 
     directory = target.directory if isinstance(target, QuantifyResult) else Path(target)
-    return run_compare(directory, grid=grid, progress=progress)
+    return run_compare(directory, grid=grid, grid_total=grid_total, estimate_only=estimate_only, progress=progress)
+
+
+def export_openscenario(target, *, force: bool = False) -> dict:
+    """A campaign's failing runs and certified set as ASAM OpenSCENARIO files in
+    DIR/openscenario/ (farm/openscenario/export.py): each recorded failing run or
+    validation counterexample as a concrete scenario (``run-<index>.xosc``,
+    ``counterexample-<index>.xosc``, OpenSCENARIO 1.0) on ``road.xodr`` (OpenDRIVE 1.5),
+    and the certified set as a ParameterValueDistribution (``safe_set.xosc`` or
+    ``certified_domain.xosc``, 1.2) over ``logical_scenario.xosc``. Returns
+    {"directory", "files", "runs", "notes"}; ``force`` replaces an earlier export."""
+    from farm.openscenario.export import export_openscenario as run_export
+
+    directory = target.directory if isinstance(target, QuantifyResult) else Path(target)
+    return run_export(directory, force=force)
 
 
 def falsify(target, *, gamma_star=None, points: int = 10_000, tries: int = 4, seed: int | None = None,

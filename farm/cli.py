@@ -74,9 +74,9 @@ def cmd_quantify(args) -> int:
 
     text = config_mod.read_text(args.config)  # once: the config may be a stream, <(cat c.toml)
     cfg = config_mod.parse(text, args.config).with_overrides(_overrides(args))
-    summary = quantification.run(cfg, Path(args.out), resume=args.resume, force=args.force,
-                                 progress=Progress(mode=_mode(args)), config_text=text)
-    _print_summary(summary, Path(args.out))
+    quantification.run(cfg, Path(args.out), resume=args.resume, force=args.force,
+                       progress=Progress(mode=_mode(args)), config_text=text)
+    _print_summary(Path(args.out))
     return EXIT_OK
 
 
@@ -87,26 +87,31 @@ def cmd_resume(args) -> int:
 
     out = Path(args.dir)
     CampaignDir(out).open("quantify")
-    cfg = quantification.load_frozen_config(out).with_overrides(_overrides(args))
-    done = quantification._finished_summary(out)
+    cfg = CampaignDir(out).frozen_config().with_overrides(_overrides(args))
+    done = CampaignDir(out).finished_summary()
     if done is not None:
         print(f"{out}: the campaign has finished (result hash {done['result_hash']}); nothing to resume")
         return EXIT_OK
-    summary = quantification.run(cfg, out, resume=True, progress=Progress(mode=_mode(args)))
-    _print_summary(summary, out)
+    quantification.run(cfg, out, resume=True, progress=Progress(mode=_mode(args)))
+    _print_summary(out)
     return EXIT_OK
 
 
-def _print_summary(summary: dict, out: Path) -> None:
+def _print_summary(out: Path, summary=None) -> None:
+    """The main figures of the campaign in ``out`` (its summary.json, or ``summary``)."""
+    from farm.summary import Summary
+
+    summary = summary or Summary.read(out)
     keys = ["scenario", "sv_policy", "algorithm", "delta_final", "rounds", "boxes", "volume_union", "volume_hull",
             "runs_committed", "runs_simulated", "steps_simulated", "elapsed_s", "startup_s", "result_hash"]
-    for k in keys + [k for k in summary if k.startswith("volume_") and k.endswith("_side")]:
-        if k in summary:
-            v = summary[k]
+    values = summary.to_json()
+    for k in keys + [k for k in values if k.startswith("volume_") and k.endswith("_side")]:
+        if k in values:
+            v = values[k]
             print(f"{k:>18}: {v:.6g}" if isinstance(v, float) else f"{k:>18}: {v}")
-    print(f"{'guarantee':>18}: {summary['guarantee']}")
-    if summary.get("guarantee_formal"):
-        print(f"{'formally':>18}: {summary['guarantee_formal']}")
+    print(f"{'guarantee':>18}: {summary.guarantee}")
+    if summary.guarantee_formal:
+        print(f"{'formally':>18}: {summary.guarantee_formal}")
     print(f"{'results':>18}: {out}/summary.json, {out}/safe_set.parquet, {out}/plots/")
 
 
@@ -123,7 +128,7 @@ def cmd_report(args) -> int:
         result = api.open_campaign(directory)
         paths = result.plot()
         failures = result.plot_failures()
-        _print_summary(result.summary, Path(directory))
+        _print_summary(Path(directory), result.summary)
         print(f"{'plots':>18}: {', '.join(str(p) for p in paths + ([failures] if failures else []))}")
         if args.graph:
             print(f"{'graph':>18}: {result.export_graph()}")
@@ -159,7 +164,14 @@ def cmd_compare(args) -> int:
 
     from farm.progress import Progress
 
-    metrics = api.compare(args.dir, grid=args.grid, progress=Progress(mode=_mode(args)))
+    progress = Progress(mode=_mode(args))
+    if args.estimate:
+        from farm.compare import describe_estimate
+
+        plan = api.compare(args.dir, grid=args.grid, grid_total=args.grid_total, estimate_only=True, progress=progress)
+        print(describe_estimate(Path(args.dir), plan))
+        return EXIT_OK
+    metrics = api.compare(args.dir, grid=args.grid, grid_total=args.grid_total, progress=progress)
     print(describe(Path(args.dir), metrics))
     return EXIT_OK
 
@@ -173,6 +185,16 @@ def cmd_falsify(args) -> int:
                          progress=Progress(mode=_mode(args)))
     print(describe(Path(args.dir), report))
     return EXIT_COUNTEREXAMPLE if report["refuted"] else EXIT_OK
+
+
+def cmd_export(args) -> int:
+    from farm import api
+    from farm.openscenario.export import describe
+
+    if not args.xosc:
+        raise ConfigError("export: choose a format; allowed: --xosc (ASAM OpenSCENARIO and OpenDRIVE)")
+    print(describe(api.export_openscenario(args.dir, force=args.force)))
+    return EXIT_OK
 
 
 def cmd_schema(args) -> int:
@@ -240,7 +262,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("compare", help="compare a quantified set with the reference safe set")
     p.add_argument("dir")
-    p.add_argument("--grid", type=int, default=None, help="reference grid points per axis")
+    p.add_argument("--grid", type=int, default=None, help="reference grid points per axis (default: ~1.5e6 points "
+                                                          "for a model reference, 24^3 for a simulated one)")
+    p.add_argument("--grid-total", type=int, default=None, help="reference grid points in all (the most points per "
+                                                                "axis that fit)")
+    p.add_argument("--estimate", action="store_true", help="say how many runs the reference takes and how long "
+                                                           "(from a timed first batch), then stop")
     _add_output_flags(p)
     p.set_defaults(func=cmd_compare)
 
@@ -253,6 +280,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=None, help="default: the campaign's farm.seed")
     _add_output_flags(p)
     p.set_defaults(func=cmd_falsify)
+
+    p = sub.add_parser("export", help="write a campaign's failing runs and certified set for other tools")
+    p.add_argument("dir")
+    p.add_argument("--xosc", action="store_true", help="as ASAM OpenSCENARIO (.xosc) with OpenDRIVE roads (.xodr), "
+                                                       "into DIR/openscenario/")
+    p.add_argument("--force", action="store_true", help="replace an earlier export in DIR/openscenario/")
+    p.set_defaults(func=cmd_export)
 
     p = sub.add_parser("schema", help="print the JSON Schema of the config (for editors)")
     p.set_defaults(func=cmd_schema)

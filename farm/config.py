@@ -23,7 +23,7 @@ import os
 import tomllib
 import warnings
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
@@ -102,6 +102,14 @@ class Constraint(Section):
     b: float
 
 
+class OpenScenarioDomain(Section):
+    """[validate.openscenario]: the claimed domain from a logical scenario's parameter
+    ranges (farm/openscenario/ranges.py)."""
+
+    file: Annotated[str, Field(min_length=1, description="an OpenSCENARIO ParameterValueDistribution file")]
+    map: Annotated[dict[str, str], Field(min_length=1, description="state variable -> parameter name")]
+
+
 class ValidateConfig(Section):
     """[validate]: certify a claimed domain Phi."""
 
@@ -115,6 +123,13 @@ class ValidateConfig(Section):
     constraints: list[Constraint] | None = None
     domain_set: Annotated[str | None, Field(min_length=1)] = None
     domain_predicate: Annotated[str | None, Field(min_length=1)] = None
+    openscenario: Annotated[OpenScenarioDomain | None, Field(json_schema_extra={"hashed_when_unset": False})] = None
+
+    @model_validator(mode="after")
+    def _one_domain_source(self):
+        if self.openscenario is not None and (self.domain or self.domain_set):
+            raise ValueError("OPENSCENARIO_AND_DOMAIN")
+        return self
 
 
 class QuantifyConfig(Section):
@@ -288,19 +303,47 @@ def _depth(value) -> int:
     return deepest
 
 
+def to_toml(cfg: Config) -> str:
+    """The normalized config as TOML (a campaign started from Python has no file)."""
+    lines = []
+    for section, values in cfg.model_dump(mode="json", exclude_none=True).items():
+        lines.append(f"[{section}]")
+        lines += [f"{k} = {_toml_value(v)}" for k, v in values.items()]
+        lines.append("")
+    return "\n".join(lines)
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)  # a TOML basic string
+    if isinstance(value, list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{json.dumps(k)} = {_toml_value(v)}" for k, v in value.items()) + " }"
+    raise TypeError(f"no TOML form for {value!r}")
+
+
 # -- hashing and resume --------------------------------------------------------------------------
 def result_view(cfg: Config) -> dict:
     """The part of a config that can change a result (hash input, resume check)."""
     out = {}
     for section, values in cfg.model_dump(mode="json").items():
         fields = type(getattr(cfg, section)).model_fields
-        out[section] = {k: v for k, v in values.items() if _affects_result(fields.get(k))}
+        out[section] = {k: v for k, v in values.items() if _affects_result(fields.get(k))
+                        and not (v is None and _extra(fields.get(k)).get("hashed_when_unset") is False)}
     return out
 
 
+def _extra(field) -> dict:
+    return getattr(field, "json_schema_extra", None) or {}
+
+
 def _affects_result(field) -> bool:
-    extra = getattr(field, "json_schema_extra", None) or {}
-    return extra.get("affects_result", True)
+    return _extra(field).get("affects_result", True)
 
 
 def config_hash(cfg: Config) -> str:
@@ -357,6 +400,21 @@ def _field_info(loc):
     return info
 
 
+def _model_at(loc) -> type[BaseModel]:
+    """The config model of the table at ``loc`` (e.g. ("validate", "openscenario"))."""
+    model: type[BaseModel] = Config
+    for item in loc:
+        info = model.model_fields.get(item) if isinstance(item, str) else None
+        if info is None:
+            break
+        inner = [a for a in (info.annotation, *get_args(info.annotation))
+                 if isinstance(a, type) and issubclass(a, BaseModel)]
+        if not inner:
+            break
+        model = inner[0]
+    return model
+
+
 def _constraints(loc) -> dict:
     info = _field_info(loc)
     out = {}
@@ -386,10 +444,10 @@ def _one_line(exc: ValidationError, raw: dict, flags: dict) -> str:
             return 'scenario.name: required (e.g. [scenario] name = "lead-follow")'
         return f"{field}: required"
     if kind == "extra_forbidden" or (kind == "value_error" and "unknown key" in err["msg"]):
-        section = loc[0]
+        table = loc[:-1] if kind == "extra_forbidden" else loc[:1]
         key = loc[-1] if kind == "extra_forbidden" else err["msg"].split("'")[1]
-        fields = Config.model_fields[section].annotation.model_fields
-        return f"{section}.{key}: unknown key{_did_you_mean(str(key), fields)}"
+        fields = _model_at(table).model_fields
+        return f"{_field_name(table)}.{key}: unknown key{_did_you_mean(str(key), fields)}"
     if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal", "finite_number"):
         shown = float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) \
             and "float" in str(_annotation(loc)) else value
@@ -399,8 +457,12 @@ def _one_line(exc: ValidationError, raw: dict, flags: dict) -> str:
         return f"{field}: {value!r} is not allowed; allowed: {allowed}"
     if kind in ("string_too_short",):
         return f"{field}: expected a non-empty string, got {value!r}"
+    if kind == "too_short":
+        return f"{field}: must not be empty (got {value!r})"
     if kind in _KINDS:
         return f"{field}: expected {_KINDS[kind]}, got {type(value).__name__} {value!r}"
+    if kind == "value_error" and "OPENSCENARIO_AND_DOMAIN" in err["msg"]:
+        return "validate.openscenario: give either openscenario, domain or domain_set, not two of them"
     if kind == "value_error" and "DELTA_ORDER" in err["msg"]:
         q = raw.get("quantify", {})
         return (f"quantify.delta_min: {float(q.get('delta_min', _SPE.delta_min))} exceeds quantify.delta0 = "

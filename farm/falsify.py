@@ -19,8 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from farm.executors import build_simulator
 from farm.files import read_json, write_json
+from farm.simulators import build_simulator
+from farm.storage import CampaignDir
 from scenarios.actions import ConstantActions, check_action
 from scenarios.base import FAILURE
 from scenarios.errors import CampaignError, ConfigError
@@ -49,8 +50,7 @@ def falsify(directory, *, gamma_star=None, points: int = 10_000, tries: int = 4,
     """Try ``gamma_star`` (a list of m numbers; default: the campaign's proposal) from
     ``points`` uniform start states with ``tries`` random sequences each; writes
     falsify.json (and falsify.mcap when something failed) in ``directory``."""
-    from farm.quantification import load_frozen_config, spec_of
-    from farm.storage import CampaignDir
+    from farm.campaign_setup import spec_of
 
     directory = Path(directory)
     CampaignDir(directory).open("quantify")
@@ -58,7 +58,7 @@ def falsify(directory, *, gamma_star=None, points: int = 10_000, tries: int = 4,
         raise ConfigError(f"--points: {points} is out of range; allowed [1, 10000000]")
     if not 1 <= tries <= 1000:
         raise ConfigError(f"--tries: {tries} is out of range; allowed [1, 1000]")
-    cfg = load_frozen_config(directory)
+    cfg = CampaignDir(directory).frozen_config()
     seed = cfg.farm.seed if seed is None else seed
     if not 0 <= seed < 2**63:
         raise ConfigError(f"--seed: {seed} is out of range; allowed [0, 2**63)")

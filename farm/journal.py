@@ -110,7 +110,7 @@ class Journal:
         """The saved arrays (only ``names``, those saved, if given) and the metadata,
         changing nothing on disk: for readers (plots, exports, replay), which must not
         remove a segment a running campaign has just written and not listed yet, and
-        need not load a certified campaign's ~350 MB of certificates to draw its boxes.
+        need not load a certified campaign's certificates (the bulk of its state) to draw its boxes.
         Checks the sha256 of every segment it reads."""
         wanted = None if names is None else set(names)
         arrays = _read_npz(self.main, None if wanted is None else wanted | {"__meta__"})

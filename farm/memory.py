@@ -5,7 +5,7 @@ A step on a 1e5-run batch allocates and frees a few dozen 0.8 MB temporaries. gl
 defaults hand such blocks back to the kernel as soon as the top of the heap holds a
 few MB free (``M_TRIM_THRESHOLD``, adjusted upward only by mmapped frees), so the next
 step page-faults them in again: on a VM guest that costs as much as the arithmetic
-(measured: a 12-pass kinematics step took 1.03 ms instead of 0.27 ms). Fixing the
+(docs/benchmarks.md). Fixing the
 thresholds keeps those pages in the heap; blocks above 32 MiB (trajectory stores) are
 still mmapped and returned on free.
 """
@@ -39,9 +39,8 @@ def release_freed_memory() -> bool:
     """Give the free heap back to the kernel (glibc ``malloc_trim``), at the boundaries
     of a campaign's phases (a checkpoint, the end), where no step's temporaries are
     about to be allocated again. The thresholds above keep up to TRIM_THRESHOLD free at
-    the top of the heap and every freed block below MMAP_THRESHOLD inside it: at the end
-    of the certified delta_min 0.125 campaign ~0.5 GB of its RSS was such free memory.
-    True if this libc has it."""
+    the top of the heap and every freed block below MMAP_THRESHOLD inside it, which at the
+    end of a fine campaign is a large part of its RSS. True if this libc has it."""
     trim = _glibc("malloc_trim", ctypes.c_size_t)
     if trim is None:
         return False

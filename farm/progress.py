@@ -35,18 +35,18 @@ class Progress:
         self._bar = None
 
     # -- campaigns -------------------------------------------------------------------------
-    def update(self, label: str, algorithm, campaign, n_eps: int) -> None:
+    def update(self, label: str, campaign) -> None:
         if not self.enabled:
             return
         # called after every committed chunk: decide from cheap fields whether to show
         # anything before taking a snapshot (its counts are O(boxes) while certifying)
-        rnd = getattr(algorithm, "round", 0)
+        rnd = campaign.algorithm.round
         new_round, self._round = rnd != self._round, rnd
         now = time.monotonic()
         due = now - self._last >= (0.2 if self.live else self.interval)
         if not (new_round or due or campaign.counters.done):
             return
-        s = snapshot(algorithm, campaign, n_eps)
+        s = snapshot(campaign)
         if self.live:
             self._draw(label, s, campaign)
             return

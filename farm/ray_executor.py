@@ -27,8 +27,8 @@ import time
 import numpy as np
 
 from coordinator.coverage import Coverage, Reset
-from coordinator.executor import Chunk, chunk_of, screen_piece, summarize
-from farm.executors import build_simulator
+from coordinator.executor import Chunk, Executor, chunk_of, screen_piece, summarize
+from farm.simulators import build_simulator
 from farm.ray_session import connect
 from scenarios.errors import FarmError, InfrastructureError
 from scenarios.simulator import SimSpec
@@ -168,7 +168,7 @@ class _InFlight:
     tries: int = 0
 
 
-class RayExecutor:
+class RayExecutor(Executor):
     name = "ray"
 
     def __init__(self, spec: SimSpec, workers: int, address: str = "local", max_retries: int = 3,
@@ -409,11 +409,3 @@ class RayExecutor:
                 self.ray.kill(actor)
         self.actors = []
 
-
-def make_executor(kind: str, spec: SimSpec, workers: int, address: str, max_retries: int,
-                  check_step_bound: bool = False, pipeline_depth: int = 1):
-    if kind == "ray":
-        return RayExecutor(spec, workers, address, max_retries, check_step_bound, pipeline_depth)
-    from farm.executors import LocalExecutor
-
-    return LocalExecutor(spec, check_step_bound)

@@ -23,10 +23,10 @@ from scenarios.errors import ConfigError, InfrastructureError
 # the object store (Ray's default: 100 KB). A chunk's summary is ~150 KB for 1,024
 # lead-follow runs (mostly witnesses), and the store's create, seal, get and free of it
 # cost the driver's Ray threads more than its bytes; the visited states (~1.1 MB a
-# chunk) stay above the limit, in the worker's store, until the driver asks for them.
-# Measured: +7% committed runs per coordinator-CPU-second (docs/benchmarks.md). A local Ray gets it
-# here; a cluster from RAY_max_direct_call_object_size on every `ray start`
-# (deploy/), read by each Ray process when it starts.
+# chunk) stay above the limit, in the worker's store, until the driver asks for them
+# (docs/benchmarks.md has what it gains). A local Ray gets it here; a cluster from
+# RAY_max_direct_call_object_size on every `ray start` (deploy/), read by each Ray
+# process when it starts.
 INLINE_RETURN_BYTES = 256 * 1024
 RAY_SYSTEM_CONFIG = {"max_direct_call_object_size": INLINE_RETURN_BYTES}
 

@@ -10,8 +10,9 @@ from pathlib import Path
 
 import pyarrow.compute as pc
 
-from farm.files import atomic_write_bytes, read_json
+from farm.files import atomic_write_bytes
 from farm.storage import read_ledger
+from farm.summary import Summary
 
 STYLE = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
 h1{font-size:1.5em}h2{font-size:1.15em;margin-top:1.6em;border-bottom:1px solid #ddd}
@@ -45,21 +46,22 @@ def _table(rows: list[dict]) -> str:
 def write_html(directory, out: Path | None = None) -> Path:
     """Write DIR/report.html (or ``out``) for a finished campaign; -> its path."""
     directory = Path(directory)
-    summary = read_json(directory / "summary.json", ("scenario", "algorithm", "guarantee"))
-    title = f"{summary['scenario']} / {summary.get('sv_policy')} / {summary['algorithm']}"
+    summary = Summary.read(directory)
+    title = f"{summary.scenario} / {summary.sv_policy} / {summary.algorithm}"
     parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>"
              f"<style>{STYLE}</style></head><body><h1>Scenario Farm: {html.escape(title)}</h1>",
-             f"<p class='plain'>{html.escape(summary['guarantee'])}</p>",
-             f"<p class='formal'>{html.escape(summary.get('guarantee_formal', ''))}</p>"]
+             f"<p class='plain'>{html.escape(summary.guarantee)}</p>",
+             f"<p class='formal'>{html.escape(summary.guarantee_formal)}</p>"]
     parts.append("<h2>Figures</h2>")
     for png in sorted((directory / "plots").rglob("*.png")):
         data = base64.b64encode(png.read_bytes()).decode()
         parts.append(f"<p>{html.escape(str(png.relative_to(directory)))}<br>"
                      f"<img alt='{html.escape(png.stem)}' src='data:image/png;base64,{data}'></p>")
     parts.append("<h2>Rounds</h2>" + _table(_rounds(directory)))
-    keys = [k for k, v in summary.items() if not isinstance(v, (list, dict)) and not k.startswith("guarantee")]
+    shown = {k: v for k, v in summary.to_json().items() if not isinstance(v, (list, dict))
+             and not k.startswith("guarantee")}
     parts.append("<h2>Summary</h2><table>" + "".join(
-        f"<tr><td class='k'>{html.escape(k)}</td><td>{html.escape(str(summary[k]))}</td></tr>" for k in keys)
+        f"<tr><td class='k'>{html.escape(k)}</td><td>{html.escape(str(v))}</td></tr>" for k, v in shown.items())
         + "</table>")
     recordings = sorted((directory / "recordings").glob("*.mcap")) if (directory / "recordings").is_dir() else []
     if recordings:

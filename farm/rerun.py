@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 import pyarrow.dataset as ds
 
-from farm.executors import build_simulator
-from farm.files import read_json
-from farm.storage import read_ledger
+from farm.certificate import FILE as CERTIFICATE_FILE, Certificate
+from farm.simulators import build_simulator
+from farm.storage import CampaignDir, read_ledger
 from scenarios.base import OUTCOME_NAMES
 from scenarios.errors import CampaignError, ConfigError, DataError
 from scenarios.simulator import SimSpec
@@ -26,16 +26,16 @@ def rerun(simulator, index: int, start: np.ndarray):
     return batch.trajectory(0), OUTCOME_NAMES[int(batch.outcomes[0])]
 
 
-def record_counterexample(path: Path, scenario, cert: dict) -> None:
+def record_counterexample(path: Path, scenario, cert: Certificate) -> None:
     from farm.recording import write_recording
 
-    ce = cert["counterexample"]
+    ce = cert.counterexample
     write_recording(path, scenario_name=scenario.name, state_names=list(scenario.state_names), dt=scenario.dt,
                     runs=[{"sample_index": ce["sample_index"], "trajectory": np.array(ce["trajectory"]),
                            "outcome": ce["outcome"]}],
-                    metadata={"config_hash": cert["config_hash"], "seed": str(cert["seed"]),
+                    metadata={"config_hash": cert.config_hash, "seed": str(cert.seed),
                               "kind": "validation counterexample", "reason": ce["reason"],
-                              "scenario_farm_version": cert["scenario_farm_version"]})
+                              "scenario_farm_version": cert.scenario_farm_version})
 
 
 def _recorded(directory: Path, index: int):
@@ -69,15 +69,13 @@ def _load_adaptive_actions(directory: Path, simulator) -> None:
 
 
 def replay(directory: Path, index: int) -> tuple[bool, str]:
-    from farm.storage import CampaignDir
 
     directory = Path(directory)
     CampaignDir(directory).open()  # a one-line error for a file or a directory not ours
-    if (directory / "certificate.json").exists():
+    if (directory / CERTIFICATE_FILE).exists():
         return _replay_counterexample(directory, index)
-    from farm.quantification import load_frozen_config
 
-    cfg = load_frozen_config(directory)
+    cfg = CampaignDir(directory).frozen_config()
     if not 0 <= index < 2**63:
         raise ConfigError(f"--sample: {index} is out of range; allowed [0, 2**63)")
     rows = read_ledger(directory, filter=ds.field("sample_index") == index).to_pylist()
@@ -106,13 +104,11 @@ def replay(directory: Path, index: int) -> tuple[bool, str]:
 
 
 def _replay_counterexample(directory: Path, index: int) -> tuple[bool, str]:
-    cert = read_json(directory / "certificate.json")
-    ce = cert.get("counterexample")
+    ce = Certificate.read(directory).counterexample
     if not ce or ce["sample_index"] != index:
         raise CampaignError(f"{directory}: certificate.json holds no counterexample with sample index {index}")
-    from farm.quantification import load_frozen_config
 
-    cfg = load_frozen_config(directory)
+    cfg = CampaignDir(directory).frozen_config()
     spec = SimSpec(cfg.scenario.model_dump(), cfg.actions.model_dump(), cfg.validate.horizon, cfg.farm.seed)
     simulator = build_simulator(spec)
     start = np.array([ce["start_state"][name] for name in simulator.scenario.state_names])

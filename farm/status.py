@@ -14,6 +14,7 @@ from pathlib import Path
 
 from farm.files import read_json, write_json
 from farm.storage import MARKER, CampaignDir, CampaignError
+from farm.summary import FILE as SUMMARY_FILE, Summary
 
 EVERY_S = 2.0
 
@@ -27,16 +28,17 @@ class StatusWriter:
     def write(self, fields: dict) -> None:
         write_json(self.dir / "status.json", {**fields, "updated": time.time(), "started": self._started})
 
-    def update(self, label: str, algorithm, campaign, n_eps: int, *, state: str = "running", force: bool = False):
+    def update(self, label: str, campaign, *, state: str = "running", force: bool = False):
         now = time.monotonic()
         if not force and now - self._last < EVERY_S:
             return
         self._last = now
-        self.write({"state": state, "part": label, **snapshot(algorithm, campaign, n_eps)})
+        self.write({"state": state, "part": label, **snapshot(campaign)})
 
 
-def snapshot(algorithm, campaign, n_eps: int) -> dict:
-    c = campaign.counters
+def snapshot(campaign) -> dict:
+    """Where a running campaign stands (coordinator.campaign.Campaign)."""
+    c, algorithm, n_eps = campaign.counters, campaign.algorithm, campaign.n_eps
     counts = algorithm.counts()
     return {"round": counts.get("round", 0), "delta": counts.get("delta"), "boxes": counts.get("boxes"),
             "n_eps_counter": c.quiet, "n_eps": n_eps, "runs_committed": c.committed,
@@ -55,7 +57,7 @@ def _search(campaign) -> dict:
 
 def _certification(algorithm, counts) -> dict:
     """A deterministic certification counts centres run, not runs in a row."""
-    if not getattr(algorithm, "enumerates", False):
+    if not algorithm.enumerates:
         return {}
     return {"certified": counts.get("certified", 0), "centres": counts.get("boxes", 0)}
 
@@ -96,10 +98,10 @@ def describe(directory: Path) -> str:
         lines.append(f"  {state}" + (f": {detail}" if detail else ""))
         if st.get("search_weights"):
             lines.append("  search mixture: " + ", ".join(f"{k} {v:.3f}" for k, v in st["search_weights"].items()))
-    if (directory / "summary.json").exists():
-        s = read_json(directory / "summary.json", ("boxes", "volume_union", "result_hash", "guarantee"))
-        lines.append(f"  finished: {s['boxes']} boxes, volume {s['volume_union']:.6g}, result hash {s['result_hash']}")
-        lines.append(f"  {s['guarantee']}")
+    if (directory / SUMMARY_FILE).exists():
+        s = Summary.read(directory)
+        lines.append(f"  finished: {s.boxes} boxes, volume {s.volume_union:.6g}, result hash {s.result_hash}")
+        lines.append(f"  {s.guarantee}")
     return "\n".join(lines)
 
 

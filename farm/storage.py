@@ -24,13 +24,14 @@ import os
 import re
 import shutil
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from farm.files import TEMP_MARK, atomic_write, sha256_file, write_json
+from farm.files import TEMP_MARK, atomic_write, read_json, sha256_file, write_json
 from scenarios.errors import CampaignError
 from scenarios.version import __version__
 
@@ -150,6 +151,52 @@ class CampaignDir:
             return int(text) if text.isdigit() else -1
         finally:
             os.close(fd)
+
+    # -- what a campaign directory holds ----------------------------------------------------
+    def frozen_config(self):
+        """The campaign's config as frozen when it started (``config.json``)."""
+        from farm import config as config_mod
+
+        path = self.path / "config.json"
+        raw = read_json(path, ("config",), missing=f"{self.path}: not a campaign directory (no config.json)")["config"]
+        try:
+            with warnings.catch_warnings():
+                # the start of the campaign warned of a value it changed (a checkpoint
+                # interval below the minimum); reading the config again is no news
+                warnings.simplefilter("ignore", config_mod.ConfigWarning)
+                return config_mod.normalize(raw)
+        except config_mod.ConfigError as exc:
+            raise CampaignError(f"{path}: not a valid frozen config ({exc})") from None
+
+    def freeze_config(self, cfg, text: str | None = None) -> None:
+        """Keep the config as given (``config.toml``: ``text``, or the normalized config as
+        TOML) and normalized with its hash (``config.json``)."""
+        from farm import config as config_mod
+
+        (self.path / "config.toml").write_text(text if text is not None else config_mod.to_toml(cfg))
+        write_json(self.path / "config.json", {"config": cfg.model_dump(mode="json"),
+                                               "config_hash": config_mod.config_hash(cfg),
+                                               "scenario_farm_version": __version__})
+
+    def finished_summary(self):
+        """``summary.json`` of a finished campaign (``farm.summary.Summary``), or None."""
+        from farm.summary import Summary
+
+        try:
+            return Summary.read(self.path)
+        except (CampaignError, OSError, ValueError):
+            return None
+
+    def nothing_started(self) -> bool:
+        """No directory, an empty one, or one of ours killed before its config was frozen."""
+        p = self.path
+        if not p.exists():
+            return True
+        if not p.is_dir():
+            return False
+        names = {c.name for c in p.iterdir()} - {LOCK}
+        return not names or (self.marker() is not None and "config.json" not in names
+                             and "checkpoint.npz" not in names and "ledger" not in names)
 
     # -- housekeeping -------------------------------------------------------------------------
     def remove_stale_temp_files(self) -> list[Path]:

@@ -59,7 +59,7 @@ class NumpyBackend:
     straight into the store."""
 
     name = "numpy"
-    compact_below = 0.75  # measured: no effect above noise between 0.2 and 0.9
+    compact_below = 0.75  # any value in 0.2-0.9 does as well (docs/benchmarks.md)
     deterministic = True  # the spec's dynamics: a run is a function of its key
     max_batch = None
 

@@ -1,6 +1,6 @@
 """PNG figures of a quantified safe set (matplotlib, headless).
 
-The safe set is a union of l-inf boxes (``centres`` (M, n), half-width ``h``); it is
+The safe set is a ``coordinator.safe_set.SafeSet`` (a union of l-inf boxes); it is
 rasterized with the spatial index (exact membership at each grid point). What is drawn
 comes from the scenario's hints (``scenarios.base.View`` / ``Slices``):
 

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from farm.plots.membership import _Membership
+from farm.plots.membership import _member
 
 
 def explored_boxes(directory, state_names) -> tuple[np.ndarray, np.ndarray] | None:
@@ -79,13 +79,7 @@ def _campaign_of(out_dir: Path) -> Path | None:
 
 
 def _explored_member(explored, n: int) -> callable:
-    """Membership in the union of boxes of varying half-width (one index per width).
-    A campaign's starts repeat its vertices: duplicates are dropped before indexing."""
+    """Membership in the union of the explored boxes. A campaign's starts repeat its
+    vertices: duplicates are dropped before indexing."""
     points, widths = explored
-    points = np.asarray(points, dtype=float).reshape(-1, n)
-    widths = np.broadcast_to(np.asarray(widths, dtype=float), (len(points),))
-    members = []
-    for w in np.unique(widths[widths > 0]):
-        group = points[widths == w]
-        members.append(_Membership(group, float(w), group.min(axis=0), distinct=True))
-    return lambda pts: np.logical_or.reduce([m(pts) for m in members] + [np.zeros(len(pts), dtype=bool)])
+    return _member(points, widths, n, distinct=True)

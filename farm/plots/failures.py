@@ -10,7 +10,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
 from farm.plots.layout import _label, _slices
-from farm.plots.membership import _axis, _member, _points, _samples
+from farm.plots.membership import _axis, _member, _points, _samples, _set_member
 from farm.plots.slices import _extent, _paint
 from farm.plots.style import HIDDEN_SAMPLES, RESOLUTION, SAFE_COLOUR, _save
 
@@ -25,12 +25,12 @@ def _planes(scenario) -> list[tuple[int, int]]:
     return planes
 
 
-def _projection(scenario, centres, h, x, y):
+def _projection(scenario, safe_set, x, y):
     """The safe set's shadow on the plane (x, y) as a grid: a run's projected start lies
     in it whatever its other coordinates, which no single slice could promise."""
-    flat = np.unique(centres[:, [x, y]], axis=0)
+    flat = np.unique(np.column_stack([safe_set.centres[:, [x, y]], safe_set.half_widths]), axis=0)
     lo, hi = scenario.lower[[x, y]], scenario.upper[[x, y]]
-    member = _member(flat, h, lo, hi)
+    member = _member(flat[:, :2], flat[:, 2], 2, lo, hi)
     xs, ys = _samples(lo[0], hi[0], RESOLUTION), _samples(lo[1], hi[1], RESOLUTION)
     gx, gy = np.meshgrid(xs, ys, indexing="ij")
     return xs, ys, member(np.column_stack([gx.ravel(), gy.ravel()])).reshape(gx.shape)
@@ -44,7 +44,7 @@ def _limits(lo, hi, trajectories, axis):
     return a - pad, b + pad
 
 
-def _core(scenario, centres, h, x, y, xs, ys, samples: int = HIDDEN_SAMPLES):
+def _core(scenario, safe_set, x, y, xs, ys, samples: int = HIDDEN_SAMPLES):
     """Where on the grid (xs, ys) of the plane (x, y) every sampled value of the other
     coordinates is safe (``samples`` in all per hidden coordinate, Sigma's ends
     included): a state there is safe whatever its hidden coordinates."""
@@ -53,7 +53,7 @@ def _core(scenario, centres, h, x, y, xs, ys, samples: int = HIDDEN_SAMPLES):
         return None
     per_axis = max(2, int(round(samples ** (1 / len(hidden)))))
     grids = {x: xs, y: ys, **{a: np.linspace(scenario.lower[a], scenario.upper[a], per_axis) for a in hidden}}
-    member = _member(centres, h, scenario.lower, scenario.upper)
+    member = _set_member(scenario, safe_set)
     safe = member(_points(scenario, grids, {}))
     return safe.reshape(len(xs), len(ys), -1).all(axis=2)
 
@@ -70,7 +70,7 @@ def _draw_runs(ax, trajectories, labels, x, y) -> None:
         ax.plot(t[-1, x], t[-1, y], "X", color=colour, markeredgecolor="black", markersize=7)
 
 
-def failures_figure(scenario, centres, h, trajectories, labels=None):
+def failures_figure(scenario, safe_set, trajectories, labels=None):
     """Figure of ``failures`` (see draw_failures)."""
     trajectories = [np.asarray(t, dtype=float) for t in trajectories]
     for k, t in enumerate(trajectories):
@@ -80,13 +80,12 @@ def failures_figure(scenario, centres, h, trajectories, labels=None):
         raise ValueError(f"failures: {len(labels)} labels for {len(trajectories)} trajectories")
     named = labels is not None and len(trajectories) <= 10  # a longer legend would bury the plot
     labels = [str(s) for s in labels] if named else [None] * len(trajectories)
-    centres = np.asarray(centres, dtype=float).reshape(-1, scenario.n)
     planes = _planes(scenario)
     fig, axs = plt.subplots(1, len(planes), figsize=(6 * len(planes) + 1.8, 5.2), squeeze=False, layout="constrained")
     for ax, (x, y) in zip(axs[0], planes):
-        xs, ys, shadow = _projection(scenario, centres, h, x, y)
+        xs, ys, shadow = _projection(scenario, safe_set, x, y)
         _paint(ax, shadow, _extent(scenario, x, y), SAFE_COLOUR, alpha=0.25)
-        core = _core(scenario, centres, h, x, y, xs, ys)
+        core = _core(scenario, safe_set, x, y, xs, ys)
         if core is not None:
             _paint(ax, core, _extent(scenario, x, y), SAFE_COLOUR, alpha=0.7)
         lo, hi = scenario.lower, scenario.upper
@@ -113,13 +112,13 @@ def failures_figure(scenario, centres, h, trajectories, labels=None):
                 for line in axs[0, 0].get_lines() if named and not line.get_label().startswith("_")]
     name = " / ".join(str(p) for p in (scenario.name, getattr(scenario, "sv_policy_name", None)) if p)
     fig.suptitle(f"{name}: {len(trajectories)} failing run{'s' * (len(trajectories) != 1)} "
-                 f"over the safe set ({len(centres)} boxes, half-width {h:g})", fontsize=10)
+                 f"over the safe set ({len(safe_set)} boxes, {safe_set.describe_widths()})", fontsize=10)
     fig.legend(handles=handles, loc="outside right center", fontsize=9)
     return fig
 
 
-def draw_failures(path, scenario, centres, h, trajectories, labels=None) -> Path:
-    """Failing runs drawn over the safe set (``centres`` (M, n), half-width ``h``).
+def draw_failures(path, scenario, safe_set, trajectories, labels=None) -> Path:
+    """Failing runs drawn over ``safe_set`` (a SafeSet).
 
     ``trajectories``: a list of (T, n) state arrays (e.g. the failing runs of a campaign
     recording, ``farm.recording.read_recording(...)["runs"][i]["trajectory"]``);
@@ -129,4 +128,4 @@ def draw_failures(path, scenario, centres, h, trajectories, labels=None) -> Path
     coordinates, Sigma dashed, each run as a line from its start (circle) to its last
     state (cross). Writes the PNG at ``path`` (parent directories created); -> ``path``.
     Raises ValueError on a trajectory of the wrong shape or a label count mismatch."""
-    return _save(failures_figure(scenario, centres, h, trajectories, labels), path)
+    return _save(failures_figure(scenario, safe_set, trajectories, labels), path)

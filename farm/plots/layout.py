@@ -26,10 +26,13 @@ def _settings(scenario, held: dict[int, float]) -> str:
     return ", ".join(_setting(scenario, a, v) for a, v in held.items())
 
 
-def _title(scenario, centres, h, summary: dict) -> str:
-    parts = [summary.get("scenario") or scenario.name,
-             summary.get("sv_policy") or getattr(scenario, "sv_policy_name", None), summary.get("algorithm")]
-    return f"{' / '.join(str(p) for p in parts if p)}: {len(centres)} boxes, half-width {h:g}"
+def _title(scenario, safe_set, summary=None) -> str:
+    """"<scenario> / <SV policy> / <algorithm>: <M> boxes, half-width <w>"; ``summary``
+    (farm.summary.Summary, optional) names them as the campaign did."""
+    parts = [summary.scenario if summary else scenario.name,
+             (summary.sv_policy if summary else "") or getattr(scenario, "sv_policy_name", None),
+             summary.algorithm if summary else None]
+    return f"{' / '.join(str(p) for p in parts if p)}: {len(safe_set)} boxes, {safe_set.describe_widths()}"
 
 
 def _own(items, scenario, names_of) -> list:

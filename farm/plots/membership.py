@@ -7,26 +7,39 @@ import numpy as np
 from coordinator.spatial import TOLERANCE, PointIndex
 
 
-def _member(centres: np.ndarray, h: float, lower, upper=None) -> callable:
-    """Membership in the union of boxes, (G, n) -> (G,) bool. With ``upper`` the index
-    uses its dense fast path (Sigma as bounds)."""
-    centres = np.asarray(centres, dtype=float).reshape(-1, len(lower))
-    if not len(centres) or h <= 0:  # an empty set (a zero cell would break the index)
-        return lambda pts: np.zeros(len(pts), dtype=bool)
-    return _Membership(centres, h, lower, upper)
+def _member(centres: np.ndarray, half_widths, n: int, lower=None, upper=None, distinct: bool = False) -> callable:
+    """Membership in the union of boxes centre +- half-width (``half_widths``: one per
+    box, or one for all), (G, n) -> (G,) bool: one index per half-width, anchored at
+    ``lower`` (default: the lowest centre of that size). With ``upper`` too the index
+    uses its dense fast path (Sigma as bounds). ``distinct``: drop repeated boxes."""
+    centres = np.asarray(centres, dtype=float).reshape(-1, n)
+    widths = np.broadcast_to(np.asarray(half_widths, dtype=float), (len(centres),))
+    members = []
+    for width in np.unique(widths[widths > 0]):  # an empty size would need a zero cell
+        group = centres if (widths == width).all() else centres[widths == width]
+        members.append(_Membership(group, float(width), group.min(axis=0) if lower is None else lower, upper,
+                                   distinct))
+    if len(members) == 1:
+        return members[0]
+    return lambda pts: np.logical_or.reduce([m(pts) for m in members] + [np.zeros(len(pts), dtype=bool)])
+
+
+def _set_member(scenario, safe_set) -> callable:
+    """Membership in a safe set, indexed over Sigma."""
+    return _member(safe_set.centres, safe_set.half_widths, scenario.n, scenario.lower, scenario.upper)
 
 
 class _Membership:
     """Membership in a union of equal boxes, indexing only the boxes a query can meet.
 
     A figure's query holds some coordinates at one value (a slice holds all but two):
-    only boxes within h of those values can contain its points, often a few percent of
+    only boxes within a half-width of those values can contain its points, often a few percent of
     a large set. The index over them is built on first use and kept per held values;
     a full index (one over every box, ~130 bytes per box) is built only for a query that
     holds nothing. The answers are those of one index over all boxes."""
 
-    def __init__(self, centres: np.ndarray, h: float, lower, upper=None, distinct: bool = False):
-        self.centres, self.h, self.distinct = centres, float(h), distinct
+    def __init__(self, centres: np.ndarray, half_width: float, lower, upper=None, distinct: bool = False):
+        self.centres, self.half_width, self.distinct = centres, float(half_width), distinct
         self.lower = np.asarray(lower, float)
         self.bounds = None if upper is None else (self.lower, np.asarray(upper, float))
         self._indexes: dict[tuple, PointIndex | None] = {}
@@ -41,18 +54,18 @@ class _Membership:
         if held not in self._indexes:
             self._indexes[held] = self._index(held)
         index = self._indexes[held]
-        return index.any_within(pts, self.h) if index is not None else np.zeros(len(pts), dtype=bool)
+        return index.any_within(pts, self.half_width) if index is not None else np.zeros(len(pts), dtype=bool)
 
     def _index(self, held: tuple) -> PointIndex | None:
         near = np.ones(len(self.centres), dtype=bool)
         for axis, value in held:
-            near &= np.abs(self.centres[:, axis] - value) <= self.h + TOLERANCE
+            near &= np.abs(self.centres[:, axis] - value) <= self.half_width + TOLERANCE
         group = self.centres if near.all() else self.centres[near]
         if self.distinct:
             group = _distinct_rows(group)
         if not len(group):
             return None
-        index = PointIndex(group.shape[1], 2 * self.h, self.lower, capacity=len(group), bounds=self.bounds)
+        index = PointIndex(group.shape[1], 2 * self.half_width, self.lower, capacity=len(group), bounds=self.bounds)
         index.insert(group)
         return index
 

@@ -4,11 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 from matplotlib.lines import Line2D
 
 from farm.plots.layout import _cuts
-from farm.plots.membership import _member
+from farm.plots.membership import _set_member
 from farm.plots.slices import _extent, _frame, _paint, _panel_grid, _plane
 from farm.plots.style import OVERLAY_COLOURS, _save
 
@@ -33,8 +32,7 @@ def overlay_figure(scenario, sets, labels):
     if not sets or len(sets) != len(labels):
         raise ValueError(f"overlay: {len(sets)} sets and {len(labels)} labels; need one label per set, at least one")
     colours = [OVERLAY_COLOURS[k % len(OVERLAY_COLOURS)] for k in range(len(sets))]
-    members = [_member(np.asarray(c, float).reshape(-1, scenario.n), h, scenario.lower, scenario.upper)
-               for c, h in sets]
+    members = [_set_member(scenario, s) for s in sets]
     rows = [_cuts(scenario, spec) for spec in scenario.slices()]
     fig, axs = _panel_grid(rows)
     for r, row in enumerate(rows):
@@ -49,7 +47,7 @@ def overlay_figure(scenario, sets, labels):
             ax.set_ylim(extent[2:])
             _frame(ax, scenario, x, y, held)
     handles = [Line2D([], [], color=c, linestyle=_stroke(k)[0], linewidth=_stroke(k)[1],
-                      label=f"{label} ({len(np.atleast_2d(s[0]))} boxes)")
+                      label=f"{label} ({len(s)} boxes)")
                for k, (c, label, s) in enumerate(zip(colours, labels, sets))]
     fig.suptitle(f"{scenario.name}: safe sets compared ({' vs '.join(labels)})\n"
                  "each set shaded and outlined in its colour", fontsize=10)
@@ -61,8 +59,7 @@ def draw_overlay(path, scenario, sets, labels) -> Path:
     """Overlay quantified safe sets of one scenario on the same 2-D cuts (the scenario's
     Slices hints), like the paper's Fig. 2 comparing the brake and idm SV policies.
 
-    ``sets``: a list of ``(centres (M, n), h)``, one per set (e.g. from two campaign
-    directories); ``labels``: one name per set, shown in the legend. Each set is shaded
+    ``sets``: a list of SafeSets (e.g. from two campaign directories); ``labels``: one name per set, shown in the legend. Each set is shaded
     translucently and outlined in its own colour. Writes the PNG at ``path`` (parent
     directories created); -> ``path``. Raises ValueError if labels and sets differ in
     number."""

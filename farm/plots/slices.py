@@ -10,7 +10,7 @@ from matplotlib.patches import Patch, Rectangle
 
 from farm.plots.explored import _explored_member
 from farm.plots.layout import _cuts, _label, _panel_title, _slices, _title
-from farm.plots.membership import _member, _points, _samples
+from farm.plots.membership import _points, _samples, _set_member
 from farm.plots.style import (NEVER_COLOUR, NEVER_HATCH, NEVER_HATCH_COLOUR, OUTSIDE_COLOUR, PRUNED_COLOUR,
                               RESOLUTION, SAFE_COLOUR)
 
@@ -98,13 +98,13 @@ def _panel_grid(rows: list[list], width=4.2, height=3.8):
     return fig, axs
 
 
-def slices_figure(scenario, centres, h, summary: dict, slices=None, explored=None):
-    """2-D cuts of the safe set (default: the scenario's own Slices hints), one row per
+def slices_figure(scenario, safe_set, summary=None, slices=None, explored=None):
+    """2-D cuts of ``safe_set`` (default: the scenario's own Slices hints), one row per
     hint, as a Figure with a legend. ``explored``: the boxes the campaign explored
     (``(points (P, n), half_widths (P,))``, see ``explored_boxes``): the cuts then tell
     safe, unsafe (explored and pruned) and never explored apart; None: safe or not."""
     rows = [_cuts(scenario, spec) for spec in (_slices(scenario) if slices is None else slices)]
-    member = _member(centres, h, scenario.lower, scenario.upper)
+    member = _set_member(scenario, safe_set)
     explored_member = None if explored is None else _explored_member(explored, scenario.n)
     fig, axs = _panel_grid(rows)
     never = 0
@@ -112,7 +112,7 @@ def slices_figure(scenario, centres, h, summary: dict, slices=None, explored=Non
         for ax, (x, y, held) in zip(axs[r], row):
             never += _draw_slice(ax, scenario, member, x, y, held, explored_member)
     what = "safe, pruned and never-explored states" if explored is not None else "the safe set"
-    fig.suptitle(f"{_title(scenario, centres, h, summary)}\n2-D cuts: {what}", fontsize=10)
+    fig.suptitle(f"{_title(scenario, safe_set, summary)}\n2-D cuts: {what}", fontsize=10)
     handles = _set_legend(explored is not None, never > 0)
     fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=9)
     return fig

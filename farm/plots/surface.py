@@ -6,7 +6,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from farm.plots.layout import _label, _settings, _title, _views
-from farm.plots.membership import _axis, _held, _member, _points, _samples
+from farm.plots.membership import _axis, _held, _points, _samples, _set_member
 from farm.plots.style import SURFACE_DEPTH, SURFACE_GRID, VIEW_AZIMUTH, VIEW_ELEVATION
 
 
@@ -60,15 +60,15 @@ def _draw_view(fig, ax, scenario, member, view) -> None:
     ax.set_title("\n".join(words), fontsize=9)
 
 
-def surface_figure(scenario, centres, h, summary: dict, views=None):
-    """The 3-D boundary surfaces of ``views`` (default: the scenario's own) in one
-    Figure, or None when there is no view (a 2-D scenario)."""
+def surface_figure(scenario, safe_set, summary=None, views=None):
+    """The 3-D boundary surfaces of ``safe_set`` in ``views`` (default: the scenario's
+    own) in one Figure, or None when there is no view (a 2-D scenario)."""
     views = _views(scenario) if views is None else views
     if not views:
         return None
-    member = _member(centres, h, scenario.lower, scenario.upper)
+    member = _set_member(scenario, safe_set)
     fig = plt.figure(figsize=(7 * len(views), 6), layout="constrained")
     for k, view in enumerate(views):
         _draw_view(fig, fig.add_subplot(1, len(views), k + 1, projection="3d"), scenario, member, view)
-    fig.suptitle(_title(scenario, centres, h, summary), fontsize=10)
+    fig.suptitle(_title(scenario, safe_set, summary), fontsize=10)
     return fig

@@ -3,17 +3,14 @@ leaves the state whole (the last checkpoint gathers it after), and ``release`` l
 answers (``result``, ``counts``, ``failure_points``) as they were. Real campaigns, every
 algorithm (SPE also with deterministic certification, whose certificates it drops)."""
 
-from functools import partial
 
 import numpy as np
 import pytest
 
-from coordinator.baselines import make_algorithm
-from coordinator.campaign import Campaign
-from coordinator.sample_size import n_eps, n_eps_attempt
 from farm import config as config_mod
-from farm.executors import LocalExecutor, build_simulator
-from farm.quantification import spec_of
+from farm.local_executor import LocalExecutor
+from farm.simulators import build_simulator
+from farm.campaign_setup import build_algorithm, build_campaign, spec_of
 
 
 @pytest.mark.parametrize("algorithm,mode", [("spe", "uniform"), ("spe", "adversarial"), ("ae", "uniform"),
@@ -25,11 +22,8 @@ def test_a_done_algorithm_keeps_its_state_until_released_and_its_answers_after(a
                      "horizon": 30, "budget": 5_000},  # vs may draw box after box: done by the budget
         "farm": {"executor": "local", "batch_size": 256, "seed": 1}})
     sim = build_simulator(spec_of(cfg))
-    algo = make_algorithm(algorithm, sim.scenario, cfg.quantify.settings(), cfg.farm.seed, sim.deterministic)
-    counters = Campaign(algo, LocalExecutor(spec_of(cfg)), n_eps=n_eps(cfg.quantify.epsilon, cfg.quantify.beta),
-                        budget=cfg.quantify.budget, batch_size=cfg.farm.batch_size,
-                        pipeline_depth=cfg.farm.pipeline_depth, seed=cfg.farm.seed, certify=algorithm == "spe",
-                        certify_quiet=partial(n_eps_attempt, cfg.quantify.epsilon, cfg.quantify.beta)).run()
+    algo = build_algorithm(cfg, sim)
+    counters = build_campaign(cfg, algo, sim, LocalExecutor(spec_of(cfg))).run()
     assert counters.done
     state = {k: np.array(v, copy=True) for k, v in algo.state().items()}
     answers = (algo.result(), algo.counts(), algo.failure_points())
@@ -38,8 +32,8 @@ def test_a_done_algorithm_keeps_its_state_until_released_and_its_answers_after(a
     assert after.keys() == state.keys()
     assert all(np.array_equal(after[k], v) for k, v in state.items())
     algo.release()
-    (centres, h), counts, failures = algo.result(), algo.counts(), algo.failure_points()
-    assert np.array_equal(centres, answers[0][0]) and h == answers[0][1]
+    safe_set, counts, failures = algo.result(), algo.counts(), algo.failure_points()
+    assert np.array_equal(safe_set.centres, answers[0].centres) and safe_set.result_hash == answers[0].result_hash
     assert counts == answers[1]
     assert np.array_equal(failures, answers[2])
     if mode == "adversarial":  # certification ran: the certified count survives the release

@@ -4,17 +4,14 @@ state epoch: a saved row that changed would be restored wrong. Checked on real c
 (uniform actions; Gamma* with deterministic certification, whose certificates are
 append-only too) by comparing every chunk's state with the previous one."""
 
-from functools import partial
 
 import numpy as np
 import pytest
 
-from coordinator.baselines import make_algorithm
-from coordinator.campaign import Campaign
-from coordinator.sample_size import n_eps, n_eps_attempt
 from farm import config as config_mod
-from farm.executors import LocalExecutor, build_simulator
-from farm.quantification import spec_of
+from farm.local_executor import LocalExecutor
+from farm.simulators import build_simulator
+from farm.campaign_setup import build_algorithm, build_campaign, spec_of
 
 
 @pytest.mark.parametrize("algorithm,mode", [("spe", "uniform"), ("spe", "adversarial"), ("ae", "uniform")])
@@ -25,7 +22,7 @@ def test_declared_append_only_arrays_only_gain_rows(algorithm, mode):
                      "horizon": 30},
         "farm": {"executor": "local", "batch_size": 256, "seed": 1}})
     sim = build_simulator(spec_of(cfg))
-    algo = make_algorithm(algorithm, sim.scenario, cfg.quantify.settings(), cfg.farm.seed, sim.deterministic)
+    algo = build_algorithm(cfg, sim)
     seen = {"previous": None, "compared": 0, "grown": set()}
 
     def check(_campaign) -> None:
@@ -41,10 +38,7 @@ def test_declared_append_only_arrays_only_gain_rows(algorithm, mode):
                 seen["grown"].add(name)
         seen["compared"] += 1
 
-    Campaign(algo, LocalExecutor(spec_of(cfg)), n_eps=n_eps(cfg.quantify.epsilon, cfg.quantify.beta),
-             budget=cfg.quantify.budget, batch_size=cfg.farm.batch_size, pipeline_depth=cfg.farm.pipeline_depth,
-             seed=cfg.farm.seed, on_batch=check, certify=algorithm == "spe",
-             certify_quiet=partial(n_eps_attempt, cfg.quantify.epsilon, cfg.quantify.beta)).run()
+    build_campaign(cfg, algo, sim, LocalExecutor(spec_of(cfg)), observers=[check]).run()
     assert seen["compared"] > 20
     assert seen["grown"]  # the check looked at arrays that did grow
     if mode == "adversarial":  # certification ran and its entries were journalled

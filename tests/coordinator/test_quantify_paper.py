@@ -34,19 +34,16 @@ def test_lead_follow_brake_matches_the_exact_safe_set(tmp_path):
     almost no unsafe volume claimed safe, and the sets nearly coincide."""
     import numpy as np
 
-    from farm.files import read_safe_set
-    from coordinator.spatial import PointIndex
+    from coordinator.safe_set import SafeSet
     from invariant_sets import min_future_gap_brake
     from scenarios.lead_follow import LeadFollow
 
     campaign(tmp_path, "lead-follow", "brake", delta0=2.0, delta_min=0.5)
-    centres, h = read_safe_set(tmp_path / "lead-follow-brake" / "safe_set.parquet", LeadFollow.state_names)
+    safe_set = SafeSet.from_parquet(tmp_path / "lead-follow-brake" / "safe_set.parquet", LeadFollow.state_names)
     axes = [np.linspace(lo, hi, k) for lo, hi, k in zip(LeadFollow.lower, LeadFollow.upper, (81, 81, 281))]
     grid = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
     truth = min_future_gap_brake(grid) >= -1e-9
-    index = PointIndex(3, 2 * h, LeadFollow.lower)
-    index.insert(centres)
-    claimed = index.any_within(grid, h)
+    claimed = safe_set.contains(grid)
     precision = (claimed & truth).sum() / claimed.sum()
     iou = (claimed & truth).sum() / (claimed | truth).sum()
     print(f"precision {precision:.4f}, IoU {iou:.4f}")

@@ -5,11 +5,9 @@ import numpy as np
 import pytest
 
 from coordinator.baselines import make_algorithm
-from coordinator.campaign import Campaign
-from coordinator.sample_size import n_eps
-from coordinator.spatial import PointIndex
+from coordinator.campaign import Campaign, CampaignSettings
 from coordinator.spe import SPESettings
-from farm.executors import LocalExecutor
+from farm.local_executor import LocalExecutor
 from scenarios.simulator import SimSpec
 from scenarios import make_scenario
 from scenarios.toy import WELLS, Toy
@@ -24,13 +22,11 @@ def quantify(algorithm, seed, delta0=1.0, delta_min=0.25):
     scenario = make_scenario("toy", sv_policy="none")
     algo = make_algorithm(algorithm, scenario, SPESettings(delta0=delta0, gamma=0.5, delta_min=delta_min), seed)
     executor = LocalExecutor(SimSpec({"name": "toy", "sv_policy": "none"}, {"mode": "uniform"}, 20, seed))
-    counters = Campaign(algo, executor, n_eps=n_eps(0.01, 0.1), budget=400_000, batch_size=256,
-                        pipeline_depth=2, seed=seed).run()
+    settings = CampaignSettings(epsilon=0.01, beta=0.1, budget=400_000, batch_size=256, pipeline_depth=2, seed=seed)
+    counters = Campaign(algo, executor, settings).run()
     assert counters.converged
-    centres, h = algo.result()
-    index = PointIndex(2, 2 * h, np.zeros(2))
-    index.insert(centres)
-    return index.any_within(GRID, h), centres, h
+    safe_set = algo.result()
+    return safe_set.contains(GRID), safe_set.centres, safe_set.half_width
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -1,11 +1,13 @@
 import json
 import subprocess
 import sys
+from functools import partial
 
 import numpy as np
 import pytest
 
 from coordinator.reference import NoReference, compare_boxes, falsify, grid, reference_safe
+from coordinator.safe_set import SafeSet
 from invariant_sets import min_future_gap_brake
 from scenarios import NumpyBackend, make_scenario
 from scenarios.worst_case_rollout import safe_until_standstill
@@ -37,16 +39,17 @@ def test_compare_scores_a_perfect_and_a_shifted_set():
     sc = NumpyBackend(make_scenario("toy", sv_policy="none"))
     xs = np.concatenate([np.arange(1.25, 4.0, 0.5), np.arange(6.25, 9.0, 0.5)])
     centres = np.stack(np.meshgrid(xs, np.arange(0.25, 10.0, 0.5), indexing="ij"), -1).reshape(-1, 2)
-    perfect = compare_boxes(sc, centres, 0.25, grid_points_per_axis=200)
+    boxes = partial(SafeSet.uniform, half_width=0.25, state_names=("x", "y"))
+    perfect = compare_boxes(sc, boxes(centres), grid_points_per_axis=200)
     assert perfect["iou"] == 1.0 and perfect["hausdorff"] < 0.1
     assert perfect["missed_depth_boxes"] == perfect["overclaimed_depth_boxes"] == 0.0
     assert perfect["grid_cell_boxes"] == pytest.approx(0.1)  # cells of 0.05, boxes 0.5 wide
-    one_well = compare_boxes(sc, centres[centres[:, 0] < 5], 0.25, grid_points_per_axis=200)
+    one_well = compare_boxes(sc, boxes(centres[centres[:, 0] < 5]), grid_points_per_axis=200)
     assert one_well["precision"] == 1.0 and 0.45 < one_well["iou"] < 0.55
     assert abs(one_well["hausdorff"] - 5.0) < 0.1  # the missed well is 5 away from the found one
     # the missed well (x in [6, 9]) reaches 1.5 = 3 box widths into the safe region
     assert one_well["missed_depth_boxes"] == pytest.approx(3.0) and one_well["overclaimed_depth_boxes"] == 0.0
-    shifted = compare_boxes(sc, centres + [0.5, 0.0], 0.25, grid_points_per_axis=200)
+    shifted = compare_boxes(sc, boxes(centres + [0.5, 0.0]), grid_points_per_axis=200)
     assert shifted["iou"] < perfect["iou"] and shifted["precision"] < 1.0
     # a band one box (0.5) wide missed at each well's left edge, claimed at its right
     assert shifted["missed_depth_boxes"] == pytest.approx(1.0)

@@ -11,8 +11,7 @@ import ray
 from ray.cluster_utils import Cluster
 
 from farm import config as config_mod
-from farm import quantification
-from farm import ray_executor, ray_session
+from farm import facet_campaign, quantification, ray_session
 
 
 def main(raw_config: str) -> None:
@@ -22,14 +21,14 @@ def main(raw_config: str) -> None:
         cluster.add_node(num_cpus=1)
     ray.init(address=cluster.address, log_to_driver=False, configure_logging=False)
     nodes_seen: list[list[str]] = []
-    make = ray_executor.make_executor
+    make = facet_campaign.make_executor
 
     def make_and_look(*args, **kwargs):
         executor = make(*args, **kwargs)
         nodes_seen.append(executor.nodes())
         return executor
 
-    quantification.make_executor = make_and_look
+    facet_campaign.make_executor = make_and_look
     cfg = config_mod.normalize(json.loads(raw_config))
     try:
         summary = quantification.run(cfg, Path(tempfile.mkdtemp()) / "c")

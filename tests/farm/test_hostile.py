@@ -375,7 +375,7 @@ DAMAGE_CASES = [  # (finished?, file, damage, command, words)
     # issue 34 point 8: a garbage summary.json or ledger segment was a raw JSON or pyarrow error
     (True, "summary.json", "garbage", "status", ["summary.json: not valid JSON"]),
     (True, "summary.json", "garbage", "report", ["summary.json: not valid JSON"]),
-    (True, "summary.json", "text:{}", "status", ["summary.json: lacks 'boxes'"]),
+    (True, "summary.json", "text:{}", "status", ["summary.json: lacks", "boxes"]),
     (True, "summary.json", "text:[1, 2]", "report", ["summary.json: holds a JSON list"]),
     (True, SEGMENT, "garbage", "replay", [SEGMENT + ": ledger segment is damaged"]),
     (True, SEGMENT, "empty", "report", [SEGMENT + ": ledger segment is damaged"]),
@@ -383,7 +383,7 @@ DAMAGE_CASES = [  # (finished?, file, damage, command, words)
     (True, SEGMENT, "delete", "replay", ["sample 0 is not in the ledger"]),
     (True, "config.json", "garbage", "status", ["config.json: not valid JSON"]),
     (True, "config.json", "text:{\"config\": 3, \"config_hash\": 1}", "status", ["config.json: lacks"]),
-    (True, "config.json", "garbage", "replay", ["config.json: unreadable"]),
+    (True, "config.json", "garbage", "replay", ["config.json: not valid JSON"]),
     (True, ".scenario-farm.json", "garbage", "report", ["not a campaign directory"]),
     (True, "safe_set.parquet", "half", "report", ["safe_set.parquet: not a readable Parquet safe set"]),
     (True, "safe_set.parquet", "delete", "compare", ["safe_set.parquet: no such safe-set file"]),
@@ -397,7 +397,7 @@ DAMAGE_CASES = [  # (finished?, file, damage, command, words)
     (False, "checkpoint.npz", "delete", "resume", ["checkpoint.npz is missing"]),
     (False, SEGMENT, "half", "resume", ["ledger segment is corrupt"]),
     (False, SEGMENT, "delete", "resume", ["ledger segment missing"]),
-    (False, "config.json", "garbage", "resume", ["config.json: unreadable"]),
+    (False, "config.json", "garbage", "resume", ["config.json: not valid JSON"]),
     (False, ".scenario-farm.json", "delete", "resume", ["not a campaign directory"]),
     (False, ".scenario-farm.json", "text:{\"format\": 1}", "resume", ["directory format 1"]),
 ]

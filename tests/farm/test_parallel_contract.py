@@ -91,43 +91,29 @@ def test_n_eps_rule_is_exact_in_the_committed_record(reference, tmp_path):
     assert summary["runs_simulated"] == summary["runs_committed"] + summary["runs_dropped"]
 
 
-def test_a_killed_worker_costs_time_not_results(ray_local, reference, tmp_path):
-    from farm import quantification
+def test_a_killed_worker_costs_time_not_results(ray_local, reference, tmp_path, monkeypatch):
+    from farm import facet_campaign
 
     killed = []
-    original = quantification.Part.run
+    make = facet_campaign.make_executor
 
-    def run_and_kill(self, *args, **kwargs):
-        from farm import ray_executor
+    def make_and_arm(*a, **k):
+        ex = make(*a, **k)
+        pids = ex.pids()
+        result = ex.result
 
-        make = ray_executor.make_executor
+        def result_then_kill(handle):
+            batch = result(handle)
+            if not killed:
+                os.kill(pids[0], signal.SIGKILL)
+                killed.append(pids[0])
+            return batch
 
-        def make_and_arm(*a, **k):
-            ex = make(*a, **k)
-            pids = ex.pids()
-            result = ex.result
+        ex.result = result_then_kill
+        return ex
 
-            def result_then_kill(handle):
-                batch = result(handle)
-                if not killed:
-                    os.kill(pids[0], signal.SIGKILL)
-                    killed.append(pids[0])
-                return batch
-
-            ex.result = result_then_kill
-            return ex
-
-        quantification.make_executor = make_and_arm
-        try:
-            return original(self, *args, **kwargs)
-        finally:
-            quantification.make_executor = make
-
-    quantification.Part.run = run_and_kill
-    try:
-        summary = run(contract_config("ray", 2), tmp_path / "c", resume=False)
-    finally:
-        quantification.Part.run = original
+    monkeypatch.setattr(facet_campaign, "make_executor", make_and_arm)
+    summary = run(contract_config("ray", 2), tmp_path / "c", resume=False)
     assert killed
     assert summary["result_hash"] == reference["result_hash"]
 
@@ -155,7 +141,7 @@ def test_batches_are_cut_into_chunks_of_at_least_min_chunk_runs(ray_local, monke
     pipeline_depth chunks when that many batches are in flight; results are the same
     either way (the test above)."""
     from farm import ray_executor
-    from farm.quantification import spec_of
+    from farm.campaign_setup import spec_of
 
     monkeypatch.setattr(ray_executor, "MIN_CHUNK", 256)
     cfg = contract_config("ray", 4)
@@ -183,7 +169,7 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
     snapshot), and each screening is made at the coverage as it was submitted."""
     from coordinator.coverage import Coverage, Insert
     from farm import ray_executor
-    from farm.quantification import spec_of
+    from farm.campaign_setup import spec_of
     from farm.ray_executor import RayExecutor
 
     monkeypatch.setattr(ray_executor, "MIN_CHUNK", 256)  # 20 runs: one chunk
@@ -231,7 +217,7 @@ def test_a_dropped_chunk_is_left_to_finish_and_the_actor_goes_on(ray_local):
     reorder timeout. A chunk queued behind a running one is dropped; it still runs (the
     actor counts 3 tasks, 2 had it been cancelled), and the next chunk comes back."""
     from farm import ray_executor
-    from farm.quantification import spec_of
+    from farm.campaign_setup import spec_of
 
     ex = ray_executor.RayExecutor(spec_of(contract_config("ray", 1)), 1)
     try:

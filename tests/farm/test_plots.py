@@ -10,8 +10,10 @@ import pytest
 from matplotlib.colors import to_rgba
 from matplotlib.text import Text
 
+from coordinator.safe_set import SafeSet
 from farm import plots
 from farm.plots.membership import _member, _points
+from farm.summary import Summary
 from scenarios.fleet3 import Fleet3
 from scenarios.lead_follow import LeadFollow
 from scenarios.toy import Toy
@@ -32,10 +34,20 @@ def grid_centres(scenario, h, keep):
     return centres[keep(centres)]
 
 
+def uniform_set(sc, centres, h):
+    return SafeSet.uniform(centres, h, sc.state_names)
+
+
+def named(scenario, algorithm, sv_policy=""):
+    """A summary that names a campaign (all the figures read of it)."""
+    return Summary(scenario=scenario, sv_policy=sv_policy, algorithm=algorithm, boxes=0, result_hash="",
+                   guarantee="")
+
+
 def lead_follow_set():
     # safe when the gap is at least 2 * (v0 - v1): boundary from 0 m up to 40 m of 70 m
     sc = LeadFollow("idm")
-    return sc, grid_centres(sc, 1.0, lambda c: c[:, 2] + 1 >= 2 * (c[:, 0] - c[:, 1])), 1.0
+    return sc, uniform_set(sc, grid_centres(sc, 1.0, lambda c: c[:, 2] + 1 >= 2 * (c[:, 0] - c[:, 1])), 1.0)
 
 
 def fleet3_set(failure_facets=None):
@@ -51,7 +63,7 @@ def fleet3_set(failure_facets=None):
             ok &= (c[:, 4] <= -8) | (c[:, 2] <= c[:, 0])
         return ok
 
-    return sc, grid_centres(sc, 1.5, keep), 1.5
+    return sc, uniform_set(sc, grid_centres(sc, 1.5, keep), 1.5)
 
 
 def texts(fig):
@@ -72,8 +84,8 @@ def assert_png(path):
 
 
 def test_draw_writes_the_public_files_for_lead_follow(tmp_path):
-    sc, centres, h = lead_follow_set()
-    written = plots.draw(tmp_path / "plots", sc, centres, h, {"scenario": "lead-follow", "algorithm": "spe"})
+    sc, safe_set = lead_follow_set()
+    written = plots.draw(tmp_path / "plots", sc, safe_set, named("lead-follow", "spe"))
     assert written == [tmp_path / "plots" / "safe_set_3d.png", tmp_path / "plots" / "safe_set_slices.png"]
     for path in written:
         assert_png(path)
@@ -81,21 +93,19 @@ def test_draw_writes_the_public_files_for_lead_follow(tmp_path):
 
 def test_draw_writes_the_files_of_fleet3_total_and_sides(tmp_path):
     # as farm.quantification calls it: the total, then one directory per side
-    sc, centres, h = fleet3_set()
-    summary = {"scenario": "fleet3", "sv_policy": "idm", "algorithm": "spe"}
-    plots.draw(tmp_path / "plots", sc, centres, h, summary)
+    sc, safe_set = fleet3_set()
+    plots.draw(tmp_path / "plots", sc, safe_set, named("fleet3", "spe", "idm"))
     for label, facet in [("lead", "p10"), ("rear", "p20")]:
-        side, sc_side, h_side = fleet3_set((facet,))
-        plots.draw(tmp_path / "plots" / f"{label}_side", side, sc_side, h_side,
-                   {**summary, "algorithm": f"{label} side"})
+        side, side_set = fleet3_set((facet,))
+        plots.draw(tmp_path / "plots" / f"{label}_side", side, side_set, named("fleet3", f"{label} side", "idm"))
     for folder in ("", "lead_side", "rear_side"):
         for name in ("safe_set_3d.png", "safe_set_slices.png"):
             assert_png(tmp_path / "plots" / folder / name)
 
 
 def test_3d_axes_carry_units_a_colour_bar_and_limits_that_fit_the_surface():
-    sc, centres, h = lead_follow_set()
-    fig = plots.surface_figure(sc, centres, h, {})
+    sc, safe_set = lead_follow_set()
+    fig = plots.surface_figure(sc, safe_set)
     (ax,) = visible_axes(fig, "3d")
     assert (ax.get_xlabel(), ax.get_ylabel(), ax.get_zlabel()) == ("v0 [m/s]", "v1 [m/s]", "p10 [m]")
     colour_bars = [a for a in fig.axes if a is not ax]
@@ -109,8 +119,8 @@ def test_3d_axes_carry_units_a_colour_bar_and_limits_that_fit_the_surface():
 
 
 def test_slices_without_an_exploration_record_have_a_legend_units_and_two_distinct_non_white_colours():
-    sc, centres, h = lead_follow_set()
-    fig = plots.slices_figure(sc, centres, h, {})
+    sc, safe_set = lead_follow_set()
+    fig = plots.slices_figure(sc, safe_set)
     panels = visible_axes(fig)
     assert len(panels) == 4
     for ax in panels:
@@ -146,8 +156,8 @@ def pixel(ax, x, y):
 
 
 def test_slices_tell_safe_pruned_and_never_explored_apart():
-    sc, centres, h = lead_follow_set()
-    fig = plots.slices_figure(sc, centres, h, {}, explored=explored_below_v0(sc, 12))
+    sc, safe_set = lead_follow_set()
+    fig = plots.slices_figure(sc, safe_set, explored=explored_below_v0(sc, 12))
     assert legend_texts(fig) == ["safe (in the quantified set)", "unsafe: explored and pruned", "never explored"]
     safe, pruned, never = (np.array(to_rgba(c)[:3]) for c in (plots.SAFE_COLOUR, plots.PRUNED_COLOUR,
                                                                plots.NEVER_COLOUR))
@@ -171,7 +181,7 @@ def test_draw_reads_what_the_campaign_explored_from_its_directory(tmp_path):
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    sc, centres, h = lead_follow_set()
+    sc, safe_set = lead_follow_set()
     boxes, widths = explored_below_v0(sc, 12)
     (tmp_path / "ledger").mkdir()
     pq.write_table(pa.table({"sample_index": np.arange(len(boxes)), "round": np.zeros(len(boxes), int),
@@ -181,7 +191,7 @@ def test_draw_reads_what_the_campaign_explored_from_its_directory(tmp_path):
     np.testing.assert_allclose(points, boxes)
     assert plots.explored_boxes(tmp_path / "elsewhere", sc.state_names) is None
     # the same classes as with the record passed in: pruned and never-explored pixels
-    plots.draw(tmp_path / "plots", sc, centres, h, {})
+    plots.draw(tmp_path / "plots", sc, safe_set)
     from matplotlib.image import imread
 
     image = imread(tmp_path / "plots" / "safe_set_slices.png")[..., :3]
@@ -189,14 +199,14 @@ def test_draw_reads_what_the_campaign_explored_from_its_directory(tmp_path):
     assert (np.abs(image - pruned).max(axis=2) < 0.02).sum() > 500
     assert (np.abs(image - never).max(axis=2) < 0.02).sum() > 500
     # explored=False: safe or not, as without a record
-    plots.draw(tmp_path / "plots", sc, centres, h, {}, explored=False)
+    plots.draw(tmp_path / "plots", sc, safe_set, explored=False)
     image = imread(tmp_path / "plots" / "safe_set_slices.png")[..., :3]
     assert (np.abs(image - pruned).max(axis=2) < 0.02).sum() == 0
 
 
 def test_a_slice_of_a_three_state_scenario_names_its_fixed_coordinate_not_mid_range():
-    sc, centres, h = lead_follow_set()
-    fig = plots.slices_figure(sc, centres, h, {})
+    sc, safe_set = lead_follow_set()
+    fig = plots.slices_figure(sc, safe_set)
     words = texts(fig)
     assert not any("mid-range" in w or "other coordinates" in w for w in words)
     assert [ax.get_title() for ax in visible_axes(fig)] == ["v1 = 0 m/s", "v1 = 6.67 m/s", "v1 = 13.3 m/s",
@@ -204,72 +214,73 @@ def test_a_slice_of_a_three_state_scenario_names_its_fixed_coordinate_not_mid_ra
 
 
 def test_fleet3_slices_and_views_say_where_the_hidden_coordinates_are_held():
-    sc, centres, h = fleet3_set()
-    slices = plots.slices_figure(sc, centres, h, {})
+    sc, safe_set = fleet3_set()
+    slices = plots.slices_figure(sc, safe_set)
     titles = [ax.get_title() for ax in visible_axes(slices)]
     assert titles[0] == "v1 = 0 m/s, v2 = 3 m/s, p20 = -15 m"
     assert titles[4] == "v2 = 0 m/s, v1 = 3 m/s, p10 = 15 m"
-    surfaces = plots.surface_figure(sc, centres, h, {})
+    surfaces = plots.surface_figure(sc, safe_set)
     lead, rear = (ax.get_title() for ax in visible_axes(surfaces, "3d"))
     assert lead.startswith("lead side (v0, v1, p10)") and "held at v2 = 3 m/s, p20 = -15 m" in lead
     assert rear.startswith("rear side (v0, v2, p20)") and "held at v1 = 3 m/s, p10 = 15 m" in rear
 
 
 def test_the_rear_side_figures_show_the_rear_side_only():
-    sc, centres, h = fleet3_set(("p20",))
-    summary = {"scenario": "fleet3", "algorithm": "rear side"}
-    surfaces = plots.surface_figure(sc, centres, h, summary)
+    sc, safe_set = fleet3_set(("p20",))
+    summary = named("fleet3", "rear side")
+    surfaces = plots.surface_figure(sc, safe_set, summary)
     (ax,) = visible_axes(surfaces, "3d")
     assert "rear" in ax.get_title() and "lead" not in ax.get_title()
     assert ax.get_zlabel() == "p20 [m]"
     assert [a.get_ylabel() for a in surfaces.axes if a is not ax] == ["largest safe p20 [m]"]
     assert "rear side" in surfaces._suptitle.get_text()
-    slices = plots.slices_figure(sc, centres, h, summary)
+    slices = plots.slices_figure(sc, safe_set, summary)
     assert {a.get_ylabel() for a in visible_axes(slices)} == {"p20 [m]"}
     assert not any("lead" in w for w in texts(surfaces) + texts(slices))
 
 
 def test_a_two_state_scenario_gets_slices_only_and_no_held_coordinates(tmp_path):
     sc = Toy()
-    centres = grid_centres(sc, 0.5, lambda c: (c[:, 0] > 1) & (c[:, 0] < 4))
-    assert plots.draw(tmp_path, sc, centres, 0.5, {}) == [tmp_path / "safe_set_slices.png"]
-    fig = plots.slices_figure(sc, centres, 0.5, {})
+    safe_set = uniform_set(sc, grid_centres(sc, 0.5, lambda c: (c[:, 0] > 1) & (c[:, 0] < 4)), 0.5)
+    assert plots.draw(tmp_path, sc, safe_set) == [tmp_path / "safe_set_slices.png"]
+    fig = plots.slices_figure(sc, safe_set)
     (ax,) = visible_axes(fig)
     assert ax.get_title() == "the whole state plane" and (ax.get_xlabel(), ax.get_ylabel()) == ("x", "y")
 
 
 def test_an_empty_set_is_drawn_and_says_so(tmp_path):
     sc = LeadFollow("idm")
-    written = plots.draw(tmp_path, sc, np.zeros((0, 3)), 1.0, {})
+    empty = uniform_set(sc, np.zeros((0, 3)), 1.0)
+    written = plots.draw(tmp_path, sc, empty)
     assert len(written) == 2
-    fig = plots.surface_figure(sc, np.zeros((0, 3)), 1.0, {})
+    fig = plots.surface_figure(sc, empty)
     assert "no safe state in this view" in visible_axes(fig, "3d")[0].get_title()
 
 
 def test_overlay_writes_a_png_whose_legend_lists_every_set(tmp_path):
-    sc, centres, h = lead_follow_set()
-    wider = grid_centres(sc, 1.0, lambda c: c[:, 2] + 1 >= (c[:, 0] - c[:, 1]))
-    path = plots.draw_overlay(tmp_path / "cmp" / "overlay.png", sc, [(centres, h), (wider, h)], ["brake", "idm"])
+    sc, safe_set = lead_follow_set()
+    wider = uniform_set(sc, grid_centres(sc, 1.0, lambda c: c[:, 2] + 1 >= (c[:, 0] - c[:, 1])), 1.0)
+    path = plots.draw_overlay(tmp_path / "cmp" / "overlay.png", sc, [safe_set, wider], ["brake", "idm"])
     assert path == tmp_path / "cmp" / "overlay.png"
     assert_png(path)
-    fig = plots.overlay_figure(sc, [(centres, h), (wider, h)], ["brake", "idm"])
-    assert legend_texts(fig) == [f"brake ({len(centres)} boxes)", f"idm ({len(wider)} boxes)"]
+    fig = plots.overlay_figure(sc, [safe_set, wider], ["brake", "idm"])
+    assert legend_texts(fig) == [f"brake ({len(safe_set)} boxes)", f"idm ({len(wider)} boxes)"]
     panels = visible_axes(fig)
     assert len(panels) == 4 and all(ax.get_ylabel() == "p10 [m]" for ax in panels)
     # each set is outlined in its own colour where its boundary crosses the panel
     outline_colours = {tuple(np.round(c.get_edgecolor()[0][:3], 3)) for c in panels[0].collections}
     assert len(outline_colours) == 2
     with pytest.raises(ValueError, match="one label per set"):
-        plots.overlay_figure(sc, [(centres, h)], ["a", "b"])
+        plots.overlay_figure(sc, [safe_set], ["a", "b"])
 
 
 def test_failures_writes_a_png_with_runs_and_their_starts(tmp_path):
-    sc, centres, h = lead_follow_set()
+    sc, safe_set = lead_follow_set()
     runs = [np.column_stack([np.linspace(18, 12, 30), np.linspace(10, 0, 30), np.linspace(20, -1, 30)]),
             np.column_stack([np.linspace(15, 9, 20), np.full(20, 2.0), np.linspace(8, -0.5, 20)])]
-    path = plots.draw_failures(tmp_path / "failures.png", sc, centres, h, runs, ["run 3", "run 9"])
+    path = plots.draw_failures(tmp_path / "failures.png", sc, safe_set, runs, ["run 3", "run 9"])
     assert_png(path)
-    fig = plots.failures_figure(sc, centres, h, runs, ["run 3", "run 9"])
+    fig = plots.failures_figure(sc, safe_set, runs, ["run 3", "run 9"])
     (ax,) = visible_axes(fig)
     assert (ax.get_xlabel(), ax.get_ylabel()) == ("v0 [m/s]", "p10 [m]")
     assert {"start", "last state", "run 3", "run 9"} <= set(legend_texts(fig))
@@ -277,17 +288,17 @@ def test_failures_writes_a_png_with_runs_and_their_starts(tmp_path):
     np.testing.assert_allclose(starts, [[18, 20], [15, 8]])
     assert ax.get_ylim()[0] < -1  # a failing run leaves Sigma: the axes show where
     with pytest.raises(ValueError, match="trajectory 0"):
-        plots.failures_figure(sc, centres, h, [np.zeros((5, 2))])
+        plots.failures_figure(sc, safe_set, [np.zeros((5, 2))])
 
 
 def test_failures_of_fleet3_get_one_panel_per_plane(tmp_path):
-    sc, centres, h = fleet3_set()
+    sc, safe_set = fleet3_set()
     run = np.tile([4.5, 1.5, 1.5, 9.5, -15.0], (10, 1))
     run[:, 3] = np.linspace(9.5, 4.8, 10)
-    fig = plots.failures_figure(sc, centres, h, [run])
+    fig = plots.failures_figure(sc, safe_set, [run])
     assert [(ax.get_xlabel(), ax.get_ylabel()) for ax in visible_axes(fig)] == [("v0 [m/s]", "p10 [m]"),
                                                                                ("v0 [m/s]", "p20 [m]")]
-    assert_png(plots.draw_failures(tmp_path / "f.png", sc, centres, h, [run]))
+    assert_png(plots.draw_failures(tmp_path / "f.png", sc, safe_set, [run]))
 
 
 def test_membership_indexing_only_boxes_a_query_can_meet_answers_as_one_full_index():
@@ -300,7 +311,7 @@ def test_membership_indexing_only_boxes_a_query_can_meet_answers_as_one_full_ind
     centres = np.round(rng.uniform(0, 10, (20_000, 3)) / 0.5) * 0.5 + rng.choice([0, 0.1], (20_000, 1))
     full = PointIndex(3, 2 * h, lower, bounds=(lower, upper))
     full.insert(centres)
-    member = _member(centres, h, lower, upper)
+    member = _member(centres, h, 3, lower, upper)
     xs = np.linspace(0, 10, 60)
     for held in ({2: 5.0}, {2: 5.25}, {1: 3.1, 2: 7.0}, {}):
         grid = {a: xs for a in range(3) if a not in held}

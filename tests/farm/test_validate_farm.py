@@ -69,17 +69,18 @@ def test_status_reports_a_killed_campaign_as_stopped(tmp_path):
 
 
 def test_progress_lines_when_not_a_terminal_and_silence_when_quiet():
-    from coordinator.campaign import Campaign
+    from coordinator.campaign import Campaign, CampaignSettings
     from coordinator.spe import SPE, SPESettings
     from scenarios import make_scenario
 
     algo = SPE(make_scenario("toy", sv_policy="none"), SPESettings(delta0=1.0, delta_min=1.0))
-    c = Campaign(algo, None, n_eps=10, budget=10, batch_size=1, pipeline_depth=1, seed=0)
+    c = Campaign(algo, None, CampaignSettings(epsilon=0.2, beta=0.1, budget=10, batch_size=1, pipeline_depth=1))
+    assert c.n_eps == 11
     log = io.StringIO()  # not a terminal: plain lines, as a job log gets them
-    Progress(stream=log).update("total", algo, c, 10)
-    assert log.getvalue().startswith("scenario-farm: round 0") and "N_eps 0/10" in log.getvalue()
-    Progress(stream=log).update("total", algo, c, 10)
+    Progress(stream=log).update("total", c)
+    assert log.getvalue().startswith("scenario-farm: round 0") and "N_eps 0/11" in log.getvalue()
+    Progress(stream=log).update("total", c)
     quiet = io.StringIO()
-    Progress(stream=quiet, mode="quiet").update("total", algo, c, 10)
-    Progress(enabled=False, stream=quiet).update("total", algo, c, 10)
+    Progress(stream=quiet, mode="quiet").update("total", c)
+    Progress(enabled=False, stream=quiet).update("total", c)
     assert quiet.getvalue() == ""

@@ -2,7 +2,7 @@
 
 import pytest
 
-from farm.files import read_safe_set
+from coordinator.safe_set import SafeSet
 from coordinator.volume import raster_iou
 from farm import config as config_mod
 from farm.quantification import run
@@ -42,10 +42,10 @@ def test_sumo_idm_and_numpy_idm_quantify_the_same_set(tmp_path):
         "farm": {"executor": "local", "batch_size": 256, "seed": 2}})
     ref = run(numpy_cfg, tmp_path / "numpy", resume=False)
     names = LeadFollow.state_names
-    a = read_safe_set(tmp_path / "sumo" / "safe_set.parquet", names)
-    b = read_safe_set(tmp_path / "numpy" / "safe_set.parquet", names)
+    a = SafeSet.from_parquet(tmp_path / "sumo" / "safe_set.parquet", names)
+    b = SafeSet.from_parquet(tmp_path / "numpy" / "safe_set.parquet", names)
     iou = raster_iou(a, b, LeadFollow.lower, LeadFollow.upper)
-    assert iou >= 0.9, (iou, sumo["volume_union"], ref["volume_union"])
+    assert iou >= 0.9, (iou, sumo.volume_union, ref.volume_union)
 
 
 def test_compare_on_a_sumo_campaign_uses_the_simulated_reference(tmp_path):
@@ -65,6 +65,9 @@ def test_compare_on_a_sumo_campaign_uses_the_simulated_reference(tmp_path):
                        text=True)
     assert r.returncode == 0, r.stderr
     assert "simulated under Gamma*" in r.stdout
+    # up front: the runs (1,728 grid points + 4 slices of 30 x 30 for the figure) and their time
+    plan = r.stderr.index("1,728 grid points (12 per axis) + 3,600 for the figure = 5,328 runs")
+    assert plan < r.stderr.index("for the rest (a shared machine") < r.stderr.index("reference done")
     metrics = json.loads((out / "compare.json").read_text())
     assert metrics["iou"] >= 0.95 and metrics["precision"] >= 0.97
 

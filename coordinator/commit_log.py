@@ -1,0 +1,52 @@
+"""The committed-run record since the last flush: the rows of the run ledger
+(farm/storage.py writes them as Parquet segments at every checkpoint)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from coordinator.executor import Chunk
+
+
+class CommitLog:
+    """Columns of the committed-run record since the last flush (the run ledger).
+
+    Per chunk, what every row shares (first sample index, round, delta) is kept once and
+    expanded at ``take``: a campaign shorter than ``farm.checkpoint_every`` holds the log
+    of all its runs, so each row holds only what is its own."""
+
+    COLUMNS = ("sample_index", "round", "delta", "start", "outcome", "steps", "changed", "counted")
+
+    def __init__(self):
+        self.shared: list[tuple[int, int, int, float]] = []  # (first sample index, rows, round, delta)
+        self.start: list[np.ndarray] = []
+        self.outcome: list[np.ndarray] = []
+        self.steps: list[np.ndarray] = []
+        self.changed: list[np.ndarray] = []
+        self.counted: list[np.ndarray] = []
+
+    def add(self, first_index: int, starts: np.ndarray, chunk: Chunk, rows: np.ndarray, rnd: int, delta: float,
+            changed: np.ndarray, counted: np.ndarray) -> None:
+        """``rows`` are the chunk's first rows, 0..k-1 (a chunk is committed in order)."""
+        if len(rows) == 0:
+            return
+        self.shared.append((first_index, len(rows), rnd, delta))
+        self.start.append(starts[rows])
+        self.outcome.append(chunk.outcomes[rows].astype(np.int8))
+        self.steps.append((chunk.lengths[rows] - 1).astype(np.int32))
+        self.changed.append(changed)
+        self.counted.append(counted)
+
+    def take(self) -> dict[str, np.ndarray] | None:
+        if not self.shared:
+            return None
+        first, rows, rounds, deltas = (np.array(c) for c in zip(*self.shared))
+        within = np.arange(int(rows.sum())) - np.repeat(np.cumsum(rows) - rows, rows)
+        out = {"sample_index": np.repeat(first.astype(np.int64), rows) + within,
+               "round": np.repeat(rounds.astype(np.int32), rows), "delta": np.repeat(deltas.astype(float), rows)}
+        self.shared.clear()
+        for name in self.COLUMNS[3:]:  # a column's pieces go as it is joined: ~1x the log held, not 2x
+            pieces = getattr(self, name)
+            out[name] = np.concatenate(pieces)
+            pieces.clear()
+        return {name: out[name] for name in self.COLUMNS}

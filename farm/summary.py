@@ -1,0 +1,158 @@
+"""summary.json: what a finished quantification found, built, written and read here only.
+
+Its keys are a public interface (README, "What a campaign writes"): scripts outside read
+them, so a key is never renamed or dropped. A scenario with sides (fleet3: lead, rear)
+adds, per side, ``volume_<side>_side``, ``volume_hull_<side>_side``,
+``result_hash_<side>_side``, ``guarantee_<side>_side`` and ``guarantee_formal_<side>_side``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+from coordinator.safe_set import SafeSet
+from farm import config as config_mod
+from farm.config import Config
+from farm.json_record import JsonFile, record_from_json, record_to_json
+from scenarios.version import __version__
+
+FILE = "summary.json"
+# written by every version of this tool; without them a file is no campaign's summary
+REQUIRED = ("scenario", "algorithm", "boxes", "result_hash", "guarantee")
+SIDE_KEYS = ("volume", "volume_hull", "result_hash", "guarantee", "guarantee_formal")
+
+
+@dataclass(frozen=True)
+class SideSummary:
+    """A side campaign's figures (its keys in summary.json end in ``_<side>_side``)."""
+
+    volume: float
+    volume_hull: float
+    result_hash: str
+    guarantee: str
+    guarantee_formal: str = ""
+
+    @staticmethod
+    def key(name: str, label: str) -> str:
+        """summary.json's key of field ``name`` for side ``label``."""
+        return f"{name}_{label}_side"
+
+
+@dataclass(frozen=True, kw_only=True)
+class Summary(JsonFile):
+    """The content of summary.json, one field per key, in the file's order. Fields an
+    older writer did not write keep their defaults; keys this reader does not know are
+    kept in ``extra``."""
+
+    FILE: ClassVar[str] = FILE
+    MISSING: ClassVar[str] = "{directory}: the campaign has not finished (no {file}); see `scenario-farm status " \
+                             "{directory}`"
+
+    scenario: str
+    sv_policy: str = ""
+    backend: str = ""
+    algorithm: str
+    epsilon: float = 0.0
+    beta: float = 0.0
+    n_eps: int = 0
+    # a sampled certification's attempts, and the quiet runs its last one needed (beta
+    # split over attempts); 0 and n_eps without certification
+    certification_attempts: int = 0
+    n_eps_final: int = 0
+    delta_final: float = 0.0  # the boxes' half-width (for boxes of mixed sizes, the smallest)
+    rounds: int = 0
+    converged: bool = False
+    runs_committed: int = 0
+    runs_simulated: int = 0
+    runs_dropped: int = 0
+    steps_simulated: int = 0
+    boxes: int
+    volume_union: float = 0.0
+    volume_hull: float = 0.0
+    volume_sigma: float = 0.0
+    seed: int = 0
+    config_hash: str = ""
+    result_hash: str
+    elapsed_s: float = 0.0
+    startup_s: float = 0.0
+    guarantee: str
+    guarantee_formal: str = ""
+    actions: str = ""
+    failure_facets: list = field(default_factory=list)
+    round_ends: list = field(default_factory=list)
+    scenario_farm_version: str = ""
+    sides: dict[str, SideSummary] = field(default_factory=dict)
+    extra: dict = field(default_factory=dict)
+
+    # -- summary.json ----------------------------------------------------------------------------
+    def to_json(self) -> dict:
+        """summary.json's object: every key, in the file's order."""
+        out = record_to_json(self, leave_out=("sides", "extra"))
+        for label, side in self.sides.items():
+            out.update({SideSummary.key(name, label): getattr(side, name) for name in SIDE_KEYS})
+        out.update(self.extra)
+        return out
+
+    @classmethod
+    def from_json(cls, data, source: str = FILE) -> "Summary":
+        if not isinstance(data, dict):
+            return record_from_json(cls, data, source, REQUIRED)
+        data, sides = dict(data), {}
+        labels = [k[len("result_hash_") : -len("_side")] for k in data
+                  if k.startswith("result_hash_") and k.endswith("_side")]
+        for label in labels:
+            present = {name: data.pop(SideSummary.key(name, label)) for name in SIDE_KEYS
+                       if SideSummary.key(name, label) in data}
+            sides[label] = record_from_json(SideSummary, present, f"{source} (side {label!r})", SIDE_KEYS[:4])
+        return record_from_json(cls, data, source, REQUIRED, sides=sides)
+
+
+
+def summarize(cfg: Config, parts: dict, safe_sets: dict[str, SafeSet], guarantees: dict) -> Summary:
+    """The summary of a finished campaign. ``parts``: label -> its finished part
+    (``farm.facet_campaign.FacetCampaign``: campaign, algorithm, scenario, policy;
+    "total" first, then the sides); ``safe_sets`` and ``guarantees``
+    (``coordinator.guarantee.Guarantee``): label -> the part's set and guarantee."""
+    part, total = parts["total"], safe_sets["total"]
+    campaign, scenario = part.campaign, part.scenario
+    c = campaign.counters
+    bounds = (scenario.lower, scenario.upper)
+    counters = [p.campaign.counters for p in parts.values()]
+    return Summary(
+        scenario=cfg.scenario.name,
+        sv_policy=scenario.sv_policy_name,
+        backend=cfg.scenario.backend,
+        algorithm=cfg.quantify.algorithm,
+        epsilon=cfg.quantify.epsilon,
+        beta=cfg.quantify.beta,
+        n_eps=campaign.n_eps,
+        certification_attempts=c.attempts,
+        n_eps_final=campaign.quiet_needed() if c.attempts and not part.algorithm.enumerates else campaign.n_eps,
+        delta_final=total.finest,
+        rounds=c.rounds_completed,
+        converged=c.converged,
+        runs_committed=sum(k.committed for k in counters),
+        runs_simulated=sum(k.runs_simulated for k in counters),
+        runs_dropped=sum(k.runs_dropped for k in counters),
+        steps_simulated=sum(k.steps_simulated for k in counters),
+        boxes=len(total),
+        volume_union=total.volume_union(bounds),
+        volume_hull=total.volume_hull(bounds),
+        volume_sigma=scenario.volume,
+        seed=cfg.farm.seed,
+        config_hash=config_mod.config_hash(cfg),
+        result_hash=total.result_hash,
+        elapsed_s=round(sum(k.elapsed_s for k in counters), 3),
+        startup_s=round(sum(p.startup_s for p in parts.values()), 3),
+        guarantee=guarantees["total"].plain,
+        guarantee_formal=guarantees["total"].formal,
+        actions=part.policy.description,
+        failure_facets=list(scenario.failure_facets),
+        round_ends=list(c.round_ends),
+        scenario_farm_version=__version__,
+        sides={label: SideSummary(volume=safe_sets[label].volume_union(bounds),
+                                  volume_hull=safe_sets[label].volume_hull(bounds),
+                                  result_hash=safe_sets[label].result_hash, guarantee=guarantees[label].plain,
+                                  guarantee_formal=guarantees[label].formal)
+               for label in parts if label != "total"})
