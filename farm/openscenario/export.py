@@ -24,9 +24,11 @@ from farm.openscenario.distribution import uniform_box, value_sets
 from farm.openscenario.elements import write_xml
 from farm.openscenario.layout import layout_of
 from farm.openscenario.road import write_road
+from farm.certificate import FILE as CERTIFICATE_FILE, Certificate
 from farm.files import read_json
 from farm.openscenario.scenario import concrete_scenario, logical_scenario
 from farm.storage import CampaignDir, CampaignError
+from farm.summary import Summary
 from scenarios.errors import ConfigError, DataError
 
 SUBDIR = "openscenario"
@@ -46,11 +48,13 @@ def export_openscenario(directory, *, force: bool = False) -> dict:
     notes: list[str] = []
     if kind == "quantify":
         horizon = cfg.quantify.horizon
-        summary = _json(directory / "summary.json", "the campaign has not finished")
+        summary = Summary.read(directory).to_json()  # checked as every reader of summary.json checks it
         runs = _recorded_runs(directory, scenario, sv_policy, notes)
     elif kind == "validate":
         horizon = cfg.validate.horizon
-        summary = _json(directory / "certificate.json", "the validation wrote no certificate")
+        path = directory / CERTIFICATE_FILE
+        summary = Certificate.from_json(read_json(path, missing=f"{directory}: the validation wrote no certificate "
+                                                                f"(no {CERTIFICATE_FILE})"), str(path)).to_json()
         runs = _counterexample(summary)
     else:
         raise CampaignError(f"{directory}: a {kind} directory; export reads quantification and validation directories")
@@ -59,13 +63,13 @@ def export_openscenario(directory, *, force: bool = False) -> dict:
         raise CampaignError(f"{out}: exists and is not empty; pass --force to replace the files export writes there")
     if out.exists() and not out.is_dir():
         raise CampaignError(f"{out}: exists and is not a directory")
+    dist = _certified(directory, kind, cfg, scenario, summary, notes)  # before any file: a bad set writes none
     out.mkdir(exist_ok=True)
     files = [write_road(out / ROAD, layout.road_length(horizon))]
     for name, trajectory, description in runs:
         files.append(write_xml(out / name, concrete_scenario(layout, trajectory, horizon=horizon,
                                                               description=description, road_file=ROAD,
                                                               sv_policy=sv_policy)))
-    dist = _certified(directory, kind, cfg, scenario, summary, notes)
     if dist is not None:
         file_name, root = dist
         constant = cfg.actions.mode == "constant"
@@ -102,10 +106,6 @@ def _scenario(cfg):
     external = getattr(backend_class(sc.backend), "external_sv", None)
     scenario = make_scenario(sc.name, EXTERNAL_SV if external else sc.sv_policy, sc.failure_facets, sc.disturbance)
     return scenario, external or scenario.sv_policy_name
-
-
-def _json(path: Path, missing: str) -> dict:
-    return read_json(path, missing=f"{path.parent}: {missing} (no {path.name})")
 
 
 def _recorded_runs(directory: Path, scenario, sv_policy: str, notes: list) -> list[tuple[str, np.ndarray, str]]:

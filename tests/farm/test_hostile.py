@@ -390,6 +390,13 @@ DAMAGE_CASES = [  # (finished?, file, damage, command, words)
     (True, "checkpoint.npz", "garbage", "report", ["checkpoint.npz: checkpoint is truncated or corrupt"]),
     (True, "checkpoint", "delete", "report", ["checkpoint segment missing"]),
     (True, "adversary.json", "garbage", "falsify", ["adversary.json: not valid JSON"]),
+    # the OpenSCENARIO export reads summary.json as every other reader does
+    (True, "summary.json", "garbage", "export", ["summary.json: not valid JSON"]),
+    (True, "summary.json", 'text:{"scenario": "lead-follow", "algorithm": "spe", "boxes": "many", "result_hash": '
+                           '"x", "guarantee": "g"}', "export", ["summary.json: boxes is 'many'; expected int"]),
+    (True, "safe_set.parquet", "half", "export", ["safe_set.parquet: not a readable Parquet safe set"]),
+    (True, "openscenario", "text:a file", "export", ["openscenario: exists and is not a directory"]),
+    (False, "config.json", "garbage", "export", ["config.json: not valid JSON"]),
     # issue 34 point 5: checkpoint metadata without its journal was a KeyError on resume
     (False, "checkpoint.npz", "drop_meta:journal", "resume", ["checkpoint metadata lacks 'journal'"]),
     (False, "checkpoint.npz", "drop_meta:epoch", "resume", ["checkpoint metadata lacks 'epoch'"]),
@@ -410,8 +417,24 @@ def test_a_damaged_campaign_file_is_named_and_nothing_changes(campaign, tmp_path
     out = copy_of(campaign, tmp_path, unfinished=not finished)
     damage(out / name, how)
     before = snapshot(out)
-    args = {"replay": ["--sample", 0], "compare": ["--grid", "8"]}.get(command, [])
+    args = {"replay": ["--sample", 0], "compare": ["--grid", "8"], "export": ["--xosc"]}.get(command, [])
     one_line_error(cli(command, out, *args), *words)
+    assert snapshot(out) == before
+
+
+FLAG_CASES = [  # (command, flags, words): refused before any work, nothing written
+    ("compare", ["--grid", "3", "--grid-total", "100"], ["not both"]),
+    ("compare", ["--grid-total", "1"], ["--grid-total: 1 is out of range; allowed [8, "]),
+    ("compare", ["--grid", "1", "--estimate"], ["--grid: 1 is out of range; allowed [2, 4096]"]),
+    ("export", [], ["export: choose a format; allowed: --xosc"]),
+]
+
+
+@pytest.mark.parametrize("command, flags, words", FLAG_CASES, ids=[f"{c[0]}-{'_'.join(c[1])}" for c in FLAG_CASES])
+def test_a_bad_flag_on_a_finished_campaign_is_one_line_and_writes_nothing(campaign, tmp_path, command, flags, words):
+    out = copy_of(campaign, tmp_path, unfinished=False)
+    before = snapshot(out)
+    one_line_error(cli(command, out, *flags), *words)
     assert snapshot(out) == before
 
 
