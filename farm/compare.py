@@ -24,6 +24,7 @@ from coordinator.safe_set import SafeSet
 from farm.files import write_json
 from farm.simulators import build_simulator
 from farm.storage import CampaignDir
+from farm.summary import Summary
 from scenarios.errors import ConfigError
 
 SIMULATED_GRID_POINTS = 24**3  # default grid of a simulated reference: 24 per axis in 3-D
@@ -76,6 +77,7 @@ def compare(directory: Path, grid: int | None = None, progress=None, *, grid_tot
 
     directory = Path(directory)
     CampaignDir(directory).open("quantify")
+    Summary.read(directory)  # a stopped campaign's safe set is not its result: "has not finished; see status"
     cfg = CampaignDir(directory).frozen_config()
     simulated = cfg.scenario.backend != "numpy"
     if simulated and cfg.actions.mode not in ("adversarial", "uniform", "search"):

@@ -359,6 +359,8 @@ def damage(path, how):
         path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
     elif how == "garbage":
         path.write_bytes(b"\x00garbage{[\xff")
+    elif how == "keep":  # the copy is damage enough (an unfinished campaign)
+        pass
     elif how.startswith("text:"):
         path.write_text(how[5:])
     elif how.startswith("drop_meta:"):  # a checkpoint whose metadata lacks one key
@@ -397,6 +399,7 @@ DAMAGE_CASES = [  # (finished?, file, damage, command, words)
     (True, "safe_set.parquet", "half", "export", ["safe_set.parquet: not a readable Parquet safe set"]),
     (True, "openscenario", "text:a file", "export", ["openscenario: exists and is not a directory"]),
     (False, "config.json", "garbage", "export", ["config.json: not valid JSON"]),
+    (False, "checkpoint.npz", "keep", "compare", ["the campaign has not finished (no summary.json)"]),
     # issue 34 point 5: checkpoint metadata without its journal was a KeyError on resume
     (False, "checkpoint.npz", "drop_meta:journal", "resume", ["checkpoint metadata lacks 'journal'"]),
     (False, "checkpoint.npz", "drop_meta:epoch", "resume", ["checkpoint metadata lacks 'epoch'"]),
