@@ -37,11 +37,13 @@ from coordinator.coverage import Coverage, Rescreen
 from coordinator.safe_set import SafeSet
 from coordinator.stable_sampler import Draws
 from scenarios.base import Scenario
+from scenarios.errors import UserError
 from scenarios.streams import RunStreams
 
 
-class EmptySetError(RuntimeError):
-    """Every candidate was pruned: the quantified safe set is empty."""
+class EmptySetError(UserError, RuntimeError):
+    """Every candidate was pruned: the quantified safe set is empty (the config asks for
+    a set that does not exist at this resolution)."""
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ from coordinator.coverage import Coverage, Insert, Kill, Recell, Reset
 from coordinator.lattice import Lattice
 from coordinator.stable_sampler import Draws, StableSampler, UniformLaw
 from scenarios.base import Scenario
+from scenarios.errors import ConfigError
 from scenarios.streams import PURPOSE_START, RunStreams
 
 RESTART_INDEX = 2**62  # stream index of the very first AE start state (no run has it)
@@ -215,7 +216,7 @@ def make_algorithm(name: str, scenario: Scenario, settings, seed: int, determini
     from coordinator.spe import SPE
 
     if settings.boundary and name != "spe":
-        raise ValueError("quantify.boundary: the boundary band is an SPE option; allowed with algorithm = 'spe'")
+        raise ConfigError("quantify.boundary: the boundary band is an SPE option; allowed with algorithm = 'spe'")
     if name == "spe":
         return SPE(scenario, settings, deterministic)
     return {"ae": AdaptiveExploration, "delta-pruning": DeltaPruning, "vs": VanillaSampling}[name](

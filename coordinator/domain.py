@@ -15,12 +15,13 @@ from coordinator.lattice import Lattice
 from coordinator.safe_set import SafeSet
 from scenarios.streams import PURPOSE_START, RunStreams
 from scenarios.base import FACET_TOLERANCE, Scenario
+from scenarios.errors import ConfigError, ScenarioError
 
 MAX_REJECTION_ROUNDS = 256
 
 
-class DomainError(ValueError):
-    pass
+class DomainError(ConfigError):
+    """A [validate] domain that cannot be sampled as given (one line naming the key)."""
 
 
 @dataclass
@@ -85,11 +86,12 @@ class Domain:
             rhs.append(float(cut["b"]))
         dom = Domain(scenario, lo, hi, np.array(rows).reshape(-1, scenario.n), np.array(rhs))
         if section.get("domain_predicate"):
-            from scenarios.actions import load_callable
+            from scenarios.actions import check_output, load_callable, probe_states
 
-            dom.predicate = load_callable(section["domain_predicate"], "validate.domain_predicate",
-                                          "states (B, n) -> (B,) bool")
-            dom.predicate_name = section["domain_predicate"]
+            target, signature = section["domain_predicate"], "states (B, n) -> (B,) bool"
+            dom.predicate = load_callable(target, "validate.domain_predicate", signature)
+            check_output(dom.predicate, target, "validate.domain_predicate", signature, probe_states(lo, hi), None)
+            dom.predicate_name = target
         if not dom.contains(dom.midpoints(20)).any():
             raise DomainError("validate.constraints: the constraints leave an (almost) empty domain")
         return dom
@@ -107,7 +109,11 @@ class Domain:
         if len(self.cuts_b):
             inside &= (points @ self.cuts_a.T <= self.cuts_b + tol).all(axis=1)
         if self.predicate is not None and inside.any():
-            inside[inside] = np.asarray(self.predicate(points[inside]), dtype=bool)
+            try:
+                inside[inside] = np.asarray(self.predicate(points[inside]), dtype=bool)
+            except Exception as exc:  # noqa: BLE001 - the user's predicate: named as such
+                raise ScenarioError(f"validate.domain_predicate: {self.predicate_name!r} raised "
+                                    f"{type(exc).__name__} on {int(inside.sum())} states: {exc}") from None
         return inside
 
     def band_distance(self, points: np.ndarray) -> np.ndarray:

@@ -25,12 +25,13 @@ from scipy.spatial import cKDTree
 
 from scenarios.actions import UniformActions
 from scenarios.base import FAILURE, Scenario
+from scenarios.errors import UserError
 from scenarios.worst_case_rollout import safe_by_simulation
 from scenarios.rollout import run_scenario
 from scenarios.streams import RunStreams
 
 
-class NoReference(ValueError):
+class NoReference(UserError, ValueError):
     """The scenario offers no reference to compare with (one-line message)."""
 
 

@@ -18,14 +18,16 @@ import numpy as np
 
 from coordinator.spatial import PointIndex
 from coordinator.volume import hull_volume, union_volume
+from scenarios.errors import DataError
 from scenarios.version import __version__
 
 HALF_WIDTH = "half_width"  # the column of each box's half-width in safe_set.parquet
 MIXED_HASH_TAG = b"scenario-farm safe set, per-box half-widths\n"
 
 
-class SafeSetError(ValueError):
-    """A safe-set file or array that cannot be read as a safe set (one-line message)."""
+class SafeSetError(DataError):
+    """A safe-set file or array that cannot be read as a safe set (one-line message; a
+    ``DataError``, so a ``UserError`` and still a ``ValueError``)."""
 
 
 @dataclass(frozen=True, eq=False)

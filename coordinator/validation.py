@@ -21,6 +21,7 @@ from coordinator.domain import Domain
 from coordinator.spatial import PointIndex
 from scenarios.streams import PURPOSE_START, RunStreams
 from scenarios.base import FAILURE, OUTCOME_NAMES, TRUNCATED
+from scenarios.errors import ConfigError
 
 
 @dataclass
@@ -41,11 +42,11 @@ def plan(domain: Domain, algorithm: str, epsilon: float, beta: float, delta: flo
         return ValidationPlan("eps", n_eps(epsilon, beta), None, band, f"start states i.i.d. uniform in {where}")
     centres = domain.lattice(delta, band)
     if len(centres) == 0:
-        raise ValueError(f"validate.delta: no {delta:g}-covering centre lies in {where}; use a smaller delta")
+        raise ConfigError(f"validate.delta: no {delta:g}-covering centre lies in {where}; use a smaller delta")
     if algorithm == "delta":
         if not deterministic:
-            raise ValueError("validate.algorithm: 'delta' needs a deterministic system (actions.mode constant, "
-                             "feedback, or adversarial with one action, and scenario.disturbance = 0)")
+            raise ConfigError("validate.algorithm: 'delta' needs a deterministic system (actions.mode constant, "
+                              "feedback, or adversarial with one action, and scenario.disturbance = 0)")
         needed = covering_size(domain.volume(), delta, sc.n)  # Lemma 1
         return ValidationPlan("delta", max(len(centres), needed if not boundary else len(centres)), centres, band,
                               f"every {delta:g}-covering centre of {where} once")

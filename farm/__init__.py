@@ -15,12 +15,18 @@ Results: ``SafeSet`` (the boxes: contains, volumes, result_hash, Parquet), ``Sum
 Runtime pieces: config, executors (in-process and Ray), campaign storage, CLI.
 """
 
-from coordinator.safe_set import SafeSet
-from farm.api import (Certificate, QuantifyResult, compare, export_openscenario, load_config, open_campaign, overlay,
-                      quantify, validate)
-from farm.summary import Summary
 from scenarios.version import __version__
 
 __all__ = ["Certificate", "QuantifyResult", "SafeSet", "Summary", "__version__", "compare", "export_openscenario",
-           "load_config",
-           "open_campaign", "quantify", "overlay", "validate"]
+           "load_config", "open_campaign", "quantify", "overlay", "validate"]
+
+
+def __getattr__(name: str):
+    # the API is imported when first asked for, not with the package: the CLI's own
+    # modules (farm.cli, farm.exits) load in a fraction of a second, so its signal
+    # handlers and error lines are in place before pydantic, scipy and the coordinator load
+    if name in __all__:
+        from farm import api  # it imports SafeSet and Summary too
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'farm' has no attribute {name!r}")

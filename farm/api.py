@@ -16,6 +16,7 @@ What these functions write is a normal campaign directory: every CLI command acc
 from __future__ import annotations
 
 import tempfile
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,6 +29,7 @@ from farm.certificate import Certificate, certificate_of
 from farm.files import write_json
 from farm.storage import CampaignDir, CampaignError
 from farm.summary import Summary
+from scenarios.errors import DataError
 
 
 def load_config(source, **overrides) -> Config:
@@ -144,7 +146,10 @@ class QuantifyResult:
 
         runs = []
         for rec in sorted((self.directory / "recordings").glob("runs-*.mcap")):
-            runs += [r["trajectory"] for r in read_recording(rec)["runs"].values()]
+            try:
+                runs += [r["trajectory"] for r in read_recording(rec)["runs"].values()]
+            except DataError as exc:  # a damaged recording must not hide the others (as in replay)
+                warnings.warn(f"skipped {exc}", stacklevel=2)
         if not runs:
             return None
         return draw_failures(Path(path) if path else self.directory / "plots" / "failures.png", self._scenario(),
@@ -176,9 +181,9 @@ def quantify(config, out=None, *, resume: bool = False, force: bool = False, pro
     from farm.progress import Progress
     from farm.quantification import run
 
-    cfg = load_config(config, **overrides)
+    text = config_mod.read_text(config) if isinstance(config, (str, Path)) and _is_file(config) else None
+    cfg = load_config(config_mod.parse(text, str(config)) if text is not None else config, **overrides)
     out = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="scenario-farm-")) / "campaign"
-    text = Path(config).read_text() if isinstance(config, (str, Path)) and _is_file(config) else None
     run(cfg, out, resume=resume, force=force, progress=Progress(enabled=progress), config_text=text)
     return QuantifyResult.load(out)
 
@@ -266,7 +271,7 @@ def overlay(results, path) -> Path:
     results = [r if isinstance(r, QuantifyResult) else open_campaign(r) for r in results]
     names = {r.summary.scenario for r in results}
     if len(names) != 1:
-        raise ValueError(f"overlay: the campaigns quantify different scenarios ({', '.join(sorted(names))})")
+        raise CampaignError(f"overlay: the campaigns quantify different scenarios ({', '.join(sorted(names))})")
     labels = [f"{r.summary.sv_policy} / {r.summary.actions} ({r.directory.name})" for r in results]
     return draw_overlay(Path(path), results[0]._scenario(), [r.safe_set for r in results], labels)
 

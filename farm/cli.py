@@ -1,11 +1,7 @@
 """``scenario-farm`` (also ``python -m farm``): a thin layer over ``farm.api``.
 
-Exit codes: 0 success (certified, campaign finished), 1 counterexample found (validate,
-replay mismatch), 2 bad input or an unusable directory (one line naming the field and
-the allowed range; nothing touched), 3 a bug in this tool (one line and where the
-traceback went: please report it), 4 infrastructure (Ray workers lost or hung beyond
-farm.max_retries: the last checkpoint stands, resume it), 130 stopped by a signal
-(checkpointed; resume it).
+Every error ends as one line on stderr and an exit code (farm/exits.py: the table and the
+lines); ``SCENARIO_FARM_DEBUG=1`` also prints the traceback, and keeps Ray's own log lines.
 """
 
 from __future__ import annotations
@@ -14,14 +10,16 @@ import argparse
 import json
 import os
 import signal
+import stat
 import sys
-import tempfile
-import traceback
+import warnings
 from pathlib import Path
 
+from farm import exits
+from scenarios.errors import ConfigError
 from scenarios.version import __version__
 
-EXIT_OK, EXIT_COUNTEREXAMPLE, EXIT_BAD_INPUT, EXIT_BUG, EXIT_INFRASTRUCTURE, EXIT_STOPPED = 0, 1, 2, 3, 4, 130
+EXIT_OK, EXIT_COUNTEREXAMPLE = exits.OK, exits.FINDING
 
 
 def _overrides(args) -> dict:
@@ -30,8 +28,11 @@ def _overrides(args) -> dict:
 
 
 def _add_farm_flags(p, seed=True):
-    p.add_argument("--workers", type=int, help="Ray actors (overrides farm.workers)")
-    p.add_argument("--address", help="'local' (start Ray here) or 'auto' (join the cluster) (farm.address)")
+    p.add_argument("--workers", type=int, help="Ray actors; a local Ray takes at most 4 per CPU (overrides "
+                                               "farm.workers)")
+    p.add_argument("--address", help="'local' (start Ray here), 'auto' (join the cluster of RAY_ADDRESS or `ray "
+                                     "start`), 'host:port' or 'ray://host:port'; one that answers nothing within 3 s "
+                                     "is refused (farm.address)")
     p.add_argument("--executor", choices=["ray", "local", "virtual"], help="overrides farm.executor")
     if seed:
         p.add_argument("--seed", type=int, help="campaign seed (overrides farm.seed)")
@@ -67,12 +68,14 @@ def _add_output_flags(p) -> None:
 
 
 def cmd_quantify(args) -> int:
-    from farm import api, quantification
+    from farm import config as config_mod
+    from farm import quantification
     from farm.progress import Progress
 
-    cfg = api.load_config(args.config, **_farm_kwargs(args))
+    text = config_mod.read_text(args.config)  # once: the config may be a stream, <(cat c.toml)
+    cfg = config_mod.parse(text, args.config).with_overrides(_overrides(args))
     quantification.run(cfg, Path(args.out), resume=args.resume, force=args.force,
-                       progress=Progress(mode=_mode(args)), config_text=Path(args.config).read_text())
+                       progress=Progress(mode=_mode(args)), config_text=text)
     _print_summary(Path(args.out))
     return EXIT_OK
 
@@ -121,7 +124,7 @@ def cmd_report(args) -> int:
 
     if args.overlay:
         if len(args.dir) < 2:
-            raise ValueError("report --overlay: give two or more campaign directories")
+            raise ConfigError("report --overlay: give two or more campaign directories")
         path = api.overlay(args.dir, Path(args.dir[0]) / "plots" / "overlay.png")
         print(f"{'overlay':>18}: {path}")
         return EXIT_OK
@@ -193,7 +196,7 @@ def cmd_export(args) -> int:
     from farm.openscenario.export import describe
 
     if not args.xosc:
-        raise ValueError("export: choose a format; allowed: --xosc (ASAM OpenSCENARIO and OpenDRIVE)")
+        raise ConfigError("export: choose a format; allowed: --xosc (ASAM OpenSCENARIO and OpenDRIVE)")
     print(describe(api.export_openscenario(args.dir, force=args.force)))
     return EXIT_OK
 
@@ -206,7 +209,9 @@ def cmd_schema(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="scenario-farm", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="scenario-farm", description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter,
+                                     epilog=f"exit codes:\n{exits.table_text()}")
     parser.add_argument("--version", action="version", version=f"scenario-farm {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
 
@@ -226,7 +231,8 @@ def build_parser() -> argparse.ArgumentParser:
     g = p.add_mutually_exclusive_group()
     g.add_argument("--resume", action="store_true", help="continue the campaign in a non-empty --out")
     g.add_argument("--force", action="store_true", help="replace the campaign in --out (only a campaign directory)")
-    p.add_argument("--checkpoint-every", type=float, help="seconds between checkpoints (farm.checkpoint_every)")
+    p.add_argument("--checkpoint-every", type=float, help="seconds between checkpoints, at least 1 "
+                                                          "(farm.checkpoint_every)")
     _add_farm_flags(p)
     _add_output_flags(p)
     p.set_defaults(func=cmd_quantify)
@@ -292,78 +298,66 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    # SIGTERM outside a campaign's own handler (start-up, finishing) ends like Ctrl-C: the
+    # files stay as the last checkpoint left them, and the exit says "stopped"
+    signal.signal(signal.SIGTERM, _terminate)
+    try:
+        return _main(argv)
+    except KeyboardInterrupt:  # before a command ran
+        return exits.interrupted()
+
+
+def _main(argv) -> int:
     from farm.memory import keep_freed_memory
 
     parser = build_parser()
     args = parser.parse_args(argv)
+    if not os.environ.get(exits.DEBUG):
+        from farm.native_stderr import install
+
+        install()  # Ray's C++ log lines stay in its session's log files
+    warnings.showwarning = _one_line_warning
+    from farm import ray_watch
+
+    ray_watch.on_lost = lambda why: exits.lost(why, _campaign_dir(args))
     # like `python -m`: 'module:Class' in a config imports from the working directory
     if os.getcwd() not in sys.path:
         sys.path.insert(0, os.getcwd())
     keep_freed_memory()  # the coordinator's batch queries allocate like a simulator's steps
-    # SIGTERM outside a campaign's own handler (start-up, finishing) ends like Ctrl-C: the
-    # files stay as the last checkpoint left them, and the exit says "stopped"
-    signal.signal(signal.SIGTERM, _terminate)
-    from farm import ray_watch
-
-    ray_watch.on_lost = _lost
     try:
         return args.func(args)
+    except BrokenPipeError as exc:
+        if _stdout_closed():  # the reader went away (`scenario-farm status DIR | head -1`): nothing to say
+            return EXIT_OK
+        return exits.report(exc, _campaign_dir(args))
     except Exception as exc:  # noqa: BLE001 - the one place where errors become exit codes
-        return report_error(exc)
+        return exits.report(exc, _campaign_dir(args))
     except KeyboardInterrupt:
-        print("scenario-farm: interrupted", file=sys.stderr)
-        return EXIT_STOPPED
+        return exits.interrupted(_campaign_dir(args))
+
+
+def _stdout_closed() -> bool:
+    """Whether the broken pipe is stdout's (its reader went away); if so stdout is pointed
+    at /dev/null, so that the interpreter's final flush does not fail again."""
+    try:
+        if not stat.S_ISFIFO(os.fstat(sys.stdout.fileno()).st_mode):
+            return False
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return True
+    except (OSError, ValueError):
+        return False
 
 
 def _terminate(signum, frame):
     raise KeyboardInterrupt
 
 
-def _lost(why: str) -> None:
-    """Ray lost this driver's raylet or the cluster's head (farm/ray_watch.py): our line and
-    exit code, before Ray ends the process with exit code 1."""
-    print(f"scenario-farm: infrastructure error: {why} (the last checkpoint stands: `scenario-farm resume DIR` "
-          f"continues)", file=sys.stderr, flush=True)
-    os._exit(EXIT_INFRASTRUCTURE)
+def _one_line_warning(message, category, filename, lineno, file=None, line=None):
+    print(f"scenario-farm: warning: {' '.join(str(message).split())}", file=sys.stderr)
 
 
-def report_error(exc: BaseException) -> int:
-    from farm.quantification import Stopped
-    from farm.waiting import WorkerError
-
-    if isinstance(exc, Stopped):
-        print(f"scenario-farm: {exc}; checkpointed (continue with `scenario-farm resume DIR`)", file=sys.stderr)
-        return EXIT_STOPPED
-    # TODO(errors branch): WorkerError becomes an InfrastructureError there (farm/exits.py: exit 4)
-    if isinstance(exc, WorkerError):
-        print(f"scenario-farm: infrastructure error: {' '.join(str(exc).split())} (the last checkpoint stands: "
-              f"`scenario-farm resume DIR` continues)", file=sys.stderr)
-        return EXIT_INFRASTRUCTURE
-    if is_user_error(exc):
-        text = " ".join(str(exc).split()) or type(exc).__name__
-        print(f"scenario-farm: error: {text}", file=sys.stderr)
-        return EXIT_BAD_INPUT
-    fd, path = tempfile.mkstemp(prefix="scenario-farm-bug-", suffix=".txt")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(f"scenario-farm {__version__}\n{' '.join(sys.argv)}\n\n")
-        traceback.print_exception(exc, file=fh)
-    print(f"scenario-farm: internal error ({type(exc).__name__}: {exc}); this is a bug: please report it with "
-          f"the traceback in {path}", file=sys.stderr)
-    return EXIT_BUG
-
-
-def is_user_error(exc: BaseException) -> bool:
-    """Errors that say what is wrong with the input, the directory or the environment."""
-    from coordinator.algorithm import EmptySetError
-    from coordinator.domain import DomainError
-    from coordinator.safe_set import SafeSetError
-    from farm.config import ConfigError
-    from farm.storage import CampaignError
-    from scenarios.base import ScenarioError
-
-    known = (ConfigError, DomainError, CampaignError, ScenarioError, EmptySetError, SafeSetError,
-             FileExistsError, ValueError)
-    if isinstance(exc, known):
-        return True
-    # a full disk, a read-only place, a missing file: the environment, named in the message
-    return isinstance(exc, OSError) and exc.errno is not None
+def _campaign_dir(args) -> str | None:
+    """The campaign directory a command works in, for "resume DIR" hints."""
+    if args.command == "quantify":
+        return args.out
+    return args.dir if args.command == "resume" else None

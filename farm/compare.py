@@ -24,6 +24,8 @@ from coordinator.safe_set import SafeSet
 from farm.files import write_json
 from farm.simulators import build_simulator
 from farm.storage import CampaignDir
+from farm.summary import Summary
+from scenarios.errors import ConfigError
 
 SIMULATED_GRID_POINTS = 24**3  # default grid of a simulated reference: 24 per axis in 3-D
 MODEL_GRID_POINTS = 1.5e6
@@ -40,15 +42,15 @@ def points_per_axis(n: int, grid: int | None = None, grid_total: int | None = No
     power fits in ``grid_total``; default ~1.5e6 points for a model reference and
     24^3 = 13,824 for a simulated one (24 per axis in 3-D, 6 in 5-D)."""
     if grid is not None and grid_total is not None:
-        raise ValueError("compare: give --grid (points per axis) or --grid-total (points in all), not both")
+        raise ConfigError("compare: give --grid (points per axis) or --grid-total (points in all), not both")
     if grid is not None:
         if not 2 <= grid <= 4096:
-            raise ValueError(f"--grid: {grid} is out of range; allowed [2, 4096] points per axis")
+            raise ConfigError(f"--grid: {grid} is out of range; allowed [2, 4096] points per axis")
         return int(grid)
     if grid_total is not None:
         if not 2**n <= grid_total <= MAX_GRID_POINTS:
-            raise ValueError(f"--grid-total: {grid_total} is out of range; allowed [{2**n}, {MAX_GRID_POINTS}] "
-                             f"(2 to the power n = {n} state variables at least)")
+            raise ConfigError(f"--grid-total: {grid_total} is out of range; allowed [{2**n}, {MAX_GRID_POINTS}] "
+                              f"(2 to the power n = {n} state variables at least)")
         return _root(int(grid_total), n)
     return _root(SIMULATED_GRID_POINTS, n) if simulated else int(round(MODEL_GRID_POINTS ** (1 / n)))
 
@@ -75,13 +77,14 @@ def compare(directory: Path, grid: int | None = None, progress=None, *, grid_tot
 
     directory = Path(directory)
     CampaignDir(directory).open("quantify")
+    Summary.read(directory)  # a stopped campaign's safe set is not its result: "has not finished; see status"
     cfg = CampaignDir(directory).frozen_config()
     simulated = cfg.scenario.backend != "numpy"
     if simulated and cfg.actions.mode not in ("adversarial", "uniform", "search"):
         # constant or feedback actions quantify a different set than the worst case
-        raise ValueError(f"compare: a black-box SV has no model; its reference is simulated under Gamma*, which "
-                         f"compares with actions.mode = 'adversarial', 'uniform' or 'search', not "
-                         f"{cfg.actions.mode!r}")
+        raise ConfigError(f"compare: a black-box SV has no model; its reference is simulated under Gamma*, which "
+                          f"compares with actions.mode = 'adversarial', 'uniform' or 'search', not "
+                          f"{cfg.actions.mode!r}")
     backend = build_simulator(spec_of(cfg)).backend
     scenario = backend.scenario
     k = points_per_axis(scenario.n, grid, grid_total, simulated)

@@ -19,20 +19,29 @@ import difflib
 import hashlib
 import json
 import math
+import os
 import tomllib
 import warnings
 from pathlib import Path
 from typing import Annotated, Any, Literal, get_args
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from coordinator.spe import SPESettings
+from scenarios.errors import ConfigError
 
 _SPE = SPESettings()  # the algorithm's defaults are the config's: written once
+MAX_DEPTH = 32  # tables and lists nested deeper than this are no config of ours
+# [s] farm.checkpoint_every below this is raised to it, with a warning; the environment
+# variable lowers it for tests that interrupt a campaign at many moments
+MIN_CHECKPOINT_S = 1.0
+MIN_CHECKPOINT_ENV = "SCENARIO_FARM_MIN_CHECKPOINT_S"
+
+__all__ = ["Config", "ConfigError", "ConfigWarning", "load", "normalize", "parse", "read_text", "schema"]
 
 
-class ConfigError(ValueError):
-    """Bad user input: printed as one line, exit code 2."""
+class ConfigWarning(UserWarning):
+    """A config value that was accepted after a change (the CLI prints it as one line)."""
 
 
 def _fixed(description: str = "") -> dict:
@@ -45,6 +54,12 @@ class Section(BaseModel):
 
 
 Probability = Annotated[float, Field(gt=0.0, lt=1.0)]
+# N_eps = ln(beta) / ln(1 - epsilon) runs in a row (Lemma 2), and beta is split further over
+# certification attempts: below these bounds a split beta underflows to 0 and N_eps to
+# infinity (found only when the certification starts), or N_eps exceeds 10^12 runs, more
+# than any quantify.budget.
+Epsilon = Annotated[float, Field(ge=1e-9, lt=1.0)]
+Beta = Annotated[float, Field(ge=1e-100, lt=1.0)]
 Positive = Annotated[float, Field(gt=0.0)]
 Horizon = Annotated[int, Field(ge=2, le=100_000, description="K: states per run, the start included")]
 
@@ -99,8 +114,8 @@ class ValidateConfig(Section):
     """[validate]: certify a claimed domain Phi."""
 
     algorithm: Literal["delta", "eps", "eps-delta"] = "eps-delta"
-    epsilon: Probability = 0.001
-    beta: Probability = 0.01
+    epsilon: Epsilon = 0.001
+    beta: Beta = 0.01
     delta: Positive = 1.0
     horizon: Horizon = 50
     boundary: bool = False
@@ -121,8 +136,8 @@ class QuantifyConfig(Section):
     """[quantify]: find the maximal safe sub-domain."""
 
     algorithm: Literal["spe", "ae", "delta-pruning", "vs"] = "spe"
-    epsilon: Probability = 0.001
-    beta: Probability = 0.1
+    epsilon: Epsilon = 0.001
+    beta: Beta = 0.1
     delta0: Positive = _SPE.delta0
     gamma: Probability = _SPE.gamma
     delta_min: Positive = _SPE.delta_min
@@ -167,8 +182,9 @@ class FarmConfig(Section):
     """[farm]: where and how runs are simulated."""
 
     executor: Annotated[Literal["ray", "local", "virtual"], Field(**_fixed())] = "local"
-    workers: Annotated[int, Field(ge=1, le=4096, **_fixed("Ray actors"))] = 2
-    address: Annotated[str, Field(min_length=1, **_fixed("'local' or a Ray address ('auto')"))] = "local"
+    workers: Annotated[int, Field(ge=1, le=4096, **_fixed("Ray actors (a local Ray: at most 4 per CPU), or the virtual farm's simulated workers"))] = 2
+    address: Annotated[str, Field(min_length=1, **_fixed(
+        "'local', 'auto', 'host:port' or 'ray://host:port' (must answer within 3 s)"))] = "local"
     batch_size: Annotated[int, Field(ge=1, le=10_000_000, description="runs per drawn batch")] = 1024
     pipeline_depth: Annotated[int, Field(ge=1, le=64, description="batches drawn ahead")] = 2
     counting: Annotated[Literal["sequential", "deferred"], Field(description=(
@@ -176,7 +192,7 @@ class FarmConfig(Section):
         "one-run-at-a-time campaign's result at any batch_size and pipeline_depth) or applied "
         "batch_size x pipeline_depth indices later (deferred: no waiting)"))] = "sequential"
     seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = 0
-    checkpoint_every: Annotated[float, Field(ge=0.0, le=1e9, **_fixed("seconds"))] = 30.0
+    checkpoint_every: Annotated[float, Field(ge=0.0, le=1e9, **_fixed("seconds (below 1: 1, with a warning)"))] = 30.0
     max_retries: Annotated[int, Field(ge=0, le=100, **_fixed())] = 3
     chunk_timeout: Annotated[float, Field(ge=0.0, le=1e6, **_fixed(
         "seconds a chunk may take on its worker before it is retried elsewhere (0: 20x its expected time, "
@@ -185,6 +201,19 @@ class FarmConfig(Section):
     max_memory_gb: Annotated[float | None, Field(gt=0.0, le=1e6, **_fixed(
         "refuse a campaign whose worst-case memory estimate exceeds this (default: 3/4 of this machine's "
         "memory)"))] = None
+
+    @field_validator("checkpoint_every")
+    @classmethod
+    def _not_every_chunk(cls, seconds: float) -> float:
+        # a checkpoint costs a Parquet segment, an npz and their fsyncs; at every chunk that
+        # is most of the campaign's time (docs/benchmarks.md)
+        least = float(os.environ.get(MIN_CHECKPOINT_ENV, MIN_CHECKPOINT_S))
+        if seconds < least:
+            warnings.warn(f"farm.checkpoint_every: {seconds:g} s is below the minimum; checkpointing every "
+                          f"{least:g} s instead (more often costs more time than a kill can lose)",
+                          ConfigWarning, stacklevel=2)
+            return least
+        return seconds
 
 
 class RecordConfig(Section):
@@ -218,12 +247,15 @@ with warnings.catch_warnings():
 
 
 # -- reading --------------------------------------------------------------------------------
-def normalize(raw: dict, flags: dict[str, str] | None = None) -> Config:
+def normalize(raw: dict, flags: dict[str, str] | None = None, where: str = "config") -> Config:
     """Check a raw config dict and fill defaults. Raises ConfigError (one line)."""
     if isinstance(raw, Config):
         return raw
     if not isinstance(raw, dict):
-        raise ConfigError("config: expected a TOML table at the top level")
+        raise ConfigError(f"{where}: expected a TOML table at the top level")
+    depth = _depth(raw)
+    if depth > MAX_DEPTH:
+        raise ConfigError(f"{where}: nested {depth} levels deep; allowed at most {MAX_DEPTH}")
     for section in raw:
         if section not in Config.model_fields:
             raise ConfigError(f"unknown section [{section}]{_did_you_mean(section, Config.model_fields)}")
@@ -239,30 +271,53 @@ def load(source, overrides: dict | None = None) -> Config:
         cfg = source
     elif isinstance(source, dict):
         cfg = normalize(source)
+    elif isinstance(source, Path) or (isinstance(source, str) and "\n" not in source and "=" not in source):
+        cfg = parse(read_text(source), str(source))
     else:
-        cfg = normalize(_read_toml(source))
+        cfg = parse(str(source))
     return cfg.with_overrides(overrides) if overrides else cfg
 
 
-def _read_toml(source) -> dict:
-    text, where = None, None
-    if isinstance(source, Path) or (isinstance(source, str) and "\n" not in source and "=" not in source):
-        path = Path(source)
-        where = str(path)
-        try:
-            text = path.read_text()
-        except FileNotFoundError:
-            raise ConfigError(f"{path}: no such config file") from None
-        except IsADirectoryError:
-            raise ConfigError(f"{path}: is a directory, not a config file") from None
-        except (PermissionError, UnicodeDecodeError, OSError) as exc:
-            raise ConfigError(f"{path}: cannot read the config ({exc.__class__.__name__})") from None
-    else:
-        text, where = str(source), "config"
+def read_text(path) -> str:
+    """A config file's text, read once (it may be a stream: ``quantify <(cat c.toml)``),
+    without a UTF-8 byte-order mark. Raises ConfigError (one line)."""
+    path = Path(path)
     try:
-        return tomllib.loads(text)
+        with open(path, encoding="utf-8-sig") as fh:  # -sig: a byte-order mark is no TOML
+            return fh.read()
+    except FileNotFoundError:
+        raise ConfigError(f"{path}: no such config file") from None
+    except IsADirectoryError:
+        raise ConfigError(f"{path}: is a directory, not a config file") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: not UTF-8 text (byte {exc.start}: {exc.reason}); a config is a UTF-8 TOML "
+                          f"file") from None
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read the config ({exc.strerror or type(exc).__name__})") from None
+
+
+def parse(text: str, where: str = "config") -> Config:
+    """A checked config from TOML text; ``where`` names it in errors (the file)."""
+    text = text.removeprefix("\ufeff")
+    try:
+        raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{where}: not valid TOML ({exc})") from None
+    except RecursionError:
+        raise ConfigError(f"{where}: nested too deeply to read; allowed at most {MAX_DEPTH} levels") from None
+    return normalize(raw, where=where)
+
+
+def _depth(value) -> int:
+    """How deeply tables and lists nest in ``value`` (without recursion: any depth)."""
+    deepest, stack = 0, [(value, 0)]
+    while stack:
+        item, level = stack.pop()
+        children = item.values() if isinstance(item, dict) else item if isinstance(item, list) else None
+        if children is not None:
+            deepest = max(deepest, level + 1)
+            stack.extend((child, level + 1) for child in children)
+    return deepest
 
 
 def to_toml(cfg: Config) -> str:

@@ -19,11 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
-from farm.files import write_json
+from farm.files import read_json, write_json
 from farm.simulators import build_simulator
 from farm.storage import CampaignDir
 from scenarios.actions import ConstantActions, check_action
 from scenarios.base import FAILURE
+from scenarios.errors import CampaignError, ConfigError
 from scenarios.rollout import run_scenario
 from scenarios.search import SearchActions
 from scenarios.streams import PURPOSE_START, RunStreams
@@ -33,16 +34,14 @@ RECORD_LIMIT = 64  # failures written to falsify.mcap (all are listed in falsify
 
 def proposed_gamma_star(directory: Path) -> list[list[float]]:
     """The Gamma* that the campaign in ``directory`` proposed (adversary.json)."""
-    import json
-
     path = Path(directory) / "adversary.json"
     if not path.exists():
-        raise ValueError(f"{directory}: no adversary.json (only a finished campaign with actions.mode = 'search' "
-                         f"proposes Gamma*); give one with --gamma-star")
-    proposal = json.loads(path.read_text()).get("proposed_gamma_star")
+        raise CampaignError(f"{directory}: no adversary.json (only a finished campaign with actions.mode = 'search' "
+                            f"proposes Gamma*); give one with --gamma-star")
+    proposal = read_json(path).get("proposed_gamma_star")
     if not proposal:
-        raise ValueError(f"{path}: no family dominated (no weight >= 0.5), so no Gamma* was proposed; "
-                         f"give one with --gamma-star")
+        raise CampaignError(f"{path}: no family dominated (no weight >= 0.5), so no Gamma* was proposed; "
+                            f"give one with --gamma-star")
     return proposal["actions"]
 
 
@@ -56,13 +55,13 @@ def falsify(directory, *, gamma_star=None, points: int = 10_000, tries: int = 4,
     directory = Path(directory)
     CampaignDir(directory).open("quantify")
     if not 1 <= points <= 10_000_000:
-        raise ValueError(f"--points: {points} is out of range; allowed [1, 10000000]")
+        raise ConfigError(f"--points: {points} is out of range; allowed [1, 10000000]")
     if not 1 <= tries <= 1000:
-        raise ValueError(f"--tries: {tries} is out of range; allowed [1, 1000]")
+        raise ConfigError(f"--tries: {tries} is out of range; allowed [1, 1000]")
     cfg = CampaignDir(directory).frozen_config()
     seed = cfg.farm.seed if seed is None else seed
     if not 0 <= seed < 2**63:
-        raise ValueError(f"--seed: {seed} is out of range; allowed [0, 2**63)")
+        raise ConfigError(f"--seed: {seed} is out of range; allowed [0, 2**63)")
     simulator = build_simulator(spec_of(cfg))
     backend, scenario, horizon = simulator.backend, simulator.scenario, cfg.quantify.horizon
     star = np.asarray(check_action(gamma_star if gamma_star is not None else proposed_gamma_star(directory)[0],

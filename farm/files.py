@@ -16,6 +16,8 @@ from typing import Callable
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from scenarios.errors import CampaignError
+
 TEMP_PREFIX = "."
 TEMP_MARK = ".tmp-"  # temp files are ".<name>.tmp-<pid>": the pid tells a dead writer's
 
@@ -46,6 +48,29 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
 
 def write_json(path: Path, obj: dict) -> None:
     atomic_write_bytes(Path(path), (json.dumps(obj, indent=2, sort_keys=False) + "\n").encode())
+
+
+def read_json(path: Path, required=(), missing: str | None = None) -> dict:
+    """A JSON object this tool wrote, holding at least the keys ``required``; a missing,
+    damaged or foreign file is a one-line CampaignError naming it (``missing``: the
+    message when there is no file)."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_bytes().decode("utf-8"))  # what this tool writes
+    except FileNotFoundError:
+        raise CampaignError(missing or f"{path}: missing") from None
+    except IsADirectoryError:
+        raise CampaignError(f"{path}: a directory, not a file of this tool") from None
+    except (ValueError, RecursionError) as exc:  # UnicodeDecodeError and JSONDecodeError are ValueErrors
+        raise CampaignError(f"{path}: not valid JSON (damaged? {type(exc).__name__}: {exc})") from None
+    except OSError as exc:
+        raise CampaignError(f"{path}: cannot be read ({exc.strerror or type(exc).__name__})") from None
+    if not isinstance(data, dict):
+        raise CampaignError(f"{path}: holds a JSON {type(data).__name__}, not the object this tool wrote (damaged?)")
+    absent = [key for key in required if key not in data]
+    if absent:
+        raise CampaignError(f"{path}: lacks {', '.join(map(repr, absent))} (damaged?)")
+    return data
 
 
 def sha256_file(path: Path) -> str:

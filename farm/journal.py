@@ -26,6 +26,7 @@ from scenarios.version import __version__
 
 CHECKPOINT_FORMAT = 3  # 3: coupled counting (replacements, the stable sampler)
 SEGMENT = re.compile(r"segment-(\d{6})\.npz$")
+META_KEYS = ("epoch", "journal", "append_only", "shapes", "dtypes")  # what reading a checkpoint needs
 
 
 def _npz_bytes(arrays: dict[str, np.ndarray]):
@@ -121,6 +122,19 @@ class Journal:
         if not isinstance(meta, dict) or meta.get("format") != CHECKPOINT_FORMAT:
             raise CampaignError(f"{self.main}: checkpoint format {meta.get('format') if isinstance(meta, dict) else '?'}"
                                 f" is not {CHECKPOINT_FORMAT}; nothing was changed")
+        missing = [key for key in META_KEYS if key not in meta]
+        if missing:
+            raise CampaignError(f"{self.main}: checkpoint metadata lacks {', '.join(map(repr, missing))} (damaged?); "
+                                f"nothing was changed")
+        try:
+            return arrays | self._journalled(meta, wanted), meta
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise CampaignError(f"{self.main}: checkpoint metadata is damaged ({type(exc).__name__}: {exc}); nothing "
+                                f"was changed") from None
+
+    def _journalled(self, meta: dict, wanted: set | None) -> dict[str, np.ndarray]:
+        """The append-only arrays the metadata lists, reassembled from their segments."""
+        arrays = {}
         journalled = [n for n in meta["append_only"] if wanted is None or n in wanted]
         parts: dict[str, list[np.ndarray]] = {name: [] for name in journalled}
         for segment in meta["journal"]:
@@ -141,7 +155,7 @@ class Journal:
         for name in journalled:
             shape, dtype = meta["shapes"][name], np.dtype(meta["dtypes"][name])
             arrays[name] = np.concatenate(parts[name]) if parts[name] else np.empty((0, *shape), dtype=dtype)
-        return arrays, meta
+        return arrays
 
     def _remove_unlisted(self) -> None:
         listed = {s["name"] for s in self.segments}

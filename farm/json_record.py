@@ -10,13 +10,12 @@ or a value of the wrong JSON type, is a one-line ``CampaignError`` naming the ke
 from __future__ import annotations
 
 import dataclasses
-import json
 import typing
 from pathlib import Path
 from typing import ClassVar
 
-from farm.files import write_json
-from farm.storage import CampaignError
+from farm.files import read_json, write_json
+from scenarios.errors import CampaignError
 
 _JSON_TYPES = {bool: (bool,), int: (int,), float: (int, float), str: (str,), list: (list,), dict: (dict,)}
 
@@ -93,7 +92,7 @@ class JsonFile:
         """The record in ``directory``; a one-line CampaignError when the file is absent,
         unreadable or not such a record."""
         path = Path(directory) / cls.FILE
-        return cls.from_json(read_json(path, cls.MISSING.format(directory=directory, file=cls.FILE)), str(path))
+        return cls.from_json(read_json(path, missing=cls.MISSING.format(directory=directory, file=cls.FILE)), str(path))
 
     def write(self, directory) -> Path:
         path = Path(directory) / self.FILE
@@ -103,12 +102,3 @@ class JsonFile:
     def __getitem__(self, key: str):
         return self.to_json()[key]
 
-
-def read_json(path: Path, missing: str) -> dict:
-    """The JSON object in ``path``; ``missing``: the message when there is no file."""
-    try:
-        return json.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise CampaignError(missing) from None
-    except (OSError, ValueError) as exc:
-        raise CampaignError(f"{path}: unreadable ({type(exc).__name__}: {exc})") from None

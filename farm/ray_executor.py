@@ -38,7 +38,7 @@ from farm.ray_pool import ActorPool, Call, check_started
 from farm.ray_session import connect
 from farm.simulators import build_simulator
 from farm.waiting import WorkerError, name_runs
-from scenarios.base import ScenarioError
+from scenarios.errors import FarmError
 from scenarios.simulator import SimSpec
 
 __all__ = ["RayExecutor", "WorkerError", "busy_at_most", "chunks_per_batch"]
@@ -374,7 +374,7 @@ class RayExecutor(Executor):
                 value = ray.get(call.ref)
             except ray.exceptions.RayTaskError as exc:
                 cause = getattr(exc, "cause", None)
-                if isinstance(cause, ScenarioError):  # the user's scenario raised: its own line
+                if isinstance(cause, FarmError):  # e.g. the user's scenario raised: its own one line
                     raise cause from None
                 raise WorkerError(f"worker failed on {call.what}: {cause if cause is not None else exc}") from None
             except (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError,

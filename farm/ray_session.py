@@ -1,6 +1,7 @@
 """Starting or joining Ray for a campaign: a private local Ray as the CLI starts it
-(loopback only, with ``RAY_SYSTEM_CONFIG``), or a cluster at an address. Benchmarks
-and tests start their local Ray here too, so it has the CLI's settings.
+(loopback only, with ``RAY_SYSTEM_CONFIG``, its processes ended with the driver's), or a
+cluster at an address, checked to answer before anything is written. Benchmarks and
+tests start their local Ray here too, so it has the CLI's settings.
 """
 
 from __future__ import annotations
@@ -8,7 +9,13 @@ from __future__ import annotations
 import logging
 import os
 import signal
+import subprocess
+import sys
 import threading
+from pathlib import Path
+
+from farm.ray_address import reachable
+from scenarios.errors import ConfigError, InfrastructureError
 
 # Return values up to this size come back inside the task's reply instead of through
 # the object store (Ray's default: 100 KB). A chunk's summary is ~150 KB for 1,024
@@ -25,23 +32,41 @@ RAY_SYSTEM_CONFIG = {"max_direct_call_object_size": INLINE_RETURN_BYTES}
 def connect(address: str, workers: int) -> None:
     """Start a private local Ray (``address = "local"``) or join a cluster. Local Ray's
     workers get the working directory on their path, as the CLI has it: a config's
-    'module:Class' imports there as it does in the coordinator."""
+    'module:Class' imports there as it does in the coordinator. A SIGTERM while Ray
+    starts is a KeyboardInterrupt (the CLI: "stopped", exit 130)."""
     import ray
 
     if ray.is_initialized():
         return
-    with _keep_sigterm_handler():
-        _init(ray, address, workers)
+    # The executor reports a failed chunk once, as one line; the refs of chunks it drops
+    # (a round's end, a failure) hold the same error, which Ray would print on the
+    # driver as "Unhandled error" with the worker's traceback when they are freed.
+    os.environ.setdefault("RAY_IGNORE_UNHANDLED_ERRORS", "1")
+    target = None if address == "local" else reachable(address)
+    try:
+        with _keep_sigterm_handler():
+            if target is None:
+                start_local(workers)
+            else:
+                ray.init(address=target, log_to_driver=False, configure_logging=False)
+    except SystemExit as exc:
+        # ray.init makes SIGTERM exit the driver at once (sys.exit) until it returns
+        if exc.code != signal.SIGTERM:
+            raise
+        ray.shutdown()
+        raise KeyboardInterrupt from None
+    except (ConfigError, KeyboardInterrupt):
+        raise
+    except Exception as exc:  # noqa: BLE001 - whatever Ray raises while starting or joining
+        ray.shutdown()
+        text = " ".join(str(exc).split())
+        if target is None:
+            raise InfrastructureError(f"Ray did not start on this machine ({type(exc).__name__}: {text})") from None
+        raise ConfigError(f"farm.address: {address!r} answers at {target}, but joining it as a Ray cluster failed "
+                          f"({type(exc).__name__}: {text})") from None
     from farm import ray_watch
 
     ray_watch.watch(ray)  # a lost raylet or head: our line, not Ray's exit 1
-
-
-def _init(ray, address: str, workers: int) -> None:
-    if address == "local":
-        start_local(workers)
-    else:
-        ray.init(address=address, log_to_driver=False, configure_logging=False)
 
 
 def start_local(num_cpus: int, extra_path: str | None = None) -> None:
@@ -57,6 +82,24 @@ def start_local(num_cpus: int, extra_path: str | None = None) -> None:
         ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False, configure_logging=False,
                  _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1", _system_config=RAY_SYSTEM_CONFIG,
                  runtime_env={"env_vars": {"PYTHONPATH": path}})
+    _start_reaper(ray)
+
+
+_reapers: list[subprocess.Popen] = []  # their stdin pipes stay open as long as this process
+
+
+def _start_reaper(ray) -> None:
+    """farm/ray_reaper.py: ends what this Ray started when this process ends, kill -9 included."""
+    node = ray._private.worker._global_node
+    pids = {name: [p.process.pid for p in procs] for name, procs in getattr(node, "all_processes", {}).items()}
+    if not sys.platform.startswith("linux") or not pids.get("raylet"):
+        return
+    others = [pid for name, group in pids.items() if name != "raylet" for pid in group]
+    _reapers[:] = [r for r in _reapers if r.poll() is None]  # those of an earlier Ray here have ended
+    _reapers.append(subprocess.Popen(
+        [sys.executable, "-I", str(Path(__file__).with_name("ray_reaper.py")), str(pids["raylet"][0]),
+         *map(str, others)], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        start_new_session=True))
 
 
 class _keep_sigterm_handler:

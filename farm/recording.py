@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from farm.files import atomic_write
+from scenarios.errors import DataError
 
 def schema_for(scenario_name: str, state_names: list[str]) -> dict:
     props = {"sample_index": {"type": "integer"}, "step": {"type": "integer"},
@@ -105,11 +106,11 @@ def read_recording(path) -> dict:
                 if msg.get("outcome"):
                     outcomes[msg["sample_index"]] = msg["outcome"]
     except FileNotFoundError:
-        raise ValueError(f"{path}: no such recording") from None
+        raise DataError(f"{path}: no such recording") from None
     except Exception as exc:  # noqa: BLE001 - the mcap reader raises many kinds on a damaged file
-        raise ValueError(f"{path}: not a Scenario Farm recording ({type(exc).__name__}: {exc})") from None
+        raise DataError(f"{path}: not a Scenario Farm recording ({type(exc).__name__}: {exc})") from None
     if "scenario-farm" not in meta or schema is None:
-        raise ValueError(f"{path}: not a Scenario Farm recording (no scenario-farm metadata or no messages)")
+        raise DataError(f"{path}: not a Scenario Farm recording (no scenario-farm metadata or no messages)")
     runs = {}
     for index, steps in rows.items():
         steps.sort()

@@ -9,9 +9,9 @@ import html
 from pathlib import Path
 
 import pyarrow.compute as pc
-import pyarrow.dataset as ds
 
 from farm.files import atomic_write_bytes
+from farm.storage import read_ledger
 from farm.summary import Summary
 from farm.truncations import shares
 
@@ -25,7 +25,7 @@ td.k{text-align:left;color:#555}img{max-width:100%;border:1px solid #eee;margin:
 
 def _rounds(directory: Path) -> list[dict]:
     """Runs, changes and N_eps-counted runs per round, from the ledger."""
-    table = ds.dataset(directory / "ledger").to_table(columns=["round", "delta", "changed", "counted"])
+    table = read_ledger(directory, columns=["round", "delta", "changed", "counted"])
     out = []
     for rnd in sorted(set(table.column("round").to_pylist())):
         rows = table.filter(pc.equal(table.column("round"), rnd))

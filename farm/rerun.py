@@ -15,8 +15,9 @@ import pyarrow.dataset as ds
 
 from farm.certificate import FILE as CERTIFICATE_FILE, Certificate
 from farm.simulators import build_simulator
-from farm.storage import CampaignDir
+from farm.storage import CampaignDir, read_ledger
 from scenarios.base import OUTCOME_NAMES
+from scenarios.errors import CampaignError, ConfigError, DataError
 from scenarios.simulator import SimSpec
 
 
@@ -45,7 +46,7 @@ def _recorded(directory: Path, index: int):
     for path in sorted((directory / "recordings").glob("*.mcap")) + sorted(directory.glob("*.mcap")):
         try:
             rec = read_recording(path)
-        except ValueError as exc:
+        except DataError as exc:
             print(f"scenario-farm: warning: skipped {exc}", file=sys.stderr)
             continue
         if index in rec["runs"]:
@@ -76,11 +77,11 @@ def replay(directory: Path, index: int) -> tuple[bool, str]:
 
     cfg = CampaignDir(directory).frozen_config()
     if not 0 <= index < 2**63:
-        raise ValueError(f"--sample: {index} is out of range; allowed [0, 2**63)")
-    rows = ds.dataset(directory / "ledger").to_table(filter=ds.field("sample_index") == index).to_pylist()
+        raise ConfigError(f"--sample: {index} is out of range; allowed [0, 2**63)")
+    rows = read_ledger(directory, filter=ds.field("sample_index") == index).to_pylist()
     rows = [r for r in rows if not r.get("discarded")]  # the run used at this index (a replacement, if any)
     if not rows:
-        raise ValueError(f"{directory}: sample {index} is not in the ledger (not committed)")
+        raise CampaignError(f"{directory}: sample {index} is not in the ledger (not committed)")
     row = rows[0]
     spec = SimSpec(cfg.scenario.model_dump(), cfg.actions.model_dump(), cfg.quantify.horizon, cfg.farm.seed)
     simulator = build_simulator(spec)
@@ -106,7 +107,7 @@ def replay(directory: Path, index: int) -> tuple[bool, str]:
 def _replay_counterexample(directory: Path, index: int) -> tuple[bool, str]:
     ce = Certificate.read(directory).counterexample
     if not ce or ce["sample_index"] != index:
-        raise ValueError(f"{directory}: certificate.json holds no counterexample with sample index {index}")
+        raise CampaignError(f"{directory}: certificate.json holds no counterexample with sample index {index}")
 
     cfg = CampaignDir(directory).frozen_config()
     spec = SimSpec(cfg.scenario.model_dump(), cfg.actions.model_dump(), cfg.validate.horizon, cfg.farm.seed)

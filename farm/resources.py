@@ -5,6 +5,8 @@ than atoms, a validation domain 1e-7 wide at ``delta = 1e-9`` a lattice of 10^18
 Both used to run until the machine gave out. The estimates here are worst cases (every
 cell of the finest covering alive), so a refusal is never wrong about what was asked;
 the limit is ``farm.max_memory_gb`` (default: three quarters of this machine's memory).
+The farm is checked too: a local Ray gets at most ``ACTORS_PER_CPU`` actors per CPU of
+this machine, and a cluster is joined before any file is written.
 """
 
 from __future__ import annotations
@@ -21,6 +23,10 @@ from farm.config import Config, ConfigError
 BYTES_PER_BOX = 1024
 # A validation lattice holds centres, their index and per-centre verdicts.
 BYTES_PER_CENTRE = 256
+# Actors past the CPUs only share them (a local Ray gives each CPUs / workers of one), and
+# each is a process that takes its memory and seconds to start; a few per CPU still hide
+# a simulator that waits rather than computes (docs/benchmarks.md, branch errors).
+ACTORS_PER_CPU = 4
 
 
 def memory_limit_bytes(cfg: Config) -> float:
@@ -60,6 +66,33 @@ def _fits(cfg: Config, field: str, delta: float, lo, hi, per_cell: int, what: st
                           f"{finest:.3g}, or raise farm.max_memory_gb")
 
 
+def machine_cpus() -> int:
+    """The CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def check_farm(cfg: Config) -> None:
+    """Refuse a local Ray with more actors than ``ACTORS_PER_CPU`` per CPU (ConfigError).
+    A cluster is joined now, before any file is written: an address that answers
+    nothing, or answers but is no Ray cluster, is refused with nothing to clean up."""
+    farm = cfg.farm
+    if farm.executor != "ray":
+        return
+    if farm.address == "local":
+        most = ACTORS_PER_CPU * machine_cpus()
+        if farm.workers > most:
+            raise ConfigError(f"farm.workers: {farm.workers} actors on a local Ray of {machine_cpus()} CPUs; allowed "
+                              f"[1, {most}] ({ACTORS_PER_CPU} per CPU: more only share the CPUs, each a process of "
+                              f"its own); for more, join a cluster with farm.address")
+        return
+    from farm.ray_session import connect
+
+    connect(farm.address, farm.workers)
+
+
 def check_quantify(cfg: Config, lower, upper) -> None:
     """Refuse, with the field named, a quantification that cannot fit (ConfigError)."""
     q = cfg.quantify
@@ -68,17 +101,18 @@ def check_quantify(cfg: Config, lower, upper) -> None:
         raise ConfigError(f"quantify.delta0: {q.delta0:g} is larger than Sigma (one box of half-width {half:g} "
                           f"covers it; every larger delta0 only adds rounds); allowed (0, {half:g}]")
     _fits(cfg, "quantify.delta_min", q.delta_min, lower, upper, BYTES_PER_BOX, "may need {:.3g} boxes")
+    check_farm(cfg)
 
 
 def check_validate(cfg: Config, lo, hi, is_set: bool) -> None:
     """Refuse a validation whose delta-lattice cannot fit, or whose delta exceeds the
     domain (one box would cover it: a single start would 'certify' the whole domain)."""
     v = cfg.validate
-    if v.algorithm == "eps" or is_set:  # eps samples Phi itself; a set brings its own centres
-        return
-    half = float(np.max(np.asarray(hi) - np.asarray(lo))) / 2
-    if v.delta > half * (1 + 1e-12):
-        raise ConfigError(f"validate.delta: {v.delta:g} is larger than the domain (half its widest side is "
-                          f"{half:g}: one box would cover it, so a single start would stand for all of Phi); "
-                          f"allowed (0, {half:g}]")
-    _fits(cfg, "validate.delta", v.delta, lo, hi, BYTES_PER_CENTRE, "gives a lattice of {:.3g} centres")
+    if v.algorithm != "eps" and not is_set:  # eps samples Phi itself; a set brings its own centres
+        half = float(np.max(np.asarray(hi) - np.asarray(lo))) / 2
+        if v.delta > half * (1 + 1e-12):
+            raise ConfigError(f"validate.delta: {v.delta:g} is larger than the domain (half its widest side is "
+                              f"{half:g}: one box would cover it, so a single start would stand for all of Phi); "
+                              f"allowed (0, {half:g}]")
+        _fits(cfg, "validate.delta", v.delta, lo, hi, BYTES_PER_CENTRE, "gives a lattice of {:.3g} centres")
+    check_farm(cfg)

@@ -12,8 +12,8 @@ import json
 import time
 from pathlib import Path
 
-from farm.files import write_json
-from farm.storage import MARKER, CampaignDir
+from farm.files import read_json, write_json
+from farm.storage import MARKER, CampaignDir, CampaignError
 from farm.summary import FILE as SUMMARY_FILE, Summary
 
 EVERY_S = 2.0
@@ -73,15 +73,15 @@ def read_status(directory: Path) -> dict | None:
 def describe(directory: Path) -> str:
     directory = Path(directory)
     if not (directory / MARKER).exists() or not (directory / "config.json").exists():
-        raise ValueError(f"{directory}: not a campaign directory (no {MARKER} or config.json)")
+        raise CampaignError(f"{directory}: not a campaign directory (no {MARKER} or config.json)")
     lines = [f"campaign {directory}"]
+    frozen = read_json(directory / "config.json", ("config", "config_hash"))
     try:
-        frozen = json.loads((directory / "config.json").read_text())
         c = frozen["config"]
         lines.append(f"  scenario {c['scenario']['name']} / {c['scenario'].get('sv_policy')} / "
                      f"{c['quantify']['algorithm']}, config hash {frozen['config_hash']}")
-    except (OSError, ValueError, KeyError, TypeError):
-        raise ValueError(f"{directory}/config.json: unreadable") from None
+    except (KeyError, TypeError) as exc:
+        raise CampaignError(f"{directory}/config.json: lacks {exc} (damaged?)") from None
     holder = CampaignDir(directory).holder()
     st = read_status(directory)
     if st is None:

@@ -24,6 +24,7 @@ import os
 import re
 import shutil
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +32,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from coordinator.commit_log import CommitLog
-from farm.files import TEMP_MARK, atomic_write, sha256_file, write_json
+from farm.files import TEMP_MARK, atomic_write, read_json, sha256_file, write_json
+from scenarios.errors import CampaignError
 from scenarios.version import __version__
 
 MARKER = ".scenario-farm.json"
@@ -39,9 +41,7 @@ LOCK = ".lock"
 DIRECTORY_FORMAT = 2
 SEGMENT = re.compile(r"segment-(\d{6})\.parquet$")
 
-
-class CampaignError(RuntimeError):
-    """A campaign directory that cannot be used as asked (printed as one line, exit 2)."""
+__all__ = ["CampaignDir", "CampaignError", "Ledger", "read_ledger"]
 
 
 class CampaignDir:
@@ -159,14 +159,13 @@ class CampaignDir:
         from farm import config as config_mod
 
         path = self.path / "config.json"
+        raw = read_json(path, ("config",), missing=f"{self.path}: not a campaign directory (no config.json)")["config"]
         try:
-            raw = json.loads(path.read_text())["config"]
-        except FileNotFoundError:
-            raise CampaignError(f"{self.path}: not a campaign directory (no config.json)") from None
-        except (ValueError, KeyError, TypeError) as exc:
-            raise CampaignError(f"{path}: unreadable ({type(exc).__name__}: {exc})") from None
-        try:
-            return config_mod.normalize(raw)
+            with warnings.catch_warnings():
+                # the start of the campaign warned of a value it changed (a checkpoint
+                # interval below the minimum); reading the config again is no news
+                warnings.simplefilter("ignore", config_mod.ConfigWarning)
+                return config_mod.normalize(raw)
         except config_mod.ConfigError as exc:
             raise CampaignError(f"{path}: not a valid frozen config ({exc})") from None
 
@@ -277,3 +276,25 @@ class Ledger:
                 if stem.isdigit() and int(stem) >= len(digests):
                     path.unlink()
         self.digests, self.rows = list(digests), rows
+
+
+def read_ledger(directory: Path, columns=None, filter=None) -> pa.Table:
+    """The committed runs of DIR/ledger, every segment, as one table (``columns`` and a
+    pyarrow.dataset ``filter`` as ``Dataset.to_table`` takes them); a missing ledger or a
+    damaged segment is a one-line CampaignError naming it."""
+    import pyarrow.dataset as ds
+
+    ledger = Path(directory) / "ledger"
+    paths = sorted(str(p) for p in ledger.glob("segment-*.parquet"))
+    if not paths:
+        raise CampaignError(f"{ledger}: no ledger segments (removed?); the campaign's committed runs are gone")
+    try:
+        return ds.dataset(paths, format="parquet").to_table(columns=columns, filter=filter)
+    except (pa.ArrowException, OSError) as exc:
+        for path in paths:  # name the segment at fault
+            try:
+                pq.ParquetFile(path).schema_arrow
+            except (pa.ArrowException, OSError) as bad:
+                raise CampaignError(f"{path}: ledger segment is damaged ({' '.join(str(bad).split())})") from None
+        raise CampaignError(f"{ledger}: the ledger segments do not read as one table (damaged or mixed? "
+                            f"{' '.join(str(exc).split())})") from None

@@ -10,6 +10,8 @@ the executor gives up (``WorkerError``) rather than retrying; Ray replaces the w
 
 from __future__ import annotations
 
+from scenarios.errors import InfrastructureError
+
 import queue
 import threading
 import time
@@ -20,7 +22,7 @@ import numpy as np
 POLL_S = 0.2  # [s] how often a wait looks at the stop flag and the time limits
 
 
-class WorkerError(RuntimeError):
+class WorkerError(InfrastructureError):
     """The workers failed on a chunk (it overran its time limit, or lost its worker) more
     often than ``farm.max_retries`` allows, or no worker is left."""
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 from scenarios.actions import (ActionPolicy, AdversarialActions, ConstantActions, FeedbackActions, UniformActions,
                                check_action)
 from scenarios.base import Scenario
+from scenarios.errors import ConfigError
 from scenarios.search import SearchActions
 
 
@@ -17,7 +18,7 @@ def make_action_policy(mode: str, scenario: Scenario, value=None, policy: str | 
         return AdversarialActions(deterministic=len(scenario.adversarial_actions) == 1)
     if mode == "constant":
         if value is None:
-            raise ValueError("actions.value: required for mode = 'constant'")
+            raise ConfigError("actions.value: required for mode = 'constant'")
         values = value if isinstance(value, list) else [value]
         vals = check_action(values, scenario, "actions.value")
         return ConstantActions(vals)
@@ -25,6 +26,8 @@ def make_action_policy(mode: str, scenario: Scenario, value=None, policy: str | 
         return SearchActions(scenario)
     if mode == "feedback":
         if not policy:
-            raise ValueError("actions.policy: required for mode = 'feedback' ('package.module:function')")
-        return FeedbackActions(policy)
-    raise ValueError(f"actions.mode: unknown mode {mode!r}; allowed: uniform, adversarial, constant, feedback, search")
+            raise ConfigError("actions.policy: required for mode = 'feedback' ('package.module:function')")
+        feedback = FeedbackActions(policy)
+        feedback.check(scenario)
+        return feedback
+    raise ConfigError(f"actions.mode: unknown mode {mode!r}; allowed: uniform, adversarial, constant, feedback, search")

@@ -14,7 +14,12 @@ import numpy as np
 
 from scenarios.streams import PURPOSE_ACTION, RunStreams
 from scenarios.base import Scenario
+from scenarios.errors import ConfigError, ScenarioError
 from scenarios.registry import load_object
+
+
+class PolicyError(ScenarioError):
+    """A feedback policy (user code) raised or returned the wrong shape during a run."""
 
 
 class ActionPolicy:
@@ -125,9 +130,18 @@ class FeedbackActions(ActionPolicy):
     def words(self, scenario):
         return f"with the actions chosen by the feedback policy {self.target}"
 
+    def check(self, scenario: Scenario) -> None:
+        """Call the policy on two start states now, so that a function of another shape
+        (e.g. ``os:system``) is named in the config's terms, not as the scenario failing."""
+        check_output(self._fn, self.target, "actions.policy", "states (B, n) -> actions (B, m)",
+                     probe_states(scenario.lower, scenario.upper), scenario.m)
+
     def __call__(self, scenario, states, t, streams):
-        u = np.asarray(self._fn(states), dtype=float)
-        return np.clip(u.reshape(len(states), scenario.m), scenario.action_lower, scenario.action_upper)
+        try:
+            u = np.asarray(self._fn(states), dtype=float).reshape(len(states), scenario.m)
+        except Exception as exc:  # noqa: BLE001 - the user's policy: named as such, with the run
+            raise PolicyError(f"actions.policy: {self.target!r} raised {type(exc).__name__}: {exc}") from None
+        return np.clip(u, scenario.action_lower, scenario.action_upper)
 
 
 def check_action(values, scenario: Scenario, field: str) -> tuple[float, ...]:
@@ -135,13 +149,13 @@ def check_action(values, scenario: Scenario, field: str) -> tuple[float, ...]:
     error naming ``field`` and the allowed range."""
     names = ", ".join(scenario.action_names)
     if not all(isinstance(v, (int, float, np.floating, np.integer)) and not isinstance(v, bool) for v in values):
-        raise ValueError(f"{field}: expected {scenario.m} number(s) ({names}), got {list(values)!r}")
+        raise ConfigError(f"{field}: expected {scenario.m} number(s) ({names}), got {list(values)!r}")
     vals = tuple(float(v) for v in values)
     if len(vals) != scenario.m:
-        raise ValueError(f"{field}: expected {scenario.m} number(s) ({names}), got {list(vals)}")
+        raise ConfigError(f"{field}: expected {scenario.m} number(s) ({names}), got {list(vals)}")
     for v, lo, hi, name in zip(vals, scenario.action_lower, scenario.action_upper, scenario.action_names):
         if not lo <= v <= hi:
-            raise ValueError(f"{field}: {name} = {v:g} outside Gamma; allowed range [{lo:g}, {hi:g}]")
+            raise ConfigError(f"{field}: {name} = {v:g} outside Gamma; allowed range [{lo:g}, {hi:g}]")
     return vals
 
 
@@ -149,11 +163,32 @@ def load_callable(target: str, field: str, signature: str):
     """A plugin function: import it and check it is a callable taking one argument."""
     fn = load_object(target, field)
     if not callable(fn) or isinstance(fn, type):
-        raise ValueError(f"{field}: {target!r} is not a function; expected a function {signature}")
+        raise ConfigError(f"{field}: {target!r} is not a function; expected a function {signature}")
     try:
         inspect.signature(fn).bind(None)
     except TypeError:
-        raise ValueError(f"{field}: {target!r} does not take one argument; expected a function {signature}") from None
+        raise ConfigError(f"{field}: {target!r} does not take one argument; expected a function {signature}") from None
     except ValueError:  # builtins without a signature: let the call decide
         pass
     return fn
+
+
+def probe_states(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """(2, n) start states inside [lo, hi] to try a plugin function on."""
+    lo, hi = np.asarray(lo, dtype=float), np.asarray(hi, dtype=float)
+    return np.stack([0.75 * lo + 0.25 * hi, 0.25 * lo + 0.75 * hi])
+
+
+def check_output(fn, target: str, field: str, signature: str, states: np.ndarray, per_state: int | None) -> None:
+    """Call a plugin function on ``states`` (B, n) and check it answers B rows (of
+    ``per_state`` numbers each; None: one value per state), or a one-line ConfigError."""
+    shape = f"({len(states)}, {states.shape[1]})"
+    try:
+        out = np.asarray(fn(states), dtype=float)
+    except Exception as exc:  # noqa: BLE001 - the user's function on plain start states
+        raise ConfigError(f"{field}: {target!r} raised {type(exc).__name__} on a {shape} array of start states "
+                          f"({' '.join(str(exc).split())}); expected a function {signature}") from None
+    want = len(states) * (per_state or 1)
+    if out.size != want or (per_state is None and out.shape != (len(states),)):
+        raise ConfigError(f"{field}: {target!r} returned shape {out.shape} for a {shape} array of start states; "
+                          f"expected a function {signature}")

@@ -35,6 +35,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from scenarios.base import Scenario
+from scenarios.errors import ConfigError
 from scenarios.streams import RunStreams
 
 
@@ -67,7 +68,7 @@ class NumpyBackend:
 
     def __init__(self, scenario: Scenario, options: dict | None = None):
         if options:
-            raise ValueError(f"scenario.numpy: the numpy back end takes no options; got {sorted(options)}")
+            raise ConfigError(f"scenario.numpy: the numpy back end takes no options; got {sorted(options)}")
         self.scenario = scenario
 
     def insert(self, starts: np.ndarray, horizon: int, streams: RunStreams) -> np.ndarray:

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scenarios.errors import ConfigError, ScenarioError
+
 # A facet counts as crossed only when crossed by more than this, so that a state landing
 # exactly on a facet (as grid states do) is decided as exact arithmetic would decide it.
 FACET_TOLERANCE = 1e-9
@@ -20,10 +22,6 @@ CONTINUE, TRUNCATED, FAILURE, HORIZON = 0, 1, 2, 3
 NO_SV = "none"  # the sv_policy of a scenario without an SV policy (e.g. the toy)
 EXTERNAL_SV = "external"  # the SV is simulated by the back end (e.g. SUMO's car following)
 OUTCOME_NAMES = {TRUNCATED: "truncated", FAILURE: "failure", HORIZON: "horizon"}
-
-
-class ScenarioError(RuntimeError):
-    """A scenario produced something no verdict can be drawn from (NaN, wrong shape)."""
 
 
 @dataclass(frozen=True)
@@ -123,21 +121,22 @@ class Scenario(ABC):
             self._policy = self.sv_policies[sv_policy]
         else:
             allowed = ", ".join(self.sv_policies) or NO_SV
-            raise ValueError(f"scenario.sv_policy: {sv_policy!r} is not an SV policy of {self.name!r}; allowed: {allowed}")
+            raise ConfigError(f"scenario.sv_policy: {sv_policy!r} is not an SV policy of {self.name!r}; "
+                              f"allowed: {allowed}")
         self.sv_policy_name = sv_policy
         names = tuple(self.failure_sides) if failure_facets is None else tuple(failure_facets)
         unknown = [f for f in names if f not in self.failure_sides]
         if unknown:
-            raise ValueError(
+            raise ConfigError(
                 f"scenario.failure_facets: unknown facet {unknown[0]!r}; "
                 f"allowed: {sorted(self.failure_sides)}"
             )
         if not names:
-            raise ValueError("scenario.failure_facets: at least one failure facet must count")
+            raise ConfigError("scenario.failure_facets: at least one failure facet must count")
         if not (isinstance(disturbance, (int, float)) and disturbance >= 0 and np.isfinite(disturbance)):
-            raise ValueError(f"scenario.disturbance: {disturbance!r} is out of range; allowed [0, inf)")
+            raise ConfigError(f"scenario.disturbance: {disturbance!r} is out of range; allowed [0, inf)")
         if disturbance and not self.noise_width:
-            raise ValueError(f"scenario.disturbance: scenario {self.name!r} has no disturbance input; allowed: 0")
+            raise ConfigError(f"scenario.disturbance: scenario {self.name!r} has no disturbance input; allowed: 0")
         self.failure_facets = names
         self.disturbance = float(disturbance)
         self.lower = np.asarray(self.lower, dtype=float)
@@ -146,6 +145,7 @@ class Scenario(ABC):
         self.action_upper = np.asarray(self.action_upper, dtype=float)
         self.action_span = self.action_upper - self.action_lower
         self.adversarial_actions = np.atleast_2d(np.asarray(self.adversarial_actions, dtype=float))
+        self._check_boxes()
         self._below = (self.lower - FACET_TOLERANCE).tolist()  # crossing thresholds
         self._above = (self.upper + FACET_TOLERANCE).tolist()
         self._failure_mask_lower = np.zeros(self.n, dtype=bool)
@@ -156,6 +156,20 @@ class Scenario(ABC):
                 self._failure_mask_upper[axis] = True
             else:
                 self._failure_mask_lower[axis] = True
+
+    def _check_boxes(self) -> None:
+        """Sigma and Gamma are finite boxes of the declared sizes (a user scenario's class
+        attributes: an infinite bound is named here, not later as a resolution too fine)."""
+        for what, names, lo, hi in (("Sigma", self.state_names, self.lower, self.upper),
+                                    ("Gamma", self.action_names, self.action_lower, self.action_upper)):
+            if lo.shape != (len(names),) or hi.shape != (len(names),):
+                raise ScenarioError(f"scenario {self.name!r}: {what}'s bounds have shapes {lo.shape} and {hi.shape}, "
+                                    f"expected ({len(names)},): one per name in {tuple(names)}")
+            bad = [i for i in range(len(names)) if not (np.isfinite(lo[i]) and np.isfinite(hi[i]) and lo[i] < hi[i])]
+            if bad:
+                i = bad[0]
+                raise ScenarioError(f"scenario {self.name!r}: {what} must be a finite box; {names[i]} has bounds "
+                                    f"[{lo[i]:g}, {hi[i]:g}], allowed finite lower < upper")
 
     @property
     def external_sv(self) -> bool:

@@ -24,6 +24,7 @@ from importlib.metadata import entry_points
 
 from scenarios.base import EXTERNAL_SV, Scenario
 from scenarios.per_run import RunSimulator, per_run_backend
+from scenarios.errors import ConfigError, FarmError, ScenarioError
 
 SCENARIOS: dict[str, str | type] = {
     "lead-follow": "scenarios.lead_follow:LeadFollow",
@@ -49,18 +50,18 @@ def load_object(target: str, field: str):
     """Import ``package.module:attr``; a one-line error naming ``field`` otherwise."""
     module_name, sep, attr = target.partition(":")
     if not sep or not module_name or not attr:
-        raise ValueError(f"{field}: expected 'package.module:Name', got {target!r}")
+        raise ConfigError(f"{field}: expected 'package.module:Name', got {target!r}")
     try:
         module = importlib.import_module(module_name)
     except ImportError as exc:
-        raise ValueError(f"{field}: cannot import module {module_name!r} ({exc}); is it on the path or in the "
-                         f"working directory?") from None
+        raise ConfigError(f"{field}: cannot import module {module_name!r} ({exc}); is it on the path or in the "
+                          f"working directory?") from None
     except Exception as exc:  # noqa: BLE001 - the user's module raised while importing
-        raise ValueError(f"{field}: importing {module_name!r} raised {type(exc).__name__}: {exc}") from None
+        raise ConfigError(f"{field}: importing {module_name!r} raised {type(exc).__name__}: {exc}") from None
     try:
         return getattr(module, attr)
     except AttributeError:
-        raise ValueError(f"{field}: module {module_name!r} has no attribute {attr!r}") from None
+        raise ConfigError(f"{field}: module {module_name!r} has no attribute {attr!r}") from None
 
 
 def _lookup(kind: str, table: dict, name: str, field: str):
@@ -72,17 +73,17 @@ def _lookup(kind: str, table: dict, name: str, field: str):
     if target is None and ":" in name:
         target = name
     if target is None:
-        raise ValueError(f"{field}: unknown {kind} {name!r}; allowed: {', '.join(table)} or 'package.module:Class'")
+        raise ConfigError(f"{field}: unknown {kind} {name!r}; allowed: {', '.join(table)} or 'package.module:Class'")
     return load_object(target, field) if isinstance(target, str) else target
 
 
 def scenario_class(name: str) -> type[Scenario]:
     cls = _lookup("scenario", SCENARIOS, name, "scenario.name")
     if not (isinstance(cls, type) and issubclass(cls, Scenario)):
-        raise ValueError(f"scenario.name: {name!r} is not a subclass of scenarios.Scenario")
+        raise ConfigError(f"scenario.name: {name!r} is not a subclass of scenarios.Scenario")
     if inspect.isabstract(cls):
         missing = ", ".join(sorted(cls.__abstractmethods__))
-        raise ValueError(f"scenario.name: {name!r} does not implement {missing}")
+        raise ConfigError(f"scenario.name: {name!r} does not implement {missing}")
     return cls
 
 
@@ -96,8 +97,8 @@ def backend_class(name: str) -> type:
             raise ValueError(f"scenario.backend: {name!r} does not implement {missing}")
         return per_run_backend(cls)
     if not isinstance(cls, type) or not all(callable(getattr(cls, m, None)) for m in ("insert", "step", "keep", "clear")):
-        raise ValueError(f"scenario.backend: {name!r} is not a back end (a class with insert, step, keep, clear) "
-                         f"nor a per-run simulator (a scenarios.per_run.RunSimulator)")
+        raise ConfigError(f"scenario.backend: {name!r} is not a back end (a class with insert, step, keep, clear) "
+                          f"nor a per-run simulator (a scenarios.per_run.RunSimulator)")
     return cls
 
 
@@ -105,10 +106,14 @@ def make_scenario(name: str, sv_policy: str | None = None, failure_facets=None, 
     cls = scenario_class(name)
     try:
         return cls(sv_policy=sv_policy, failure_facets=failure_facets, disturbance=disturbance)
+    except FarmError:
+        raise
     except TypeError as exc:
-        raise ValueError(f"scenario.name: {name!r} could not be constructed ({exc}); a Scenario subclass's __init__ "
-                         f"must accept the keywords sv_policy, failure_facets and disturbance (or not be defined)") \
+        raise ConfigError(f"scenario.name: {name!r} could not be constructed ({exc}); a Scenario subclass's __init__ "
+                          f"must accept the keywords sv_policy, failure_facets and disturbance (or not be defined)") \
             from None
+    except Exception as exc:  # noqa: BLE001 - the user's scenario class: its attributes or __init__
+        raise ScenarioError(f"scenario.name: constructing {name!r} raised {type(exc).__name__}: {exc}") from None
 
 
 def make_backend(scenario: dict):
@@ -121,10 +126,15 @@ def make_backend(scenario: dict):
     sv_policy = scenario.get("sv_policy")
     if external is not None:
         if sv_policy not in (None, external):
-            raise ValueError(f"scenario.sv_policy: the {name} back end's SV is the simulator's own model; "
-                             f"allowed: {external} (got {sv_policy!r})")
+            raise ConfigError(f"scenario.sv_policy: the {name} back end's SV is the simulator's own model; "
+                              f"allowed: {external} (got {sv_policy!r})")
         sv_policy = EXTERNAL_SV
     sc = make_scenario(scenario["name"], sv_policy, scenario.get("failure_facets"), scenario.get("disturbance", 0.0))
     if external is not None:
         sc.sv_policy_name = external
-    return cls(sc, scenario.get(name))
+    try:
+        return cls(sc, scenario.get(name))
+    except FarmError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a user's back end class
+        raise ScenarioError(f"scenario.backend: constructing {name!r} raised {type(exc).__name__}: {exc}") from None

@@ -8,7 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from scenarios.action_modes import make_action_policy
-from scenarios.base import ScenarioError
+from scenarios.actions import PolicyError
+from scenarios.errors import ScenarioError
 from scenarios.registry import make_backend
 from scenarios.rollout import RunBatch, run_scenario
 from scenarios.streams import RunStreams
@@ -61,6 +62,8 @@ class Simulator:
         try:
             batch = run_scenario(self.backend, starts, self.spec.horizon, self.policy,
                                  RunStreams.of(self.spec.seed, indices), check_step_bound=check)
+        except PolicyError as exc:  # the feedback policy raised: name the run, as for a scenario
+            raise self._culprit(indices, starts, exc) from None
         except ScenarioError:
             raise
         except Exception as exc:  # a user scenario raised: name the run, not just the batch
@@ -82,5 +85,7 @@ class Simulator:
                 lo = mid
             except Exception:  # noqa: BLE001 - any error narrows the search
                 hi = mid
-        return ScenarioError(f"scenario {self.scenario.name!r} raised {type(exc).__name__}: {exc} on sample index "
-                             f"{int(indices[lo])} (start state {starts[lo].tolist()})")
+        policy = isinstance(exc, PolicyError)
+        what = str(exc) if policy else f"scenario {self.scenario.name!r} raised {type(exc).__name__}: {exc}"
+        return (PolicyError if policy else ScenarioError)(f"{what} on sample index {int(indices[lo])} (start state "
+                                                          f"{starts[lo].tolist()})")

@@ -65,3 +65,48 @@ class Hanging(LeadFollow):
             while marker is None or os.path.exists(marker):
                 time.sleep(0.05)
         return super().step_into(states, actions, noise, out)
+
+
+class Unbounded(UnitSquare):
+    """Declares an infinite upper bound for b: no finite box Sigma."""
+
+    name = "unbounded"
+    upper = np.array([1.0, np.inf])
+
+    def step(self, states, actions, noise):
+        return states
+
+
+def raising_policy(states):
+    """A lead-follow feedback policy that raises once a run's v0 passes 18 m/s (after the
+    config check, which calls it on states a quarter in from Sigma's corners)."""
+    if (states[:, 0] > 18.0).any():
+        raise ValueError("policy boom")
+    return np.zeros((len(states), 1))
+
+
+class BrokenInit(UnitSquare):
+    """Its constructor fails, as one needing a licence server might."""
+
+    name = "broken-init"
+
+    def __init__(self, **kwargs):
+        raise RuntimeError("no licence server")
+
+    def step(self, states, actions, noise):
+        return states
+
+
+class NoBounds(Scenario):
+    """Forgets Sigma's bounds."""
+
+    name = "no-bounds"
+    state_names = ("a",)
+    failure_sides = {"a": False}
+    action_names = ("u",)
+    action_lower = np.array([0.0])
+    action_upper = np.array([1.0])
+    adversarial_actions = np.array([[1.0]])
+
+    def step(self, states, actions, noise):
+        return states

@@ -15,7 +15,6 @@ the box) with the logical scenario; a certified set (``domain_set``) as ``safe_s
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -25,8 +24,12 @@ from farm.openscenario.distribution import uniform_box, value_sets
 from farm.openscenario.elements import write_xml
 from farm.openscenario.layout import layout_of
 from farm.openscenario.road import write_road
+from farm.certificate import FILE as CERTIFICATE_FILE, Certificate
+from farm.files import read_json
 from farm.openscenario.scenario import concrete_scenario, logical_scenario
 from farm.storage import CampaignDir, CampaignError
+from farm.summary import Summary
+from scenarios.errors import ConfigError, DataError
 
 SUBDIR = "openscenario"
 ROAD, LOGICAL = "road.xodr", "logical_scenario.xosc"
@@ -45,11 +48,13 @@ def export_openscenario(directory, *, force: bool = False) -> dict:
     notes: list[str] = []
     if kind == "quantify":
         horizon = cfg.quantify.horizon
-        summary = _json(directory / "summary.json", "the campaign has not finished")
+        summary = Summary.read(directory).to_json()  # checked as every reader of summary.json checks it
         runs = _recorded_runs(directory, scenario, sv_policy, notes)
     elif kind == "validate":
         horizon = cfg.validate.horizon
-        summary = _json(directory / "certificate.json", "the validation wrote no certificate")
+        path = directory / CERTIFICATE_FILE
+        summary = Certificate.from_json(read_json(path, missing=f"{directory}: the validation wrote no certificate "
+                                                                f"(no {CERTIFICATE_FILE})"), str(path)).to_json()
         runs = _counterexample(summary)
     else:
         raise CampaignError(f"{directory}: a {kind} directory; export reads quantification and validation directories")
@@ -58,13 +63,13 @@ def export_openscenario(directory, *, force: bool = False) -> dict:
         raise CampaignError(f"{out}: exists and is not empty; pass --force to replace the files export writes there")
     if out.exists() and not out.is_dir():
         raise CampaignError(f"{out}: exists and is not a directory")
+    dist = _certified(directory, kind, cfg, scenario, summary, notes)  # before any file: a bad set writes none
     out.mkdir(exist_ok=True)
     files = [write_road(out / ROAD, layout.road_length(horizon))]
     for name, trajectory, description in runs:
         files.append(write_xml(out / name, concrete_scenario(layout, trajectory, horizon=horizon,
                                                               description=description, road_file=ROAD,
                                                               sv_policy=sv_policy)))
-    dist = _certified(directory, kind, cfg, scenario, summary, notes)
     if dist is not None:
         file_name, root = dist
         constant = cfg.actions.mode == "constant"
@@ -103,15 +108,6 @@ def _scenario(cfg):
     return scenario, external or scenario.sv_policy_name
 
 
-def _json(path: Path, missing: str) -> dict:
-    try:
-        return json.loads(path.read_text())
-    except FileNotFoundError:
-        raise CampaignError(f"{path.parent}: {missing} (no {path.name})") from None
-    except ValueError as exc:
-        raise CampaignError(f"{path}: unreadable ({exc})") from None
-
-
 def _recorded_runs(directory: Path, scenario, sv_policy: str, notes: list) -> list[tuple[str, np.ndarray, str]]:
     """A damaged recording is left out with a note: it must not hide the others."""
     from farm.recording import read_recording
@@ -120,7 +116,7 @@ def _recorded_runs(directory: Path, scenario, sv_policy: str, notes: list) -> li
     for path in sorted((directory / "recordings").glob("*.mcap")):
         try:
             rec = read_recording(path)
-        except ValueError as exc:
+        except DataError as exc:
             notes.append(f"skipped {exc}")
             continue
         meta = rec["metadata"]
@@ -158,7 +154,7 @@ def _certified(directory: Path, kind: str, cfg, scenario, summary: dict, notes: 
         if v.domain_set:
             try:
                 centres, h = _boxes(v.domain_set, names)
-            except ValueError as exc:
+            except DataError as exc:
                 notes.append(f"the certified set is not exported: {exc}")
                 return None
             path_text = v.domain_set
@@ -172,7 +168,7 @@ def _certified(directory: Path, kind: str, cfg, scenario, summary: dict, notes: 
 
             try:
                 dom = Domain.from_config(scenario, validate_section(v, scenario))
-            except ValueError as exc:
+            except ConfigError as exc:
                 notes.append(f"the certified domain is not exported: {exc}")
                 return None
             description = (f"scenario-farm: the domain certified in {directory.name}, uniform on the box "

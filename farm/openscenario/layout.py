@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scenarios.errors import ConfigError
+
 BACK_MARGIN = 10.0  # [m] road behind the rearmost vehicle's rear bumper
 FRONT_MARGIN = 100.0  # [m] road left after the fastest travel a run could make
 SPEED_MARGIN = 10.0  # [m/s] an SV under test may drive faster than Sigma's speeds
@@ -26,8 +28,9 @@ WIDTH, HEIGHT = 1.8, 1.5  # [m]
 PARAMETER_NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")  # OpenSCENARIO's parameter names
 
 
-class NotALaneScenario(ValueError):
-    """The scenario does not lay its state out as vehicles on one lane."""
+class NotALaneScenario(ConfigError):
+    """The scenario does not lay its state out as vehicles on one lane (the request does
+    not fit the user's scenario: exit 2)."""
 
 
 @dataclass(frozen=True)

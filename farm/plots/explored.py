@@ -24,11 +24,10 @@ def explored_boxes(directory, state_names) -> tuple[np.ndarray, np.ndarray] | No
     directory = Path(directory)
     names = list(state_names)
     points, widths = [], []
-    ledger = directory / "ledger"
-    if any(ledger.glob("segment-*.parquet")):
-        import pyarrow.dataset as ds
+    if any((directory / "ledger").glob("segment-*.parquet")):
+        from farm.storage import read_ledger
 
-        table = ds.dataset(ledger, format="parquet").to_table(columns=["delta", *names])
+        table = read_ledger(directory, columns=["delta", *names])
         if table.num_rows:
             points.append(np.column_stack([table.column(c).to_numpy() for c in names]).astype(float))
             widths.append(table.column("delta").to_numpy().astype(float))

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from scenarios.base import Scenario
+from scenarios.errors import ConfigError
 from scenarios.sumo import network
 from scenarios.sumo.config import parse_config
 
@@ -32,14 +33,18 @@ class SumoBackend:
     def __init__(self, scenario: Scenario, options: dict | None = None):
         for attr in ("vehicle_roles", "to_vehicles", "from_vehicles"):
             if not hasattr(scenario, attr):
-                raise ValueError(f"scenario.backend: the sumo back end simulates vehicles on one lane; scenario "
-                                 f"{scenario.name!r} does not say how (no {attr})")
+                raise ConfigError(f"scenario.backend: the sumo back end simulates vehicles on one lane; scenario "
+                                  f"{scenario.name!r} does not say how (no {attr})")
         if scenario.disturbance != 0.0:
-            raise ValueError("scenario.disturbance: the sumo back end supports only 0")
+            raise ConfigError("scenario.disturbance: the sumo back end supports only 0")
         self.scenario = scenario
         self.config = parse_config(options)
         self.deterministic = not self.config.allow_nondeterministic
-        from scenarios.sumo.simulation import world  # imports libsumo: only now
+        try:
+            from scenarios.sumo.simulation import world  # imports libsumo: only now
+        except ImportError as exc:
+            raise ConfigError(f"scenario.backend: 'sumo' needs libsumo, which does not import here ({exc}); "
+                              f"install it with pip install 'scenario-farm[sumo]'") from None
 
         world().ensure(1, 0.0, self.config.vtype_id, self.config.vtype_attributes())  # SUMO's own vType check
         self._ids: list[list[str]] = []

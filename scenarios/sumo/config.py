@@ -17,6 +17,8 @@ import os
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 
+from scenarios.errors import ConfigError
+
 _XSD = "{http://www.w3.org/2001/XMLSchema}"
 DEFAULT_MODEL = "Krauss"
 CONFIG_KEYS = ("car_follow_model", "params", "allow_nondeterministic")
@@ -75,22 +77,22 @@ def parse_config(sumo: dict | None) -> SumoConfig:
     sumo = dict(sumo or {})
     unknown = sorted(set(sumo) - set(CONFIG_KEYS))
     if unknown:
-        raise ValueError(f"scenario.sumo: unknown key {unknown[0]!r}; allowed: {', '.join(CONFIG_KEYS)}")
+        raise ConfigError(f"scenario.sumo: unknown key {unknown[0]!r}; allowed: {', '.join(CONFIG_KEYS)}")
     model = sumo.get("car_follow_model", DEFAULT_MODEL)
     models = schema()[0]
     if not isinstance(model, str) or model not in models:
-        raise ValueError(f"scenario.sumo.car_follow_model: unknown model {model!r}; allowed: {', '.join(models)}")
+        raise ConfigError(f"scenario.sumo.car_follow_model: unknown model {model!r}; allowed: {', '.join(models)}")
     allow = sumo.get("allow_nondeterministic", False)
     if not isinstance(allow, bool):
-        raise ValueError(f"scenario.sumo.allow_nondeterministic: expected true or false, got {allow!r}")
+        raise ConfigError(f"scenario.sumo.allow_nondeterministic: expected true or false, got {allow!r}")
     if model in NONDETERMINISTIC_MODELS and not allow:
         good = [m for m in models if m not in NONDETERMINISTIC_MODELS and m != "CC"]
-        raise ValueError(f"scenario.sumo.car_follow_model: {model!r} is not reproducible in SUMO (the same run "
-                         f"repeated gives another trajectory), which breaks the (seed, index) contract; "
-                         f"reproducible: {', '.join(good)}; or set scenario.sumo.allow_nondeterministic = true")
+        raise ConfigError(f"scenario.sumo.car_follow_model: {model!r} is not reproducible in SUMO (the same run "
+                          f"repeated gives another trajectory), which breaks the (seed, index) contract; "
+                          f"reproducible: {', '.join(good)}; or set scenario.sumo.allow_nondeterministic = true")
     params = sumo.get("params") or {}
     if not isinstance(params, dict):
-        raise ValueError(f"scenario.sumo.params: expected a table of vType attributes, got {type(params).__name__}")
+        raise ConfigError(f"scenario.sumo.params: expected a table of vType attributes, got {type(params).__name__}")
     checked = {}
     for name, value in params.items():
         checked[name] = _check_param(str(name), value, allow)
@@ -100,42 +102,42 @@ def parse_config(sumo: dict | None) -> SumoConfig:
 def _check_param(name: str, value, allow_nondeterministic: bool = False):
     field_name = f"scenario.sumo.params.{name}"
     if name in RESERVED:
-        raise ValueError(f"{field_name}: not settable ({RESERVED[name]})")
+        raise ConfigError(f"{field_name}: not settable ({RESERVED[name]})")
     attributes = schema()[1]
     if attributes and name not in attributes:
         close = [a for a in attributes if a.lower() == name.lower()]
         hint = f" (did you mean {close[0]!r}?)" if close else ""
-        raise ValueError(f"{field_name}: not a SUMO vType attribute{hint}")
+        raise ConfigError(f"{field_name}: not a SUMO vType attribute{hint}")
     kind = attributes.get(name, "string")
     if kind == "string":
         if isinstance(value, bool) or not isinstance(value, (str, int, float)):
-            raise ValueError(f"{field_name}: expected a string or number, got {value!r}")
+            raise ConfigError(f"{field_name}: expected a string or number, got {value!r}")
         if name == "speedFactor" and not _is_number(value) and not allow_nondeterministic:
-            raise ValueError(f"{field_name}: must be a number; a distribution would draw from SUMO's "
-                             "global random generator and break per-run reproducibility")
+            raise ConfigError(f"{field_name}: must be a number; a distribution would draw from SUMO's "
+                              "global random generator and break per-run reproducibility")
         out = value
     elif kind == "bool":
         if not isinstance(value, bool):
-            raise ValueError(f"{field_name}: expected true or false, got {value!r}")
+            raise ConfigError(f"{field_name}: expected true or false, got {value!r}")
         out = value
     else:  # numeric: (lower, lower_inclusive, upper)
         lower, inclusive, upper = kind
         if isinstance(value, bool) or not _is_number(value):
-            raise ValueError(f"{field_name}: expected a number, got {value!r}")
+            raise ConfigError(f"{field_name}: expected a number, got {value!r}")
         out = float(value)
         if not math.isfinite(out):
-            raise ValueError(f"{field_name}: must be finite, got {value!r}")
+            raise ConfigError(f"{field_name}: must be finite, got {value!r}")
         if lower is not None and (out < lower or (out == lower and not inclusive)):
-            raise ValueError(f"{field_name}: must be {'>=' if inclusive else '>'} {lower:g}, got {value!r}")
+            raise ConfigError(f"{field_name}: must be {'>=' if inclusive else '>'} {lower:g}, got {value!r}")
         if upper is not None and out > upper:
-            raise ValueError(f"{field_name}: must be <= {upper:g}, got {value!r}")
+            raise ConfigError(f"{field_name}: must be <= {upper:g}, got {value!r}")
     if allow_nondeterministic:
         return out
     if name in _MUST_BE_ZERO and float(out) != 0.0:
-        raise ValueError(f"{field_name}: must be 0 for this back end; SUMO draws it from its global random "
-                         "generator, so a run would depend on its batch-mates, not on its (seed, index) key")
+        raise ConfigError(f"{field_name}: must be 0 for this back end; SUMO draws it from its global random "
+                          "generator, so a run would depend on its batch-mates, not on its (seed, index) key")
     if name == "hasDriverState" and out:
-        raise ValueError(f"{field_name}: must be false (the driver state draws random perception errors)")
+        raise ConfigError(f"{field_name}: must be false (the driver state draws random perception errors)")
     return out
 
 

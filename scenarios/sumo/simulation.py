@@ -19,6 +19,7 @@ import tempfile
 
 import libsumo
 
+from scenarios.errors import ConfigError
 from scenarios.sumo import network
 
 STEP_LENGTH = 0.1  # [s] the spec's dt
@@ -54,7 +55,7 @@ MIN_SLOTS = 64
 MIN_LENGTH = 2000.0  # [m]
 
 
-class SumoLoadError(ValueError):
+class SumoLoadError(ConfigError):
     """SUMO refused the generated files (in practice: a vType attribute value)."""
 
 

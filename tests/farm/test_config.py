@@ -18,8 +18,8 @@ def test_defaults_and_hash_ignore_fields_that_cannot_change_the_result():
 
 
 @pytest.mark.parametrize("raw, message", [
-    ({"validate": {"epsilon": 1.5}}, "validate.epsilon: 1.5 is out of range; allowed (0, 1)"),
-    ({"validate": {"beta": 0}}, "validate.beta: 0.0 is out of range; allowed (0, 1)"),
+    ({"validate": {"epsilon": 1.5}}, "validate.epsilon: 1.5 is out of range; allowed [1e-09, 1)"),
+    ({"validate": {"beta": 0}}, "validate.beta: 0.0 is out of range; allowed [1e-100, 1)"),
     ({"validate": {"horizon": 1}}, "validate.horizon: 1 is out of range; allowed [2, 100000]"),
     ({"validate": {"delta": -1}}, "validate.delta: -1.0 is out of range; allowed (0, inf]"),
     ({"validate": {"epsilon": float("nan")}}, "validate.epsilon: nan is out of range"),

@@ -146,7 +146,7 @@ def test_a_killed_worker_costs_time_not_results(ray_local, reference, tmp_path, 
 
 def test_an_exception_in_a_scenario_names_the_sample_and_does_not_hang(ray_local, tmp_path):
     from farm.ray_executor import RayExecutor
-    from scenarios.base import ScenarioError
+    from scenarios.errors import ScenarioError
     from scenarios.simulator import SimSpec
 
     spec = SimSpec({"name": "user_scenarios:Raising", "sv_policy": "none"}, {"mode": "uniform"}, 10, 0)

@@ -89,7 +89,8 @@ def test_validate_out_that_is_not_ours_is_refused_before_the_runs(tmp_path):
     assert (user / "config.json").read_text() == "{}" and len(list(user.iterdir())) == 1
 
 
-def test_stale_temp_files_are_removed_on_resume_and_damaged_recordings_skipped(tmp_path):
+def test_stale_temp_files_are_removed_on_resume_and_damaged_recordings_skipped(tmp_path, monkeypatch):
+    monkeypatch.setenv("SCENARIO_FARM_MIN_CHECKPOINT_S", "0")  # a checkpoint, and recording, at every chunk
     (tmp_path / "c.toml").write_text(LEAD_FOLLOW + "checkpoint_every = 0.0\n[record]\nquantify_runs = 100000\n")
     out = tmp_path / "out"
     assert cli("quantify", str(tmp_path / "c.toml"), "--out", str(out)).returncode == 0

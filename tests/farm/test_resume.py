@@ -1,6 +1,7 @@
 """Checkpoint and resume with real processes, real SIGKILLs and real files."""
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -52,7 +53,8 @@ def stopped_campaign(tmp_path):
     (tmp_path / "c.toml").write_text(CONFIG.replace("delta_min = 1.0", "delta_min = 0.25"))
     out = tmp_path / "out"
     proc = subprocess.Popen([sys.executable, "-m", "farm", "quantify", str(tmp_path / "c.toml"), "--out", str(out),
-                             "--checkpoint-every", "0"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                             "--checkpoint-every", "0"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "SCENARIO_FARM_MIN_CHECKPOINT_S": "0"})
     deadline = time.time() + 60
     while not list((out / "ledger").glob("segment-00000[2-9].parquet")) and time.time() < deadline:
         time.sleep(0.1)

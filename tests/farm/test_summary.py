@@ -107,8 +107,8 @@ def test_no_summary_or_not_json_is_a_one_line_error(tmp_path):
     with pytest.raises(CampaignError, match="has not finished \\(no summary.json\\)"):
         Summary.read(tmp_path)
     (tmp_path / "summary.json").write_text("{not json")
-    with pytest.raises(CampaignError, match="summary.json: unreadable"):
+    with pytest.raises(CampaignError, match="summary.json: not valid JSON"):
         Summary.read(tmp_path)
     (tmp_path / "summary.json").write_text("[1, 2]")
-    with pytest.raises(CampaignError, match="expected a JSON object, got list"):
+    with pytest.raises(CampaignError, match="holds a JSON list, not the object"):
         Summary.read(tmp_path)
