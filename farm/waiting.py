@@ -10,8 +10,6 @@ the executor gives up (``WorkerError``) rather than retrying; Ray replaces the w
 
 from __future__ import annotations
 
-from scenarios.errors import InfrastructureError
-
 import queue
 import threading
 import time
@@ -19,15 +17,14 @@ from typing import Any, Callable
 
 import numpy as np
 
+from scenarios.errors import InfrastructureError
+
 POLL_S = 0.2  # [s] how often a wait looks at the stop flag and the time limits
 
 
 class WorkerError(InfrastructureError):
     """The workers failed on a chunk (it overran its time limit, or lost its worker) more
     often than ``farm.max_retries`` allows, or no worker is left."""
-
-    # TODO(errors branch): derive from scenarios.errors.InfrastructureError (exit 4) once
-    # that is merged; until then farm/cli.py maps WorkerError to exit code 4 itself.
 
 
 class Interrupted(KeyboardInterrupt):

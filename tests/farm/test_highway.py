@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from coordinator.reference import claimed, compare_boxes, grid
+from coordinator.reference import compare_boxes, grid
+from coordinator.safe_set import SafeSet
 from scenarios.action_modes import make_action_policy
 from scenarios.base import FAILURE
 from scenarios.registry import make_backend
@@ -83,11 +84,9 @@ def test_highway_idm_quantified_on_ray_certified_and_compared_with_numpy(workdir
     r = run([sys.executable, "-c", code], workdir)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split()[-1] == summary["result_hash"]  # the same runs on Ray workers and in-process
-    from farm.files import read_safe_set
-
-    centres, h = read_safe_set(workdir / "runs" / "hw" / "safe_set.parquet", ("v0", "v1", "p10"))
+    safe_set = SafeSet.from_parquet(workdir / "runs" / "hw" / "safe_set.parquet", ("v0", "v1", "p10"))
     numpy_idm = make_backend({"name": "lead-follow", "sv_policy": "idm"})
-    metrics = compare_boxes(numpy_idm, centres, h, grid_points_per_axis=40)
+    metrics = compare_boxes(numpy_idm, safe_set, grid_points_per_axis=40)
     # against the numpy idm's exact safe set (same parameters): highway-env's IDM, which
     # sees the gap centre to centre, brakes later, so its set lies inside (at delta 1 the
     # IoU is 0.88, docs/benchmarks.md; these delta-4 boxes lose more at the boundary)
@@ -105,9 +104,7 @@ def test_the_lateral_case_quantifies_and_certifies(workdir, highway_on_path):
     assert "runs left through y > 3.5 (truncated, counted safe" in r.stdout
     # changing lane keeps the SV safe from more states than braking alone: at y = 0, the
     # two-lane set holds every state the one-lane (highway_idm) runs survive
-    from farm.files import read_safe_set
-
-    centres, h = read_safe_set(workdir / "runs" / "lanes" / "safe_set.parquet", ("v0", "v1", "p10", "y"))
+    safe_set = SafeSet.from_parquet(workdir / "runs" / "lanes" / "safe_set.parquet", ("v0", "v1", "p10", "y"))
     lanes = make_backend({"name": "highway_lanes:TwoLaneFollow", "backend": "highway_lanes:HighwayMOBIL"})
     one_lane = make_backend({"name": "lead-follow", "backend": "highway_idm:HighwayIDM"})
     points = np.column_stack([grid(one_lane.scenario, 6), np.zeros(6 ** 3)])
@@ -117,4 +114,4 @@ def test_the_lateral_case_quantifies_and_certifies(workdir, highway_on_path):
     two = run_scenario(lanes, points, 100, policy, keys).outcomes != FAILURE
     one = run_scenario(one_lane, points[:, :3], 100, policy, keys).outcomes != FAILURE
     assert (two | ~one).all() and two.sum() > one.sum()
-    assert claimed(lanes.scenario, centres, h, points[two]).mean() > 0.5  # the quantified set claims them
+    assert safe_set.contains(points[two]).mean() > 0.5  # the quantified set claims them
