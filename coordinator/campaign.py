@@ -47,6 +47,7 @@ from coordinator.executor import Chunk, Executor
 from coordinator.sample_size import n_eps, n_eps_attempt
 from coordinator.stable_sampler import Draws
 from scenarios.base import FAILURE, OUTCOME_NAMES, TRUNCATED
+from scenarios.errors import ConfigError
 from scenarios.streams import RunStreams
 
 COUNTING = ("sequential", "deferred")
@@ -73,7 +74,7 @@ class CampaignSettings:
 
     def __post_init__(self):
         if self.counting not in COUNTING:
-            raise ValueError(f"counting: {self.counting!r} is not allowed; allowed: {', '.join(COUNTING)}")
+            raise ConfigError(f"farm.counting: {self.counting!r} is not allowed; allowed: {', '.join(COUNTING)}")
 
     @property
     def n_eps(self) -> int:

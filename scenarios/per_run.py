@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from scenarios.base import Scenario, ScenarioError
+from scenarios.errors import ConfigError
 from scenarios.streams import PURPOSE_USER, RunStreams
 
 
@@ -91,8 +92,8 @@ class PerRunBackend:
 
     def __init__(self, scenario: Scenario, options: dict | None = None):
         if scenario.disturbance != 0.0:
-            raise ValueError(f"scenario.disturbance: a per-run simulator brings its own randomness (key.generator()); "
-                             f"allowed: 0 (got {scenario.disturbance:g})")
+            raise ConfigError(f"scenario.disturbance: a per-run simulator brings its own randomness "
+                              f"(key.generator()); allowed: 0 (got {scenario.disturbance:g})")
         self.scenario = scenario
         self.simulator = self.simulator_class(scenario, options)
         self._n = scenario.n
