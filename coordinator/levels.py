@@ -188,7 +188,8 @@ class LeveledIndex:
     def state(self) -> dict:
         out = {"points": self.points[: self.count].copy(), "alive": self.alive[: self.count].copy(),
                "half_width": self.half_width[: self.count].copy(), "cell": np.array(self.cell),
-               "origin": self.origin.copy(), "levels": np.array([hw for hw, _, _ in self._levels])}
+               "origin": self.origin.copy(), "levels": np.array([hw for hw, _, _ in self._levels]),
+               "level": self._level[: self.count].copy(), "local": self._local[: self.count].copy()}
         # each level's points in its own insertion order: the witnesses a mirror names
         for i in range(len(self._levels)):
             out[f"level{i}"] = self._global(i).copy()
@@ -210,10 +211,13 @@ class LeveledIndex:
             ids = np.asarray(state[f"level{i}"], dtype=np.int64)
             idx.alive[ids] = True  # placed alive, in order; the dead are killed below
             idx._place(ids, float(hw))
-        # a resized point was placed in every level it passed through: the last is its own
+        # a resized point was placed in every level it passed through: its own is recorded
+        idx._level[: len(pts)] = state["level"]
+        idx._local[: len(pts)] = state["local"]
         for i in range(len(idx._levels)):
             glob = idx._global(i)
-            idx._levels[i][1].kill(np.flatnonzero(idx._level[glob] != i))
+            own = (idx._level[glob] == i) & (idx._local[glob] == np.arange(len(glob)))
+            idx._levels[i][1].kill(np.flatnonzero(~own))
         idx.alive[: len(pts)] = True
         idx.kill(np.flatnonzero(~np.asarray(state["alive"], dtype=bool)))
         return idx

@@ -72,11 +72,14 @@ class Checker:
     def __init__(self, domain: Domain, p: ValidationPlan, delta: float):
         self.domain, self.plan, self.delta = domain, p, delta
         self.cover = None
-        if p.centres is not None:
+        self.mixed = domain.covering(delta)
+        if p.centres is not None and self.mixed is None:
             self.cover = PointIndex(domain.scenario.n, 2 * delta, domain.lo - delta, bounds=(domain.lo, domain.hi))
             self.cover.insert(p.centres)
 
     def inside(self, states: np.ndarray) -> np.ndarray:
+        if self.mixed is not None:
+            return self.mixed.contains(states)
         if self.cover is not None and self.domain.is_set:
             return self.cover.any_within(states, self.delta)
         inside = self.domain.contains(states)
