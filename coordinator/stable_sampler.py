@@ -206,7 +206,7 @@ class StableSampler:
         out |= draws.untracked & (draws.versions < self.last)
         if len(draws):
             slots = draws.slots
-            self._grow(int(slots.max()) + 1)
+            self._grow(max(int(slots.max()) + 1, 1))  # every slot -1: stamp[0] is still read
             latest = np.where(slots >= 0, self.stamp[np.maximum(slots, 0)], -1).max(axis=1)
             out |= latest > draws.versions
         return out
