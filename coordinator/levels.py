@@ -157,6 +157,17 @@ class LeveledIndex:
         q = np.atleast_2d(np.asarray(queries, dtype=float))
         found = np.full(len(q), -1, dtype=np.int64)
         todo = np.arange(len(q))
+        # first every level's home cell (one lookup each: most states lie in a lattice
+        # box of some level), then the full search for the rest, level by level
+        for level in self._order():
+            if len(todo) == 0:
+                return found
+            local = self._levels[level][1].home_cover(q[todo])
+            if local is None:
+                continue
+            hit = local >= 0
+            found[todo[hit]] = self._global(level)[local[hit]]
+            todo = todo[~hit]
         for level in self._order():
             if len(todo) == 0:
                 break
