@@ -46,9 +46,12 @@ def plan(domain: Domain, algorithm: str, epsilon: float, beta: float, delta: flo
         if not deterministic:
             raise ValueError("validate.algorithm: 'delta' needs a deterministic system (actions.mode constant, "
                              "feedback, or adversarial with one action, and scenario.disturbance = 0)")
-        needed = covering_size(domain.volume(), delta, sc.n)  # Lemma 1
+        # Lemma 1; a set of mixed sizes is its own covering (Domain.covering): its centres
+        needed = covering_size(domain.volume(), delta, sc.n) if domain.covering(delta) is None else len(centres)
+        what = (f"every {delta:g}-covering centre of {where} once" if domain.covering(delta) is None else
+                f"every box centre of the set once (its own covering: each box at max(its half-width, {delta:g}))")
         return ValidationPlan("delta", max(len(centres), needed if not boundary else len(centres)), centres, band,
-                              f"every {delta:g}-covering centre of {where} once")
+                              what)
     return ValidationPlan("eps-delta", n_eps(epsilon, beta), centres, band,
                           f"start states i.i.d. uniform over the {len(centres)} {delta:g}-covering centres of {where}")
 
