@@ -109,8 +109,9 @@ def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, h
 
 # -- validation -----------------------------------------------------------------------------
 def validated(scenario, policy, result: dict, *, algorithm: str, plan_description: str, epsilon: float,
-              beta: float, delta: float, horizon: int, seed: int, adversarial: bool) -> Guarantee:
-    """The verdict of a validation in both forms."""
+              beta: float, delta: float, horizon: int, seed: int, adversarial: bool, mixed: bool = False) -> Guarantee:
+    """The verdict of a validation in both forms. ``mixed``: the domain is a set of mixed
+    box sizes (boundary refinement), its own covering: each box at max(its half-width, delta)."""
     cond, fail, t = _conditions(scenario, policy), scenario.failure_words, _horizon_s(scenario, horizon)
     gamma = "Gamma* (the adversarial set, Definition 7)" if adversarial else "Gamma"
     n = result["n_run"]
@@ -123,6 +124,13 @@ def validated(scenario, policy, result: dict, *, algorithm: str, plan_descriptio
         formal = (f"Phi is NOT forward invariant: sample {ce['sample_index']} (stream key seed={seed}, "
                   f"index={ce['sample_index']}) from {ce['start_state']} {ce['reason']}.")
         return Guarantee(plain, formal)
+    own = f"each box at max(its half-width, delta = {delta:g})"
+    if algorithm == "delta" and mixed:
+        plain = (f"Every scenario started at one of the {n} box centres of this set, {cond}, stays in the set "
+                 f"({own}) and does not {fail} for {t}.")
+        formal = (f"Phi is {delta:g}-almost forward invariant on its own covering ({own}; Lemma 1) for "
+                  f"{policy.description} with probability one (N = {n} runs, {plan_description}, seed {seed}).")
+        return Guarantee(plain, formal)
     if algorithm == "delta":
         plain = (f"Every scenario started at one of the {n} centres covering this domain (spacing 2 x delta = "
                  f"{2 * delta:g}), {cond}, stays within delta of the domain and does not {fail} for {t}.")
@@ -131,6 +139,9 @@ def validated(scenario, policy, result: dict, *, algorithm: str, plan_descriptio
         return Guarantee(plain, formal)
     if algorithm == "eps":
         where, kind, leave = "started in this domain (uniformly)", f"{epsilon:g}-almost", "leave it"
+    elif mixed:
+        where = "started at this set's box centres (uniformly)"
+        kind, leave = f"({epsilon:g}, {delta:g})-almost", f"leave its boxes ({own})"
     else:
         where = f"started at this domain's {delta:g}-covering centres (uniformly)"
         kind, leave = f"({epsilon:g}, {delta:g})-almost", f"leave it by more than delta = {delta:g}"

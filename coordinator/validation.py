@@ -52,8 +52,9 @@ def plan(domain: Domain, algorithm: str, epsilon: float, beta: float, delta: flo
                 f"every box centre of the set once (its own covering: each box at max(its half-width, {delta:g}))")
         return ValidationPlan("delta", max(len(centres), needed if not boundary else len(centres)), centres, band,
                               what)
-    return ValidationPlan("eps-delta", n_eps(epsilon, beta), centres, band,
-                          f"start states i.i.d. uniform over the {len(centres)} {delta:g}-covering centres of {where}")
+    over = (f"the {len(centres)} {delta:g}-covering centres of {where}" if domain.covering(delta) is None else
+            f"the set's {len(centres)} box centres (its own covering: each box at max(its half-width, {delta:g}))")
+    return ValidationPlan("eps-delta", n_eps(epsilon, beta), centres, band, f"start states i.i.d. uniform over {over}")
 
 
 def draw_starts(domain: Domain, p: ValidationPlan, streams: RunStreams) -> np.ndarray:

@@ -44,6 +44,7 @@ def test_a_band_campaign_exports_a_mixed_set_that_certifies(tmp_path):
     for algorithm in ("delta", "eps-delta"):
         cert = validate_set(tmp_path / "band" / "safe_set.parquet", algorithm, s.finest)
         assert cert.certified, (algorithm, cert.statement)
+        assert "max(its half-width, delta = 1)" in cert.guarantee
     backend = make_backend({"name": "lead-follow", "sv_policy": "idm"})
     acc_band = compare_boxes(backend, s, grid_points_per_axis=60)
     acc_full = compare_boxes(backend, full.safe_set, grid_points_per_axis=60)
