@@ -101,7 +101,7 @@ def render() -> Path:
         "run once), seed 0, in-process. `refine = all` splits every box at every round end; `band` only the boxes",
         "within sigma-bar + delta (per axis) of the set's failure-side boundary (Theorem 3), the others keep their",
         "size (`max half-width`). Accuracy against the model-based reference on the compare grid. Seconds are",
-        "wall time on a shared 2-core machine (noisy); the counts are exact.",
+        "wall time on a shared 2-core machine (load average 12-16 during these runs: noisy); the counts are exact.",
         "",
         "| scenario | SV | delta_min | refine | boxes | committed runs | max half-width | IoU | precision | "
         "recall | s |",
@@ -120,8 +120,8 @@ def render() -> Path:
             continue
         out.append(f"- {r['scenario']} {r['sv_policy']} at delta_min {r['delta_min']:g}: band keeps "
                    f"{r['boxes'] / full['boxes']:.2f}x the boxes and commits {r['committed'] / full['committed']:.2f}x "
-                   f"the runs of all; IoU {r['iou'] - full['iou']:+.4f}, precision "
-                   f"{r['precision'] - full['precision']:+.4f}, recall {r['recall'] - full['recall']:+.4f}.")
+                   f"the runs of all; IoU {r['iou'] - full['iou']:+.5f}, precision "
+                   f"{r['precision'] - full['precision']:+.5f}, recall {r['recall'] - full['recall']:+.5f}.")
     path = DOCS / "refinement.md"
     path.write_text("\n".join(out) + "\n")
     return path

@@ -15,6 +15,7 @@ RENDERED = {  # renderer -> the docs it writes
     "adversary.py": ["adversary.md"],
     "reproduce.py": ["reproduction.md"],
     "window.py": ["window.md"],
+    "refinement.py": ["refinement.md"],
 }
 
 
