@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from coordinator.levels import LeveledIndex
 from coordinator.spatial import PointIndex
 from scenarios.base import FAILURE
 
@@ -51,6 +52,7 @@ BRUTE_FORCE_LIMIT = 1 << 15
 @dataclass(frozen=True)
 class Insert:
     points: np.ndarray  # (k, n) new alive centres (ids continue the count)
+    half_width: float | None = None  # their boxes' (mixed sizes only; None: the current delta)
 
 
 @dataclass(frozen=True)
@@ -61,6 +63,12 @@ class Kill:
 @dataclass(frozen=True)
 class AddFailures:
     points: np.ndarray
+
+
+@dataclass(frozen=True)
+class Resize:
+    ids: np.ndarray  # alive centres whose boxes take ``half_width`` (mixed sizes: a round end)
+    half_width: float
 
 
 @dataclass(frozen=True)
@@ -98,10 +106,13 @@ class Screening:
 class Coverage:
     """Alive centres and failure points at half-width ``delta`` (see module docstring)."""
 
-    def __init__(self, n: int, delta: float, origin, bounds=None, failures: bool = True):
+    def __init__(self, n: int, delta: float, origin, bounds=None, failures: bool = True, mixed: bool = False):
+        """``mixed``: boxes keep their own half-widths (boundary refinement): a round
+        end resizes only some of them, and a state is covered by a box at its own size."""
         self.n = n
         self.delta = float(delta)
-        self.vertices = PointIndex(n, 2 * delta, origin, bounds=bounds)
+        index = LeveledIndex if mixed else PointIndex
+        self.vertices = index(n, 2 * delta, origin, bounds=bounds)
         # failures (start states) lie in Sigma too: the dense grid answers their queries
         self.failures = PointIndex(n, 2 * delta, origin, bounds=bounds) if failures else None
         self.seq = 0  # changes applied (a mirror applies the same ones, in order)
@@ -116,7 +127,7 @@ class Coverage:
     def apply(self, change, version: int) -> None:
         if isinstance(change, Insert):
             if len(change.points):
-                self.vertices.insert(change.points)
+                self._insert(change.points, change.half_width)
         elif isinstance(change, Kill):
             self.vertices.kill(change.ids)
             self.kill_seq = self.seq + 1
@@ -127,6 +138,8 @@ class Coverage:
             self.vertices.recell(2 * change.delta)
             if self.failures is not None:
                 self.failures.recell(2 * change.delta)
+        elif isinstance(change, Resize):
+            self.vertices.resize(change.ids, change.half_width)
         elif isinstance(change, Strict):
             self.strict = change.on
         elif isinstance(change, Reset):
@@ -136,7 +149,7 @@ class Coverage:
             raise TypeError(f"not a coverage change: {change!r}")
         self.seq += 1
         self.version = version
-        if isinstance(change, (Recell, Strict, Reset)):
+        if isinstance(change, (Recell, Resize, Strict, Reset)):
             self._forget_history()
         else:
             self._counts.append((self.vertices.count, self.failures.count if self.failures is not None else 0))
@@ -171,7 +184,7 @@ class Coverage:
                 end += 1
             if end > at:
                 self._apply_stretch(pending[at:end])
-            else:  # a change of the rules (Recell, Strict, Reset)
+            else:  # a change of the rules (Recell, Resize, Strict, Reset)
                 self.apply(pending[at][2], pending[at][1])
                 end = at + 1
             at = end
@@ -182,7 +195,7 @@ class Coverage:
         f_count = self.failures.count if self.failures is not None else 0
         for offset, (_, _, change) in enumerate(entries, start=1):
             if isinstance(change, Insert):
-                inserts.append(change.points)
+                inserts.append(change)
                 v_count += len(change.points)
             elif isinstance(change, Kill):
                 kills.append(change.ids)
@@ -192,7 +205,12 @@ class Coverage:
                 f_count += len(change.points)
             self._counts.append((v_count, f_count))
         if v_count > self.vertices.count:
-            self.vertices.insert(np.concatenate([p for p in inserts if len(p)]))
+            inserts = [i for i in inserts if len(i.points)]
+            widths = None
+            if self.mixed:
+                widths = np.concatenate([np.full(len(i.points), self.delta if i.half_width is None else i.half_width)
+                                         for i in inserts])
+            self._insert(np.concatenate([i.points for i in inserts]), widths)
         if failures:
             self.failures.insert(np.concatenate(failures))
         if kills:
@@ -201,6 +219,24 @@ class Coverage:
         self.version = entries[-1][1]
         if self._log is not None:  # the entries' own numbers: they follow this mirror's seq
             self._log.extend(entries)
+
+    @property
+    def mixed(self) -> bool:
+        return isinstance(self.vertices, LeveledIndex)
+
+    def _insert(self, points: np.ndarray, half_width) -> None:
+        if self.mixed:
+            self.vertices.insert(points, half_width)
+        elif half_width is not None and np.any(np.abs(np.asarray(half_width) - self.delta) > 1e-12 * self.delta):
+            raise ValueError("coverage: boxes of another half-width need a mixed coverage")
+        else:
+            self.vertices.insert(points)
+
+    def half_widths(self, ids: np.ndarray) -> np.ndarray:
+        """The half-widths of the boxes of centres ``ids``."""
+        if self.mixed:
+            return self.vertices.half_width[ids].copy()
+        return np.full(len(ids), self.delta)
 
     # -- history: the points added since a seq ----------------------------------------------
     def _forget_history(self) -> None:
@@ -225,7 +261,8 @@ class Coverage:
         return out
 
     def _load(self, state: dict) -> None:
-        self.vertices = PointIndex.from_state({k[9:]: v for k, v in state.items() if k.startswith("vertices.")})
+        index = LeveledIndex if "vertices.half_width" in state else PointIndex
+        self.vertices = index.from_state({k[9:]: v for k, v in state.items() if k.startswith("vertices.")})
         if any(k.startswith("failures.") for k in state):
             self.failures = PointIndex.from_state({k[9:]: v for k, v in state.items() if k.startswith("failures.")})
         else:
@@ -269,7 +306,10 @@ class Coverage:
         f_count = self.failures.count if self.failures is not None else 0
         if len(states) * (self.vertices.count - v0 + f_count - f0) > BRUTE_FORCE_LIMIT:
             return None
-        uncovered = ~self.vertices.covered_by_since(states, self.delta, v0)
+        covered = self.vertices.covered_by_since(states, self.delta, v0)
+        if covered is None:  # mixed sizes: a resized box lies among them
+            return None
+        uncovered = ~covered
         near = np.zeros(len(states), dtype=bool)
         if f_count and not self.strict:
             near[uncovered] = self.failures.covered_by_since(states[uncovered], self.delta, f0)

@@ -166,16 +166,26 @@ class Domain:
         one); otherwise the tiling of the bounding box, kept where the centre lies in
         Phi (and in the band, if given)."""
         if self.is_set:
-            widest = self.safe_set.coarsest
-            if delta < widest * (1 - 1e-12):
-                raise DomainError(f"validate.delta: {delta:g} is below the set's largest box half-width "
-                                  f"{widest:g}; allowed [{widest:g}, inf)")
+            # a set of mixed sizes (boundary refinement) is its own covering: each box at
+            # its own half-width or delta, whichever is larger (``covering``)
+            least = self.safe_set.coarsest if self.safe_set.is_uniform else self.safe_set.finest
+            if delta < least * (1 - 1e-12):
+                raise DomainError(f"validate.delta: {delta:g} is below the set's "
+                                  f"{'' if self.safe_set.is_uniform else 'smallest '}box half-width "
+                                  f"{least:g}; allowed [{least:g}, inf)")
             return np.asarray(self.safe_set.centres)
         centres = Lattice.tiling(self.lo, self.hi, delta).box_centres(delta)
         keep = self.contains(centres)
         if band is not None:
             keep &= self.band_distance(centres) <= band
         return centres[keep]
+
+    def covering(self, delta: float) -> SafeSet | None:
+        """Phi_delta of a set of mixed box sizes: each box at max(its half-width, delta)
+        (None for any other domain: the delta-boxes of ``lattice``'s centres)."""
+        if not self.is_set or self.safe_set.is_uniform:
+            return None
+        return SafeSet(self.safe_set.centres, np.maximum(self.safe_set.half_widths, delta), self.safe_set.state_names)
 
     # -- sampling ---------------------------------------------------------------------------
     def sample(self, streams: RunStreams, band: float | None = None) -> np.ndarray:

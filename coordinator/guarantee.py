@@ -34,20 +34,41 @@ def _conditions(scenario, policy) -> str:
     return words
 
 
-def _leave(delta: float) -> str:
+def _leave(delta: float, coarsest: float | None = None) -> str:
+    if coarsest is not None and coarsest > delta * (1 + 1e-12):
+        return (f"leave it (by more than its resolution: delta = {delta:g} within sigma-bar + delta of its boundary "
+                f"toward failure, where it was refined, and its boxes' own half-widths, up to {coarsest:g}, inside)")
     return f"leave it (by more than its resolution delta = {delta:g})"
+
+
+def _resolution(delta: float, coarsest: float | None) -> str:
+    """Where the set's resolution holds: one delta, or (boundary refinement) delta near
+    the boundary toward failure and the interior boxes' own half-widths."""
+    if coarsest is not None and coarsest > delta * (1 + 1e-12):
+        return (f"to within its resolution: delta = {delta:g} near its boundary toward failure, where it was "
+                f"refined, and its boxes' own half-widths, up to {coarsest:g}, inside")
+    return f"to within its resolution delta = {delta:g}"
+
+
+def _covering(delta: float, coarsest: float | None) -> str:
+    if coarsest is not None and coarsest > delta * (1 + 1e-12):
+        return (f"its covering of mixed half-widths {delta:g} to {coarsest:g} (Phi_delta: each box at its own "
+                f"half-width; {delta:g} within sigma-bar + delta of the boundary toward failure, Theorem 3)")
+    return f"its {delta:g}-covering"
 
 
 # -- quantification -------------------------------------------------------------------------
 def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, horizon: int, n_eps: int,
                attempts: int, n_final: int, converged: bool, budget: int, enumerated: bool, boxes: int, uniform: bool, distribution: str,
-               escaped: int, adversarial: bool) -> Guarantee:
+               escaped: int, adversarial: bool, coarsest: float | None = None) -> Guarantee:
     """The guarantee of a quantified set. ``enumerated``: a deterministic system's final
     centres were each run once (VAL^delta); ``uniform``: the last N_eps runs were drawn
     uniformly over the final centres (a certification round); ``escaped``: counted runs
     that left Phi_delta toward a known failure (possible only without certification);
     ``attempts``/``n_final``: the sampled certification's attempt count and the runs the
-    last attempt needed (beta split over attempts, coordinator.sample_size.n_eps_attempt)."""
+    last attempt needed (beta split over attempts, coordinator.sample_size.n_eps_attempt).
+    ``coarsest``: the largest box half-width, when boundary refinement left boxes coarser
+    than ``delta`` inside the set."""
     cond, fail, t = _conditions(scenario, policy), scenario.failure_words, _horizon_s(scenario, horizon)
     gamma = "Gamma*" if adversarial else "Gamma"
     if not converged:
@@ -56,10 +77,10 @@ def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, h
         return Guarantee(text, text)
     if enumerated:
         plain = (f"Every scenario started at one of the {boxes} box centres of this set, {cond}, stays in the set "
-                 f"(to within its resolution delta = {delta:g}) and does not {fail} for {t}: each centre was "
+                 f"({_resolution(delta, coarsest)}) and does not {fail} for {t}: each centre was "
                  f"simulated (the system is deterministic).")
-        formal = (f"Phi is {delta:g}-almost robustly controlled forward invariant w.r.t. {gamma} on its "
-                  f"{delta:g}-covering (VAL^delta, Lemma 1): the run from each of the {boxes} centres stays in "
+        formal = (f"Phi is {delta:g}-almost robustly controlled forward invariant w.r.t. {gamma} on "
+                  f"{_covering(delta, coarsest)} (VAL^delta, Lemma 1): the run from each of the {boxes} centres stays in "
                   f"Phi_delta without failure for K = {horizon} steps ({policy.description}).")
         return Guarantee(plain, formal)
     where = ("started at a box centre of this set (drawn uniformly)" if uniform
@@ -71,7 +92,7 @@ def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, h
               f"(pi^2 i^2), so that the exported set keeps confidence {1 - beta:g} over all attempts,")
     if escaped == 0:
         plain = (f"With {confidence} confidence, at most {_percent(epsilon)} of scenarios {where}, {cond}, {fail} or "
-                 f"{_leave(delta)} within {t}.")
+                 f"{_leave(delta, coarsest)} within {t}.")
         formal = (f"Phi is ({epsilon:g}, {delta:g})-almost robustly controlled forward invariant w.r.t. {gamma} "
                   f"with confidence {1 - beta:g} ({nn} in a row drawn i.i.d. from {distribution}, actions "
                   f"{policy.description}, neither failed nor left Phi_delta).")
@@ -88,8 +109,9 @@ def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, h
 
 # -- validation -----------------------------------------------------------------------------
 def validated(scenario, policy, result: dict, *, algorithm: str, plan_description: str, epsilon: float,
-              beta: float, delta: float, horizon: int, seed: int, adversarial: bool) -> Guarantee:
-    """The verdict of a validation in both forms."""
+              beta: float, delta: float, horizon: int, seed: int, adversarial: bool, mixed: bool = False) -> Guarantee:
+    """The verdict of a validation in both forms. ``mixed``: the domain is a set of mixed
+    box sizes (boundary refinement), its own covering: each box at max(its half-width, delta)."""
     cond, fail, t = _conditions(scenario, policy), scenario.failure_words, _horizon_s(scenario, horizon)
     gamma = "Gamma* (the adversarial set, Definition 7)" if adversarial else "Gamma"
     n = result["n_run"]
@@ -102,6 +124,13 @@ def validated(scenario, policy, result: dict, *, algorithm: str, plan_descriptio
         formal = (f"Phi is NOT forward invariant: sample {ce['sample_index']} (stream key seed={seed}, "
                   f"index={ce['sample_index']}) from {ce['start_state']} {ce['reason']}.")
         return Guarantee(plain, formal)
+    own = f"each box at max(its half-width, delta = {delta:g})"
+    if algorithm == "delta" and mixed:
+        plain = (f"Every scenario started at one of the {n} box centres of this set, {cond}, stays in the set "
+                 f"({own}) and does not {fail} for {t}.")
+        formal = (f"Phi is {delta:g}-almost forward invariant on its own covering ({own}; Lemma 1) for "
+                  f"{policy.description} with probability one (N = {n} runs, {plan_description}, seed {seed}).")
+        return Guarantee(plain, formal)
     if algorithm == "delta":
         plain = (f"Every scenario started at one of the {n} centres covering this domain (spacing 2 x delta = "
                  f"{2 * delta:g}), {cond}, stays within delta of the domain and does not {fail} for {t}.")
@@ -110,6 +139,9 @@ def validated(scenario, policy, result: dict, *, algorithm: str, plan_descriptio
         return Guarantee(plain, formal)
     if algorithm == "eps":
         where, kind, leave = "started in this domain (uniformly)", f"{epsilon:g}-almost", "leave it"
+    elif mixed:
+        where = "started at this set's box centres (uniformly)"
+        kind, leave = f"({epsilon:g}, {delta:g})-almost", f"leave its boxes ({own})"
     else:
         where = f"started at this domain's {delta:g}-covering centres (uniformly)"
         kind, leave = f"({epsilon:g}, {delta:g})-almost", f"leave it by more than delta = {delta:g}"

@@ -331,6 +331,16 @@ class PointIndex:
                 self._scan(q, home_t[rows] + off, todo[rows], r, found)
         return found
 
+    def home_cover(self, queries: np.ndarray) -> np.ndarray | None:
+        """(B, n) -> (B,) int64: the centre point naming each query's home cell (it covers
+        the query at radius cell/2), or -1; None without a dense grid. The first, cheap
+        half of ``cover`` at radius cell/2: a -1 may still be covered from elsewhere."""
+        if self._dense is None:
+            return None
+        rel = np.atleast_2d(np.asarray(queries, dtype=float)) - self.origin
+        rel *= 1.0 / self.cell
+        return self._centre_point[self._flat(np.floor(rel).astype(np.int64))].astype(np.int64)
+
     def covered_by_since(self, queries: np.ndarray, radius: float, first: int) -> np.ndarray:
         """(B, n) -> (B,) bool: is an alive point with id >= ``first`` within ``radius`` of
         each query, by the rule ``cover`` applies (true distance with the tolerance, or,

@@ -28,12 +28,14 @@ import numpy as np
 
 from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered
 from coordinator.certificates import Certificates
-from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell, Strict
+from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell, Resize, Strict
 from coordinator.lattice import Lattice
+from coordinator.safe_set import SafeSet
 from coordinator.enumeration import Enumeration
 from coordinator.graph import ExplorationForest
 from coordinator.priorities import FailureDistances
 from coordinator.experience_replay import ReplayBuffer
+from coordinator.refinement import Band
 from coordinator.sampler import PrioritySampler
 from coordinator.stable_sampler import Draws, Law, StableSampler, UniformLaw, WeightedLaw
 from scenarios.base import Scenario
@@ -62,6 +64,7 @@ class SPESettings:
     replay_capacity: int = 20_000_000
     reachable: str = "undirected"
     boundary: bool = False
+    refine: str = "all"  # "band": a round end re-tiles only the boxes near the boundary (Theorem 3)
 
 
 class SPE(Algorithm):
@@ -80,7 +83,9 @@ class SPE(Algorithm):
         self.deterministic = deterministic
         self.lattice = Lattice.tiling(scenario.lower, scenario.upper, settings.delta0)
         self.coverage = Coverage(scenario.n, settings.delta0, self.lattice.anchor,
-                                 bounds=(scenario.lower, scenario.upper), failures=True)
+                                 bounds=(scenario.lower, scenario.upper), failures=True,
+                                 mixed=settings.refine == "band")
+        self.band = Band(scenario) if settings.refine == "band" else None
         self.graph = ExplorationForest()
         self.version = 0
         self.round = 0
@@ -111,10 +116,10 @@ class SPE(Algorithm):
         self._insert(centres)
         self.graph.add_roots(len(centres))
 
-    def _insert(self, points: np.ndarray) -> None:
+    def _insert(self, points: np.ndarray, half_width: float | None = None) -> None:
         """New alive centres (their ids follow the count): their slots move draws."""
         first = self.vertices.count
-        self.coverage.apply(Insert(points), self.version)
+        self.coverage.apply(Insert(points, half_width), self.version)
         self._stable.touch(np.arange(first, self.vertices.count), self.version)
 
     def failure_points(self) -> np.ndarray:
@@ -295,12 +300,32 @@ class SPE(Algorithm):
         return "explored"
 
     def _prune(self, ids: np.ndarray) -> None:
+        """Kill centres ``ids``. With boundary refinement a box coarser than delta is
+        split instead: its children at delta take its place, but for those within delta
+        of a failure (the pruning reaches it, not all of its volume)."""
+        coarse = self.band.coarse(self, ids) if self.band is not None else None
         self.enumeration.before_prune(self.vertices, self.certificates, ids)
         self.coverage.apply(Kill(ids), self.version)
         self._stable.touch(ids, self.version)
         if self.settings.prioritized:  # the sampler's blocks holding them are summed again
             self._sampler.touch(ids)
         self.enumeration.reopened(self.certificates.invalidate(ids))
+        if coarse is not None and len(coarse):
+            self.band.replaced(coarse)
+            self._add_roots(self._children(coarse, self.delta))
+
+    def _children(self, ids: np.ndarray, delta: float) -> np.ndarray:
+        """The centres at ``delta`` tiling the boxes of centres ``ids`` (at their own
+        half-widths), but for those within ``delta`` of a failure."""
+        centres = self.vertices.points[ids]
+        widths = self.coverage.half_widths(ids)
+        parts = [self.lattice.children(centres[widths == w], float(w), delta) for w in np.unique(widths)]
+        if not parts:
+            return np.empty((0, self.scenario.n))
+        children = np.unique(np.concatenate(parts), axis=0) if len(parts) > 1 else parts[0]
+        if len(children) and self.failures.count:
+            children = children[~self.failures.any_within(children, delta)]
+        return children
 
     def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray, starts: np.ndarray) -> None:
         """Keep committed, non-failing runs for experience replay (coordinator/experience_replay.py).
@@ -319,17 +344,34 @@ class SPE(Algorithm):
         if self.final_round:
             return False
         new_delta = max(self.settings.gamma * self.delta, self.settings.delta_min)
-        centres = self.vertices.alive_points()
-        children = self.lattice.children(centres, self.delta, new_delta)
-        self.version += 1
-        self.coverage.apply(Recell(new_delta), self.version)
-        self._sampler.invalidate()  # the boundary band's reach moves with delta
-        if len(children):
-            children = children[~self.failures.any_within(children, new_delta)]
-        self._add_roots(children)
+        if self.band is not None:
+            self._refine_band(new_delta)
+        else:
+            centres = self.vertices.alive_points()
+            children = self.lattice.children(centres, self.delta, new_delta)
+            self.version += 1
+            self.coverage.apply(Recell(new_delta), self.version)
+            self._sampler.invalidate()  # the boundary band's reach moves with delta
+            if len(children):
+                children = children[~self.failures.any_within(children, new_delta)]
+            self._add_roots(children)
         self._stable.restart(self.vertices.count, self.version)
         self.round += 1
         return True
+
+    def _refine_band(self, new_delta: float) -> None:
+        """Boundary refinement (Theorem 3): only the boxes within sigma-bar + delta of
+        the set's failure-side boundary split into their children at ``new_delta`` (and
+        become boxes of ``new_delta`` themselves, as every box does under "all"); the
+        others keep their size: no run of theirs can leave the set in one step."""
+        ids = self.vertices.alive_ids()
+        near = ids[self.band.near(self, ids, self.delta)]
+        children = self._children(near, new_delta) if len(near) else np.empty((0, self.scenario.n))
+        self.version += 1
+        self.coverage.apply(Recell(new_delta), self.version)
+        self.coverage.apply(Resize(near, new_delta), self.version)
+        self._sampler.invalidate()  # the boundary band's reach moves with delta
+        self._add_roots(children)
 
     def replay_pieces(self) -> list:
         """Experience replay: every stored run, for its states that are new at the new delta."""
@@ -365,6 +407,13 @@ class SPE(Algorithm):
         self.certificates.release()  # its entries
 
     # -- output ---------------------------------------------------------------------------
+    def result(self) -> SafeSet:
+        """The quantified set: a box around every alive centre, each at its own half-width."""
+        if self.band is None:
+            return super().result()
+        ids = self.vertices.alive_ids()
+        return SafeSet(self.vertices.points[ids], self.coverage.half_widths(ids), self.scenario.state_names)
+
     def counts(self) -> dict:
         out = {"boxes": self.vertices.alive_count, "vertices": self.vertices.count,
                "failures": self.failures.count, "delta": self.delta, "round": self.round}
@@ -383,6 +432,8 @@ class SPE(Algorithm):
         out.update(self.certificates.state())
         out.update(self.replay.state())
         out.update(self._stable.state())
+        if self.band is not None:
+            out.update(self.band.state())
         return out
 
     def load_state(self, state: dict) -> None:
@@ -398,3 +449,5 @@ class SPE(Algorithm):
         self.replay.load_state(state)
         self._fresh_samplers()
         self._stable.load_state(state, self.vertices.count, self.version)
+        if self.band is not None:
+            self.band.load_state(state)

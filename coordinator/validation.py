@@ -47,11 +47,15 @@ def plan(domain: Domain, algorithm: str, epsilon: float, beta: float, delta: flo
         if not deterministic:
             raise ConfigError("validate.algorithm: 'delta' needs a deterministic system (actions.mode constant, "
                               "feedback, or adversarial with one action, and scenario.disturbance = 0)")
-        needed = covering_size(domain.volume(), delta, sc.n)  # Lemma 1
+        # Lemma 1; a set of mixed sizes is its own covering (Domain.covering): its centres
+        needed = covering_size(domain.volume(), delta, sc.n) if domain.covering(delta) is None else len(centres)
+        what = (f"every {delta:g}-covering centre of {where} once" if domain.covering(delta) is None else
+                f"every box centre of the set once (its own covering: each box at max(its half-width, {delta:g}))")
         return ValidationPlan("delta", max(len(centres), needed if not boundary else len(centres)), centres, band,
-                              f"every {delta:g}-covering centre of {where} once")
-    return ValidationPlan("eps-delta", n_eps(epsilon, beta), centres, band,
-                          f"start states i.i.d. uniform over the {len(centres)} {delta:g}-covering centres of {where}")
+                              what)
+    over = (f"the {len(centres)} {delta:g}-covering centres of {where}" if domain.covering(delta) is None else
+            f"the set's {len(centres)} box centres (its own covering: each box at max(its half-width, {delta:g}))")
+    return ValidationPlan("eps-delta", n_eps(epsilon, beta), centres, band, f"start states i.i.d. uniform over {over}")
 
 
 def draw_starts(domain: Domain, p: ValidationPlan, streams: RunStreams) -> np.ndarray:
@@ -73,11 +77,14 @@ class Checker:
     def __init__(self, domain: Domain, p: ValidationPlan, delta: float):
         self.domain, self.plan, self.delta = domain, p, delta
         self.cover = None
-        if p.centres is not None:
+        self.mixed = domain.covering(delta)
+        if p.centres is not None and self.mixed is None:
             self.cover = PointIndex(domain.scenario.n, 2 * delta, domain.lo - delta, bounds=(domain.lo, domain.hi))
             self.cover.insert(p.centres)
 
     def inside(self, states: np.ndarray) -> np.ndarray:
+        if self.mixed is not None:
+            return self.mixed.contains(states)
         if self.cover is not None and self.domain.is_set:
             return self.cover.any_within(states, self.delta)
         inside = self.domain.contains(states)

@@ -241,7 +241,7 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
         executor.close()
     g = validated(scenario, policy, result, algorithm=p.algorithm, plan_description=p.description,
                   epsilon=v.epsilon, beta=v.beta, delta=v.delta, horizon=v.horizon, seed=farm_cfg.seed,
-                  adversarial=cfg.actions.mode == "adversarial")
+                  adversarial=cfg.actions.mode == "adversarial", mixed=domain.covering(v.delta) is not None)
     cert = certificate_of(cfg, p, result, g, scenario, policy, domain)
     if directory is not None:
         if directory.path.exists() and directory.marker() is not None:

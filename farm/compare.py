@@ -128,6 +128,8 @@ def compare(directory: Path, grid: int | None = None, progress=None, *, grid_tot
                      f"{len(sample)} sampled reference-safe points")
     metrics["reference"] = ("simulated under Gamma* (black-box SV)" if simulated else "model-based")
     metrics["boxes"], metrics["half_width"] = int(len(safe_set)), safe_set.finest
+    if not safe_set.is_uniform:  # boundary refinement: coarser boxes inside
+        metrics["half_width_max"] = safe_set.coarsest
     metrics["notes"] = notes
     metrics["runs"] = runs
     _plot(directory / "plots" / "compare.png", scenario, safe_set, cfg, res, pixel_truth)
@@ -199,7 +201,9 @@ def _falsify(backend, sample: np.ndarray, say) -> tuple[int, float]:
 
 def describe(directory: Path, metrics: dict) -> str:
     """The CLI's lines for ``compare``'s metrics."""
-    lines = [f"{directory}: {metrics['boxes']} boxes (half-width {metrics['half_width']:g}) against the "
+    widths = (f"half-width {metrics['half_width']:g}" if "half_width_max" not in metrics
+              else f"half-widths {metrics['half_width']:g} to {metrics['half_width_max']:g}")
+    lines = [f"{directory}: {metrics['boxes']} boxes ({widths}) against the "
              f"{metrics['reference']} reference on {metrics['grid_points']:,} grid points",
              f"  IoU {metrics['iou']:.4f}  precision {metrics['precision']:.4f}  recall {metrics['recall']:.4f}  "
              f"Hausdorff (l-inf) {metrics['hausdorff']:.3g}",

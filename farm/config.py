@@ -153,6 +153,10 @@ class QuantifyConfig(Section):
         _SPE.replay_capacity
     boundary: bool = _SPE.boundary
     reachable: Literal["undirected", "ancestors"] = _SPE.reachable
+    refine: Annotated[Literal["band", "all"], Field(description=(
+        "which boxes a round end splits (spe): all of them, or only those within sigma-bar + delta of the "
+        "set's failure-side boundary (Theorem 3; the others keep their size)"),
+        json_schema_extra={"hashed_when_default": False})] = _SPE.refine
     sides: bool | None = None
     certify: Annotated[bool, Field(description="end with a certification round (spe): the exported set "
                                                "passes validate")] = True
@@ -166,7 +170,8 @@ class QuantifyConfig(Section):
     def settings(self) -> SPESettings:
         return SPESettings(delta0=self.delta0, gamma=self.gamma, delta_min=self.delta_min,
                            prioritized=self.prioritized, alpha=self.alpha, replay=self.replay,
-                           replay_capacity=self.replay_capacity, reachable=self.reachable, boundary=self.boundary)
+                           replay_capacity=self.replay_capacity, reachable=self.reachable, boundary=self.boundary,
+                           refine=self.refine)
 
 
 class VirtualConfig(Section):
@@ -356,7 +361,9 @@ def result_view(cfg: Config) -> dict:
     for section, values in cfg.model_dump(mode="json").items():
         fields = type(getattr(cfg, section)).model_fields
         out[section] = {k: v for k, v in values.items() if _affects_result(fields.get(k))
-                        and not (v is None and _extra(fields.get(k)).get("hashed_when_unset") is False)}
+                        and not (v is None and _extra(fields.get(k)).get("hashed_when_unset") is False)
+                        and not (_extra(fields.get(k)).get("hashed_when_default") is False
+                                 and v == fields[k].default)}
     if cfg.farm.counting == "sequential":
         for key in WINDOW:
             out["farm"].pop(key)

@@ -99,7 +99,8 @@ def guarantee_of(cfg: Config, part: FacetCampaign, delta: float):
                       converged=campaign.counters.converged, budget=q.budget,
                       enumerated=certified and algo.enumerates, boxes=algo.vertices.alive_count,
                       uniform=certified, distribution=campaign.final_distribution,
-                      escaped=campaign.counters.escaped_in_streak, adversarial=cfg.actions.mode == "adversarial")
+                      escaped=campaign.counters.escaped_in_streak, adversarial=cfg.actions.mode == "adversarial",
+                      coarsest=algo.result().coarsest if q.refine == "band" else None)
 
 
 def finish(cfg: Config, out: Path, parts: dict[str, FacetCampaign]) -> Summary:

@@ -61,6 +61,7 @@ class Summary(JsonFile):
     certification_attempts: int = 0
     n_eps_final: int = 0
     delta_final: float = 0.0  # the boxes' half-width (for boxes of mixed sizes, the smallest)
+    half_width_max: float = 0.0  # the largest (quantify.refine = "band" leaves coarser boxes inside)
     rounds: int = 0
     converged: bool = False
     runs_committed: int = 0
@@ -140,6 +141,7 @@ def summarize(cfg: Config, parts: dict, safe_sets: dict[str, SafeSet], guarantee
         certification_attempts=c.attempts,
         n_eps_final=campaign.quiet_needed() if c.attempts and not part.algorithm.enumerates else campaign.n_eps,
         delta_final=total.finest,
+        half_width_max=total.coarsest,
         rounds=c.rounds_completed,
         converged=c.converged,
         runs_committed=sum(k.committed for k in counters),

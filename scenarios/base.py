@@ -230,6 +230,12 @@ class Scenario(ABC):
         known dynamics override it."""
         return float(np.max(self.upper - self.lower))
 
+    def step_bounds(self) -> np.ndarray:
+        """sigma-bar per axis: (n,) upper bounds on |sigma_a(t+1) - sigma_a(t)| (speeds
+        move at most a_max dt, positions at most v_max dt). Boundary refinement's band is
+        that thin along each axis. The default is ``step_bound()`` on every axis."""
+        return np.full(self.n, self.step_bound())
+
     # -- dynamics ------------------------------------------------------------------------
     @abstractmethod
     def step(self, states: np.ndarray, actions: np.ndarray, noise: np.ndarray | None) -> np.ndarray:

@@ -83,3 +83,8 @@ class Fleet3(Scenario):
         a_max = max(self.sv_accel_bound, 7.0) + self.disturbance
         v_max = float(self.upper[0])
         return max(a_max * self.dt, v_max * self.dt + 0.5 * a_max * self.dt**2)
+
+    def step_bounds(self) -> np.ndarray:
+        a_max = max(self.sv_accel_bound, 7.0) + self.disturbance
+        speed = a_max * self.dt
+        return np.array([speed, speed, speed, self.step_bound(), self.step_bound()])  # v0, v1, v2; p10, p20

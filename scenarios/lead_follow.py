@@ -70,3 +70,8 @@ class LeadFollow(Scenario):
         v_max = float(self.upper[0])
         # speed change <= a_max*dt; gap change <= one vehicle's travel in a step
         return max(a_max * self.dt, v_max * self.dt + 0.5 * a_max * self.dt**2)
+
+    def step_bounds(self) -> np.ndarray:
+        a_max = max(self.sv_accel_bound, 5.0, 3.0) + self.disturbance
+        speed = a_max * self.dt
+        return np.array([speed, speed, self.step_bound()])  # v0, v1; p10: one vehicle's travel

@@ -32,7 +32,8 @@ def factories(algorithm: str, mode: str, **options):
 
 
 CASES = [("spe", "uniform", {}), ("spe", "adversarial", {}), ("spe", "uniform", {"prioritized": False}),
-         ("spe", "uniform", {"boundary": True}), ("ae", "uniform", {}), ("delta-pruning", "adversarial", {}),
+         ("spe", "uniform", {"boundary": True}), ("spe", "uniform", {"refine": "band"}),
+         ("spe", "adversarial", {"refine": "band"}), ("ae", "uniform", {}), ("delta-pruning", "adversarial", {}),
          ("vs", "uniform", {})]
 
 

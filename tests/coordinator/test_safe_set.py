@@ -208,9 +208,13 @@ def test_a_validation_domain_of_mixed_sizes_samples_uniformly_over_its_union():
     assert s.contains(points).all()
     in_big = (np.abs(points - big[0]) <= 2.0).all(axis=1).mean()
     assert in_big == pytest.approx(16 / 24, abs=0.01)
-    with pytest.raises(ValueError, match="below the set's largest box half-width 2"):
-        domain.lattice(1.0)
-    assert len(domain.lattice(2.0)) == 9
+    # a set of mixed sizes is its own covering down to its finest boxes (boundary
+    # refinement exports such sets): Phi_delta holds each box at max(its half-width, delta)
+    with pytest.raises(ValueError, match="below the set's smallest box half-width 0.5"):
+        domain.lattice(0.25)
+    assert len(domain.lattice(0.5)) == len(domain.lattice(2.0)) == 9
+    assert np.array_equal(domain.covering(1.0).half_widths, np.r_[2.0, np.full(8, 1.0)])
+    assert domain.covering(0.5).volume_union() == pytest.approx(24)
 
 
 def test_a_uniform_validation_domain_samples_as_before():

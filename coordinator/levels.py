@@ -1,0 +1,234 @@
+"""Alive centres of boxes of mixed half-widths (boundary refinement, issue 36): one
+``PointIndex`` per half-width, under one numbering.
+
+``PointIndex`` answers "is a state within r of an alive point" with cells of side 2r,
+so every box of a level sits at a cell centre of its own level's index and a query is
+mostly one array lookup there. A set refined only near its boundary holds boxes of a
+few half-widths (delta0 * gamma^k); a state is covered when it lies in the box of any
+alive centre at that centre's own half-width, so ``cover`` asks each level in a fixed
+order (coarsest first: the interior holds most of the volume) and names the first
+witness found. The order is a function of the changes applied, so a mirror that applies
+the same changes names the same witnesses.
+
+Ids are global, in insertion order (as ``PointIndex`` numbers them): ``points``,
+``alive`` and ``half_width`` are indexed by them; each level maps its own ids to global
+ones. ``resize`` moves boxes to another level (the round end re-tiles the band).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from coordinator.spatial import PointIndex
+
+
+class LeveledIndex:
+    """Points (N, n) with alive flags and a half-width each, one ``PointIndex`` per
+    half-width. ``cover`` and ``any_within`` take each box's own half-width (their
+    ``radius`` argument is the current one, kept for ``PointIndex``'s signature)."""
+
+    def __init__(self, n: int, cell: float, origin, capacity: int = 1024, bounds=None):
+        self.n = n
+        self.cell = float(cell)  # of the current level: new points get half-width cell / 2
+        self.origin = np.asarray(origin, dtype=float)
+        self.bounds = None if bounds is None else (np.asarray(bounds[0], float), np.asarray(bounds[1], float))
+        capacity = max(16, int(capacity))
+        self.points = np.empty((capacity, n))
+        self.alive = np.zeros(capacity, dtype=bool)
+        self.half_width = np.zeros(capacity)
+        self._level = np.full(capacity, -1, dtype=np.int8)
+        self._local = np.full(capacity, -1, dtype=np.int64)
+        self.count = 0
+        self._levels: list[tuple[float, PointIndex, list]] = []  # (half-width, index, [global ids per insert])
+        self._globals: list[np.ndarray] = []  # per level: local id -> global id (materialized lazily)
+        # per level: (start, largest id before it): global ids increase from local id start on
+        self._sorted: list[tuple[int, int]] = []
+        self._last: list[int] = []  # per level: the last global id placed
+
+    # -- levels ----------------------------------------------------------------------------
+    def _level_of(self, half_width: float) -> int:
+        for i, (hw, _, _) in enumerate(self._levels):
+            if abs(hw - half_width) <= 1e-12 * max(1.0, hw):
+                return i
+        index = PointIndex(self.n, 2 * half_width, self.origin, bounds=self.bounds)
+        self._levels.append((float(half_width), index, []))
+        self._globals.append(np.zeros(0, dtype=np.int64))
+        self._sorted.append((0, -1))
+        self._last.append(-1)
+        if len(self._levels) > 127:
+            raise OverflowError("leveled index: more than 127 half-widths")
+        return len(self._levels) - 1
+
+    def _global(self, level: int) -> np.ndarray:
+        parts = self._levels[level][2]
+        if parts:
+            self._globals[level] = np.concatenate([self._globals[level], *parts])
+            parts.clear()
+        return self._globals[level]
+
+    def _order(self) -> list[int]:
+        """Levels asked by ``cover``: coarsest first (ties cannot occur: one level per width)."""
+        return sorted(range(len(self._levels)), key=lambda i: -self._levels[i][0])
+
+    def levels(self) -> list[float]:
+        return sorted(hw for hw, _, _ in self._levels)
+
+    # -- mutation --------------------------------------------------------------------------
+    def _grow(self, need: int) -> None:
+        if need <= len(self.points):
+            return
+        cap = max(2 * len(self.points), need)
+        self.points = np.resize(self.points, (cap, self.n))
+        for name, fill in (("alive", False), ("half_width", 0.0), ("_level", -1), ("_local", -1)):
+            old = getattr(self, name)
+            setattr(self, name, np.concatenate([old, np.full(cap - len(old), fill, dtype=old.dtype)]))
+
+    def _place(self, ids: np.ndarray, half_width: float) -> None:
+        """Put points ``ids`` (alive) into the level of ``half_width``."""
+        level = self._level_of(half_width)
+        _, index, parts = self._levels[level]
+        start = index.count
+        local = index.insert(self.points[ids])
+        if len(ids) and (ids[0] <= self._last[level] or np.any(np.diff(ids) <= 0)):
+            self._sorted[level] = (start + len(ids), max(self._last[level], int(ids.max())))
+        if len(ids):
+            self._last[level] = max(self._last[level], int(ids.max()))
+        self._level[ids] = level
+        self._local[ids] = local
+        self.half_width[ids] = half_width
+        parts.append(ids.astype(np.int64))
+
+    def insert(self, pts: np.ndarray, half_width=None) -> np.ndarray:
+        """New alive points (ids continue the count), of half-width ``half_width`` (one
+        value or one per point; default: the current level's, cell / 2)."""
+        pts = np.atleast_2d(np.asarray(pts, dtype=float))
+        k = len(pts)
+        if self.count + k >= 2**31:
+            raise OverflowError("spatial index: 2^31 points or more")
+        self._grow(self.count + k)
+        ids = np.arange(self.count, self.count + k)
+        self.points[ids] = pts
+        self.alive[ids] = True
+        self.count += k
+        widths = np.broadcast_to(np.asarray(self.cell / 2 if half_width is None else half_width, float), (k,))
+        for hw in np.unique(widths):  # sorted: the same levels in the same order on every mirror
+            self._place(ids[widths == hw], float(hw))
+        return ids
+
+    def kill(self, ids) -> None:
+        ids = np.unique(np.asarray(ids, dtype=np.int64))
+        ids = ids[self.alive[ids]]
+        for level in np.unique(self._level[ids]):
+            mine = ids[self._level[ids] == level]
+            self._levels[level][1].kill(self._local[mine])
+        self.alive[ids] = False
+
+    def resize(self, ids, half_width: float) -> None:
+        """Alive points ``ids`` become boxes of ``half_width`` (same ids)."""
+        ids = np.unique(np.asarray(ids, dtype=np.int64))
+        ids = ids[self.alive[ids]]
+        for level in np.unique(self._level[ids]):
+            mine = ids[self._level[ids] == level]
+            self._levels[level][1].kill(self._local[mine])
+        if len(ids):
+            self._place(ids, float(half_width))
+
+    def recell(self, cell: float) -> None:
+        """A new round: new points get half-width cell / 2; the boxes keep theirs."""
+        self.cell = float(cell)
+
+    # -- queries ---------------------------------------------------------------------------
+    def alive_ids(self) -> np.ndarray:
+        return np.nonzero(self.alive[: self.count])[0]
+
+    @property
+    def alive_count(self) -> int:
+        return int(self.alive[: self.count].sum())
+
+    def alive_points(self) -> np.ndarray:
+        return self.points[self.alive_ids()]
+
+    def any_within(self, queries: np.ndarray, radius: float | None = None) -> np.ndarray:
+        """(B, n) -> (B,) bool: does some alive box (at its own half-width) hold each query?"""
+        return self.cover(queries, radius) >= 0
+
+    def cover(self, queries: np.ndarray, radius: float | None = None) -> np.ndarray:
+        """(B, n) -> (B,) int64: the id of an alive box holding each query, or -1."""
+        q = np.atleast_2d(np.asarray(queries, dtype=float))
+        found = np.full(len(q), -1, dtype=np.int64)
+        todo = np.arange(len(q))
+        # first every level's home cell (one lookup each: most states lie in a lattice
+        # box of some level), then the full search for the rest, level by level
+        for level in self._order():
+            if len(todo) == 0:
+                return found
+            local = self._levels[level][1].home_cover(q[todo])
+            if local is None:
+                continue
+            hit = local >= 0
+            found[todo[hit]] = self._global(level)[local[hit]]
+            todo = todo[~hit]
+        for level in self._order():
+            if len(todo) == 0:
+                break
+            hw, index, _ = self._levels[level]
+            local = index.cover(q[todo], hw)
+            hit = local >= 0
+            found[todo[hit]] = self._global(level)[local[hit]]
+            todo = todo[~hit]
+        return found
+
+    def covered_by_since(self, queries: np.ndarray, radius: float | None, first: int) -> np.ndarray | None:
+        """(B, n) -> (B,) bool: does an alive box with id >= ``first`` hold each query (by
+        the rule ``cover`` applies)? None when a level holds an older point after one of
+        those (a resize moved it there): ask ``cover``."""
+        q = np.atleast_2d(np.asarray(queries, dtype=float))
+        out = np.zeros(len(q), dtype=bool)
+        for level in self._order():
+            hw, index, _ = self._levels[level]
+            glob = self._global(level)
+            start, before = self._sorted[level]
+            if before >= first:  # a point placed out of order has an id >= first
+                return None
+            local_first = start + int(np.searchsorted(glob[start:], first))
+            if local_first < index.count:
+                out |= index.covered_by_since(q, hw, local_first)
+        return out
+
+    # -- persistence (plain arrays, no pickle) -----------------------------------------------
+    def state(self) -> dict:
+        out = {"points": self.points[: self.count].copy(), "alive": self.alive[: self.count].copy(),
+               "half_width": self.half_width[: self.count].copy(), "cell": np.array(self.cell),
+               "origin": self.origin.copy(), "levels": np.array([hw for hw, _, _ in self._levels]),
+               "level": self._level[: self.count].copy(), "local": self._local[: self.count].copy()}
+        # each level's points in its own insertion order: the witnesses a mirror names
+        for i in range(len(self._levels)):
+            out[f"level{i}"] = self._global(i).copy()
+        if self.bounds is not None:
+            out["bounds"] = np.stack(self.bounds)
+        return out
+
+    @classmethod
+    def from_state(cls, state: dict) -> "LeveledIndex":
+        pts = state["points"]
+        bounds = state.get("bounds")
+        idx = cls(pts.shape[1], float(state["cell"]), state["origin"], capacity=2 * len(pts) + 16,
+                  bounds=None if bounds is None else (bounds[0], bounds[1]))
+        idx._grow(len(pts))
+        idx.points[: len(pts)] = pts
+        idx.count = len(pts)
+        idx.half_width[: len(pts)] = state["half_width"]
+        for i, hw in enumerate(np.asarray(state["levels"], dtype=float)):
+            ids = np.asarray(state[f"level{i}"], dtype=np.int64)
+            idx.alive[ids] = True  # placed alive, in order; the dead are killed below
+            idx._place(ids, float(hw))
+        # a resized point was placed in every level it passed through: its own is recorded
+        idx._level[: len(pts)] = state["level"]
+        idx._local[: len(pts)] = state["local"]
+        for i in range(len(idx._levels)):
+            glob = idx._global(i)
+            own = (idx._level[glob] == i) & (idx._local[glob] == np.arange(len(glob)))
+            idx._levels[i][1].kill(np.flatnonzero(~own))
+        idx.alive[: len(pts)] = True
+        idx.kill(np.flatnonzero(~np.asarray(state["alive"], dtype=bool)))
+        return idx
