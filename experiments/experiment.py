@@ -24,3 +24,16 @@ def main(run: Callable[[list[str]], None], render: Callable[[], object]) -> None
         print(render())
     else:
         run(sys.argv[1:])
+
+
+def run_in_process(cfg):
+    """One campaign of ``cfg`` on the in-process executor (the committed sequence does not
+    depend on the executor): -> its counters, algorithm, back end and seconds."""
+    from farm.campaign_setup import build_algorithm, build_campaign, spec_of
+    from farm.local_executor import LocalExecutor
+
+    executor = LocalExecutor(spec_of(cfg))
+    algo = build_algorithm(cfg, executor.simulator)
+    t0 = time.perf_counter()
+    counters = build_campaign(cfg, algo, executor.simulator, executor).run()
+    return counters, algo, executor.simulator.backend, time.perf_counter() - t0

@@ -21,15 +21,12 @@ from __future__ import annotations
 
 import json
 import resource
-import time
 from pathlib import Path
 
 from coordinator.reference import compare_boxes, grid, reference_safe
 from farm import config as config_mod
-from farm.campaign_setup import build_algorithm, build_campaign, spec_of
-from farm.local_executor import LocalExecutor
 
-from experiment import machine_stamp, main
+from experiment import machine_stamp, main, run_in_process
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 JSON = DOCS / "refinement.json"
@@ -48,13 +45,8 @@ def config(scenario: str, policy: str, delta_min: float, refine: str):
 
 def run(scenario: str, policy: str, delta_min: float, refine: str, truths: dict) -> dict:
     cfg = config(scenario, policy, delta_min, refine)
-    executor = LocalExecutor(spec_of(cfg))
-    algo = build_algorithm(cfg, executor.simulator)
-    t0 = time.perf_counter()
-    c = build_campaign(cfg, algo, executor.simulator, executor).run()
-    seconds = time.perf_counter() - t0
+    c, algo, backend, seconds = run_in_process(cfg)
     safe_set = algo.result()
-    backend = executor.simulator.backend
     key = (scenario, policy)
     if key not in truths:
         truths[key] = reference_safe(backend, grid(backend.scenario))

@@ -19,7 +19,6 @@ reference on the compare grid.
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import numpy as np
@@ -27,10 +26,8 @@ import numpy as np
 from coordinator.reference import compare_boxes, grid, reference_safe
 from coordinator.sample_size import n_eps
 from farm import config as config_mod
-from farm.campaign_setup import build_algorithm, build_campaign, spec_of
-from farm.local_executor import LocalExecutor
 
-from experiment import machine_stamp, main
+from experiment import machine_stamp, main, run_in_process
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 DEFERRED = [(1024, 2), (2048, 4), (8192, 4)]  # 2,048 / 8,192 / 32,768 in flight
@@ -49,13 +46,8 @@ def config(batch: int, depth: int, counting: str, certify: bool, seed: int):
 
 def run(batch: int, depth: int, counting: str, certify: bool, seed: int, truth: dict) -> dict:
     cfg = config(batch, depth, counting, certify, seed)
-    executor = LocalExecutor(spec_of(cfg))
-    algo = build_algorithm(cfg, executor.simulator)
-    t0 = time.perf_counter()
-    c = build_campaign(cfg, algo, executor.simulator, executor).run()
-    seconds = time.perf_counter() - t0
+    c, algo, backend, seconds = run_in_process(cfg)
     safe_set = algo.result()
-    backend = executor.simulator.backend
     if "safe" not in truth:  # the reference depends on neither the window nor the seed
         truth["safe"] = reference_safe(backend, grid(backend.scenario))
     metrics = compare_boxes(backend, safe_set, truth=truth["safe"])
