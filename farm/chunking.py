@@ -38,8 +38,9 @@ DRIVER_SHARE = 0.25  # of the driver's time on Ray calls, every worker busy
 CALL_S = 1e-3  # [s] the driver's time per chunk until it is measured
 DECAY = 0.8  # weight of the older chunks in the fitted times, per chunk
 SPREAD = 0.1  # chunk sizes' coefficient of variation below which a and b are not refitted
-LIMIT_FACTOR = 20.0  # a chunk may take this many times its expected time ...
-LIMIT_FLOOR_S = 60.0  # [s] ... plus this (a loaded machine, a garbage collection, a long replay)
+LIMIT_FACTOR = 10.0  # a chunk may take this many times its expected time ...
+LIMIT_FLOOR_S = 5.0  # [s] ... plus this (a loaded machine, a garbage collection)
+REPLAY_FLOOR_S = 120.0  # [s] an experience replay's limit at least: its cost per run is not a chunk's
 UNMEASURED_LIMIT_S = 600.0  # [s] a chunk's limit before any chunk has come back
 
 
@@ -135,6 +136,12 @@ class ChunkSizer:
     def busy_at_most(self, batch_size: int, pipeline_depth: int) -> int:
         """Workers that ``pipeline_depth`` batches of ``batch_size`` runs can keep busy."""
         return min(self.workers, pipeline_depth * self.chunks(batch_size))
+
+    def replay_limit(self, runs: int) -> float:
+        """[s] the time a round end's experience replay of ``runs`` runs may take: it
+        re-simulates stored runs up to their kept states, which the chunks' fit does not
+        predict (10x + 5 s failed one at load 16 here)."""
+        return self.chunk_timeout if self.chunk_timeout > 0 else max(REPLAY_FLOOR_S, self.limit(runs))
 
     def limit(self, runs: int) -> float:
         """[s] the time a chunk of ``runs`` runs may take once its worker has started it."""

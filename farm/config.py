@@ -200,8 +200,8 @@ class FarmConfig(Section):
     checkpoint_every: Annotated[float, Field(ge=0.0, le=1e9, **_fixed("seconds (below 1: 1, with a warning)"))] = 30.0
     max_retries: Annotated[int, Field(ge=0, le=100, **_fixed())] = 3
     chunk_timeout: Annotated[float, Field(ge=0.0, le=1e6, **_fixed(
-        "seconds a chunk may take on its worker before it is retried elsewhere (0: 20x its expected time, "
-        "measured, plus 60 s)"))] = 0.0
+        "seconds a chunk may take on its worker before it is retried elsewhere (0: 10x its expected time, "
+        "measured, plus 5 s)"))] = 0.0
     virtual: Annotated[VirtualConfig, Field(**_fixed("the virtual farm's clock"))] = VirtualConfig()
     max_memory_gb: Annotated[float | None, Field(gt=0.0, le=1e6, **_fixed(
         "refuse a campaign whose worst-case memory estimate exceeds this (default: 3/4 of this machine's "

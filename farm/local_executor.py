@@ -87,7 +87,7 @@ class LocalExecutor(Executor):
 
         runs = sum(len(p.indices) for p in pieces)
         # a round end's replay finishes before a stop is taken (interruptible=False)
-        return self._thread.run(work, self.sizer.limit(runs), f"scenario {self._scenario!r}: experience replay of "
+        return self._thread.run(work, self.sizer.replay_limit(runs), f"scenario {self._scenario!r}: experience replay of "
                                 f"{runs} runs", interruptible=False)
 
     def cancel(self, handle: int) -> None:

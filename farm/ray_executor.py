@@ -462,7 +462,8 @@ class RayExecutor(Executor):
         stripped = [Stored(None, p.indices, p.rows, p.takes, p.parents, p.starts) for p in shares]
         sources = [[p.source] if p.source is not None else [] for p in shares]  # nested: not resolved by Ray
         runs = sum(len(p.indices) for p in shares)
-        call = Call(runs, f"scenario {self._scenario!r}: experience replay of {runs} runs", None)
+        call = Call(runs, f"scenario {self._scenario!r}: experience replay of {runs} runs", None,
+                    limit=self.sizer.replay_limit(runs))
 
         def launch(actor: int, fresh: bool = False) -> None:
             message = self._message(actor, screen, fresh)

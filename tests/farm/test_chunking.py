@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from farm.chunking import LIMIT_FACTOR, LIMIT_FLOOR_S, UNMEASURED_LIMIT_S, ChunkSizer
+from farm.chunking import LIMIT_FACTOR, LIMIT_FLOOR_S, REPLAY_FLOOR_S, UNMEASURED_LIMIT_S, ChunkSizer
 
 
 def measured(workers, chunk_cost, run_cost, call=1e-3, sizes=(1, 40, 60), timeout=0.0):
@@ -43,6 +43,14 @@ def test_a_slow_simulator_gets_one_run_chunks_and_a_limit_from_its_run_time():
     assert sizer.size(1024) == 1 and sizer.chunks(1024) == 1024
     assert sizer.limit(1) == pytest.approx(LIMIT_FLOOR_S + LIMIT_FACTOR * 1.01)
     assert measured(4, 0.01, 1.0, timeout=7.0).limit(1) == 7.0  # farm.chunk_timeout
+
+
+def test_an_experience_replay_gets_at_least_two_minutes_unless_the_user_fixes_the_limit():
+    fast = measured(2, 0.007, 0.00001)  # numpy-like: a chunk's limit is a few seconds
+    assert fast.limit(30_000) < 10 and fast.replay_limit(30_000) == REPLAY_FLOOR_S
+    slow = measured(2, 0.01, 1.0)
+    assert slow.replay_limit(100) == slow.limit(100) > REPLAY_FLOOR_S  # the fit's limit when larger
+    assert measured(2, 0.01, 1.0, timeout=7.0).replay_limit(100) == 7.0  # farm.chunk_timeout
 
 
 def test_a_chunk_holds_about_a_second():
