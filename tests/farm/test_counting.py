@@ -45,7 +45,7 @@ def _check_ledger(summary, ledger, sequential=True):
         np.testing.assert_array_equal(discarded, replaced)
 
 
-@pytest.mark.parametrize("mode", ["uniform", "search"])
+@pytest.mark.parametrize("mode", ["uniform", pytest.param("search", marks=pytest.mark.soak)])
 def test_sequential_counting_commits_the_same_runs_at_any_window(tmp_path, mode):
     got = {}
     for batch, depth in WINDOWS:

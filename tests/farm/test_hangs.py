@@ -161,7 +161,7 @@ def test_a_first_signal_sets_the_stop_and_a_second_stops_at_once():
             time.sleep(5)
 
 
-@pytest.mark.parametrize("executor", ["local", pytest.param("ray", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("executor", ["local", pytest.param("ray", marks=pytest.mark.soak)])
 def test_sigterm_stops_a_hung_campaign_within_seconds_then_resume_completes(tmp_path, executor, uninterrupted):
     marker = tmp_path / "marker"
     marker.touch()
@@ -186,7 +186,7 @@ def test_sigterm_stops_a_hung_campaign_within_seconds_then_resume_completes(tmp_
     resume_gives(out, marker, uninterrupted)
 
 
-@pytest.mark.parametrize("executor", ["local", pytest.param("ray", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("executor", ["local", pytest.param("ray", marks=pytest.mark.soak)])
 def test_a_simulator_that_always_hangs_stops_the_campaign_with_exit_4_then_resume_completes(tmp_path, executor,
                                                                                               uninterrupted):
     marker = tmp_path / "marker"

@@ -159,6 +159,7 @@ def test_ray_gives_the_in_process_search_result(ray_local, in_process, tmp_path,
         (out / "adversary.json").read_text())
 
 
+@pytest.mark.soak  # a kill -9 chain (minutes); the local interrupt chain runs in CI
 def test_kill_9_mid_campaign_then_resume_gives_the_same_search(tmp_path):
     # one round finer than SEARCH_TOML: ~6 s of campaign, so that it is still running
     # when the kill comes (at delta_min 1 it can end within one status write)
