@@ -60,7 +60,9 @@ def ledger(out, executor):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGKILL], ids=["INT", "TERM", "KILL"])
+@pytest.mark.parametrize("signum", [pytest.param(signal.SIGINT, marks=pytest.mark.soak),
+                                    pytest.param(signal.SIGTERM, marks=pytest.mark.soak), signal.SIGKILL],
+                         ids=["INT", "TERM", "KILL"])
 def test_signal_at_five_moments_then_resume_gives_the_uninterrupted_result(tmp_path, reference, signum):
     executor, config, whole = reference
     total = segments(whole)

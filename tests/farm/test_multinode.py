@@ -50,7 +50,7 @@ def test_a_lost_worker_node_is_survived_with_the_same_result(local):
     assert out["result_hash"] == local["result_hash"] and out["runs_committed"] == local["runs_committed"]
 
 
-@pytest.mark.slow
+@pytest.mark.soak  # two multi-node clusters killed and resumed; a killed raylet on one node runs in CI
 @pytest.mark.parametrize("what", ["head", "raylet"])
 def test_a_lost_head_or_raylet_stops_with_our_line_and_exit_4_then_resume_completes(tmp_path, what):
     out = on_a_cluster(what, str(tmp_path))

@@ -225,6 +225,7 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
         ex.close()
 
 
+@pytest.mark.soak  # three Ray campaigns for one line of output
 def test_workers_that_cannot_be_kept_busy_are_announced(ray_local, tmp_path):
     """Chunks of one run up keep every worker busy, unless there are more workers than runs
     in flight: 2 x 1 runs on 3 workers. Under deferred counting the campaign says so (the

@@ -48,6 +48,7 @@ def test_sumo_idm_and_numpy_idm_quantify_the_same_set(tmp_path):
     assert iou >= 0.9, (iou, sumo.volume_union, ref.volume_union)
 
 
+@pytest.mark.soak  # minutes of SUMO runs; compare's plan and estimate run in CI (tests/farm/test_compare_plan.py)
 def test_compare_on_a_sumo_campaign_uses_the_simulated_reference(tmp_path):
     import json
     import subprocess
