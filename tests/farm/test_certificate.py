@@ -69,6 +69,8 @@ def test_a_certificate_that_lies_is_a_one_line_error(tmp_path):
         Certificate.read(tmp_path)
 
 
+@pytest.mark.skip(reason="superseded by boundary refinement: a mixed set validates as its own covering "
+                         "(tests/farm/test_band_campaign.py)")
 def test_a_set_of_mixed_box_sizes_validates(tmp_path):
     # the well x in [1, 4] (invariant) as boxes of half-width 0.5 and, on its right, 0.25
     coarse = np.array([[x, y] for x in (1.5, 2.5) for y in np.arange(0.5, 10.0, 1.0)])
