@@ -54,7 +54,14 @@ def wait_for(proc, ready, timeout=300):
 
 
 def named(procs, name):
-    return [p for p in procs if p.name() == name or p.name().startswith(name)]
+    return [p for p in procs if _name(p).startswith(name)]
+
+
+def _name(p) -> str:
+    try:
+        return p.name()
+    except psutil.NoSuchProcess:  # a short-lived child that ended after it was listed
+        return ""
 
 
 def running(proc, config):
