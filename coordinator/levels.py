@@ -19,10 +19,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from coordinator.spatial import PointIndex
+from coordinator.spatial import AlivePoints, PointIndex
 
 
-class LeveledIndex:
+class LeveledIndex(AlivePoints):
     """Points (N, n) with alive flags and a half-width each, one ``PointIndex`` per
     half-width. ``cover`` and ``any_within`` take each box's own half-width (their
     ``radius`` argument is the current one, kept for ``PointIndex``'s signature)."""
@@ -138,16 +138,6 @@ class LeveledIndex:
         self.cell = float(cell)
 
     # -- queries ---------------------------------------------------------------------------
-    def alive_ids(self) -> np.ndarray:
-        return np.nonzero(self.alive[: self.count])[0]
-
-    @property
-    def alive_count(self) -> int:
-        return int(self.alive[: self.count].sum())
-
-    def alive_points(self) -> np.ndarray:
-        return self.points[self.alive_ids()]
-
     def any_within(self, queries: np.ndarray, radius: float | None = None) -> np.ndarray:
         """(B, n) -> (B,) bool: does some alive box (at its own half-width) hold each query?"""
         return self.cover(queries, radius) >= 0
@@ -197,23 +187,19 @@ class LeveledIndex:
 
     # -- persistence (plain arrays, no pickle) -----------------------------------------------
     def state(self) -> dict:
-        out = {"points": self.points[: self.count].copy(), "alive": self.alive[: self.count].copy(),
-               "half_width": self.half_width[: self.count].copy(), "cell": np.array(self.cell),
-               "origin": self.origin.copy(), "levels": np.array([hw for hw, _, _ in self._levels]),
-               "level": self._level[: self.count].copy(), "local": self._local[: self.count].copy()}
+        out = self._snapshot()
+        out.update({"half_width": self.half_width[: self.count].copy(),
+                    "levels": np.array([hw for hw, _, _ in self._levels]),
+                    "level": self._level[: self.count].copy(), "local": self._local[: self.count].copy()})
         # each level's points in its own insertion order: the witnesses a mirror names
         for i in range(len(self._levels)):
             out[f"level{i}"] = self._global(i).copy()
-        if self.bounds is not None:
-            out["bounds"] = np.stack(self.bounds)
         return out
 
     @classmethod
     def from_state(cls, state: dict) -> "LeveledIndex":
         pts = state["points"]
-        bounds = state.get("bounds")
-        idx = cls(pts.shape[1], float(state["cell"]), state["origin"], capacity=2 * len(pts) + 16,
-                  bounds=None if bounds is None else (bounds[0], bounds[1]))
+        idx = cls._empty_for(state)
         idx._grow(len(pts))
         idx.points[: len(pts)] = pts
         idx.count = len(pts)

@@ -38,7 +38,36 @@ MISS_BLOCK = 1 << 15  # queries whose touched cells are enumerated at once (2^n 
 LINK = np.int32
 
 
-class PointIndex:
+class AlivePoints:
+    """What the point indexes share (this one and ``coordinator.levels.LeveledIndex``):
+    ``points`` (count, n) with ``alive`` flags, and the common part of their snapshot."""
+
+    def alive_ids(self) -> np.ndarray:
+        return np.nonzero(self.alive[: self.count])[0]
+
+    @property
+    def alive_count(self) -> int:
+        return int(self.alive[: self.count].sum())
+
+    def alive_points(self) -> np.ndarray:
+        return self.points[self.alive_ids()]
+
+    def _snapshot(self) -> dict:
+        out = {"points": self.points[: self.count].copy(), "alive": self.alive[: self.count].copy(),
+               "cell": np.array(self.cell), "origin": self.origin.copy()}
+        if self.bounds is not None:
+            out["bounds"] = np.stack(self.bounds)
+        return out
+
+    @classmethod
+    def _empty_for(cls, state: dict):
+        """An empty index with the cell, origin and bounds of snapshot ``state``, room for its points."""
+        pts, bounds = state["points"], state.get("bounds")
+        return cls(pts.shape[1], float(state["cell"]), state["origin"], capacity=2 * len(pts) + 16,
+                   bounds=None if bounds is None else (bounds[0], bounds[1]))
+
+
+class PointIndex(AlivePoints):
     """Points (N, n) with alive flags, hashed by cell. ``cell`` must be >= 2 * radius of
     every ``any_within`` query."""
 
@@ -252,16 +281,6 @@ class PointIndex:
         self._chains(("rehash", self._buckets, self.count))
 
     # -- queries ------------------------------------------------------------------------
-    def alive_ids(self) -> np.ndarray:
-        return np.nonzero(self.alive[: self.count])[0]
-
-    @property
-    def alive_count(self) -> int:
-        return int(self.alive[: self.count].sum())
-
-    def alive_points(self) -> np.ndarray:
-        return self.points[self.alive_ids()]
-
     def any_within(self, queries: np.ndarray, radius: float) -> np.ndarray:
         """(B, n) -> (B,) bool: is some alive point within l-inf distance ``radius``?"""
         return self.cover(queries, radius) >= 0
@@ -421,18 +440,12 @@ class PointIndex:
 
     # -- persistence (plain arrays, no pickle) -------------------------------------------
     def state(self) -> dict:
-        out = {"points": self.points[: self.count].copy(), "alive": self.alive[: self.count].copy(),
-               "cell": np.array(self.cell), "origin": self.origin.copy()}
-        if self.bounds is not None:
-            out["bounds"] = np.stack(self.bounds)
-        return out
+        return self._snapshot()
 
     @classmethod
     def from_state(cls, state: dict) -> "PointIndex":
         pts = state["points"]
-        bounds = state.get("bounds")
-        idx = cls(pts.shape[1], float(state["cell"]), state["origin"], capacity=2 * len(pts) + 16,
-                  bounds=None if bounds is None else (bounds[0], bounds[1]))
+        idx = cls._empty_for(state)
         if len(pts):
             idx.insert(pts)
             idx.kill(np.nonzero(~state["alive"])[0])
