@@ -232,7 +232,7 @@ class Campaign:
         """Keep ``pipeline_depth`` batches drawn and submitted (fewer when the budget ends)."""
         s, algo = self.settings, self.algorithm
         # sequential counting: the batch size changes no result, so it follows the workers
-        batch = self.executor.batch_size(s.batch_size, s.pipeline_depth) if s.lag == 0 else s.batch_size
+        batch = self.executor.batch_size(s.batch_size) if s.lag == 0 else s.batch_size
         while len(self.pending) < s.pipeline_depth:
             first = self._next_draw_index()
             size = min(batch, s.budget - first)
@@ -259,13 +259,17 @@ class Campaign:
         moved = algo.moved(p.draws.span(lo, hi))
         exact = ~moved
         if moved.any():
-            again = lo + np.flatnonzero(moved)
-            fresh = algo.draw(self._streams(p.first_index + again))
-            same = fresh.ids == p.draws.ids[again]
-            exact[moved] = same
-            if same.any():
-                p.draws.replace_rows(again[same], fresh.rows(np.flatnonzero(same)))
+            exact[moved], _ = self._redraw(p, lo + np.flatnonzero(moved))
         return exact
+
+    def _redraw(self, p: Pending, rows: np.ndarray) -> tuple[np.ndarray, Draws]:
+        """Draw runs ``rows`` of batch ``p`` again: -> (still the same vertex, the fresh
+        draws). A run still drawn has its draw record renewed (later checks start from now)."""
+        fresh = self.algorithm.draw(self._streams(p.first_index + rows))
+        same = fresh.ids == p.draws.ids[rows]
+        if same.any():
+            p.draws.replace_rows(rows[same], fresh.rows(np.flatnonzero(same)))
+        return same, fresh
 
     def _replace(self, index: int) -> None:
         """Launch the replacement of run ``index`` from its stream's current draw, due
@@ -314,10 +318,7 @@ class Campaign:
             flagged = lo + np.flatnonzero(algo.moved(p.draws.span(lo, hi)))
             if len(flagged) == 0:
                 continue
-            fresh = algo.draw(self._streams(p.first_index + flagged))
-            same = fresh.ids == p.draws.ids[flagged]
-            if same.any():  # still drawn: later checks start from now
-                p.draws.replace_rows(flagged[same], fresh.rows(np.flatnonzero(same)))
+            same, fresh = self._redraw(p, flagged)
             for k in np.flatnonzero(~same):
                 index = int(p.first_index + flagged[k])
                 known = self._ahead.get(index)

@@ -136,9 +136,9 @@ class Executor(ABC):
     def close(self) -> None:
         """End the workers; the executor takes no more work."""
 
-    def batch_size(self, requested: int, pipeline_depth: int) -> int:
-        """Runs per batch that keep every worker busy with ``pipeline_depth`` batches in
-        flight (at least ``requested``). The driver asks only where the batch size cannot
+    def batch_size(self, requested: int) -> int:
+        """Runs per batch that give every worker a chunk of each batch, so that the
+        ``pipeline_depth`` batches in flight keep every worker busy (at least ``requested``). The driver asks only where the batch size cannot
         change a result (sequential counting)."""
         return requested
 

@@ -41,25 +41,12 @@ from farm.waiting import WorkerError, name_runs
 from scenarios.errors import FarmError
 from scenarios.simulator import SimSpec
 
-__all__ = ["RayExecutor", "WorkerError", "busy_at_most", "chunks_per_batch"]
+__all__ = ["RayExecutor", "WorkerError"]
 
 RESYNC = "resync"  # a worker's answer when its mirror cannot reach the chunk's version
 STORED_PART = 4096  # runs per replay task when a stored piece must be re-simulated
 INLINE_BYTES = 1 << 16  # change blocks up to this size travel inside the task call
 CLOSE_GRACE_S = 2.0  # [s] an actor's time to finish its chunks at close before it is killed
-
-
-def chunks_per_batch(workers: int, pipeline_depth: int, batch_size: int) -> int:
-    """The chunks a batch of ``batch_size`` runs is cut into for ``workers`` workers before
-    any run time is measured, and for a simulator slow enough that the run time does not
-    decide it: a share of every batch for every worker (farm/chunking.py)."""
-    return ChunkSizer(workers).chunks(batch_size)
-
-
-def busy_at_most(workers: int, pipeline_depth: int, batch_size: int) -> int:
-    """Workers that ``pipeline_depth`` batches of ``batch_size`` runs can keep busy with
-    chunks of one run up: every worker, unless there are more workers than runs in flight."""
-    return ChunkSizer(workers).busy_at_most(batch_size, pipeline_depth)
 
 
 def _nbytes(changes) -> int:
@@ -318,11 +305,7 @@ class RayExecutor(Executor):
         self._next += 1
         return self._next - 1
 
-    def chunks_per_batch(self, batch_size: int) -> int:
-        """The chunks a batch of ``batch_size`` runs is cut into now (``submit``)."""
-        return self.sizer.chunks(batch_size)
-
-    def batch_size(self, requested: int, pipeline_depth: int) -> int:
+    def batch_size(self, requested: int) -> int:
         return self.sizer.batch_size(requested)
 
     def busy_at_most(self, batch_size: int) -> int:

@@ -197,7 +197,7 @@ class VirtualExecutor(Executor):
         self._leave()
         return found
 
-    def batch_size(self, requested: int, pipeline_depth: int) -> int:
+    def batch_size(self, requested: int) -> int:
         return self.sizer.batch_size(requested)
 
     def close(self) -> None:
