@@ -5,7 +5,10 @@ screened against.
 A batch is cut into chunks whose size follows the simulator (farm/chunking.py: each
 worker a share of every batch, about a second of simulation at most, no more Ray calls
 than the driver can afford); the first batch begins with a one-run chunk that measures
-the run time before the rest is cut. Chunks go to the actor with the fewest runs queued.
+the run time before the rest is cut. Chunks go to the actor with the fewest runs queued;
+replacements (the runs the commit head waits for under sequential counting) go first to a
+fast lane, one more actor that takes nothing else, so that they never wait behind the
+chunks queued on a worker.
 With each chunk goes what its actor's mirror lacks: the coverage changes since the
 version the actor was last sent (small blocks inside the call, large ones put in the
 object store once and shared by every actor that needs the same range), or a whole
@@ -165,12 +168,14 @@ class RayExecutor(Executor):
 
     def __init__(self, spec: SimSpec, workers: int, address: str = "local", max_retries: int = 3,
                  check_step_bound: bool = False, pipeline_depth: int = 1, chunk_timeout: float = 0.0,
-                 stop: threading.Event | None = None, notify: Callable[[str], None] | None = None):
+                 stop: threading.Event | None = None, notify: Callable[[str], None] | None = None,
+                 fast_lane: bool = True):
         """``pipeline_depth``: batches the caller keeps in flight (farm.pipeline_depth);
         ``chunk_timeout``: seconds a chunk may take (farm.chunk_timeout; 0: derived from
         the measured run time); ``stop``: set on SIGINT / SIGTERM, it ends a wait for a
         chunk (``farm.waiting.Interrupted``); ``notify``: takes a line for the user (a
-        worker replaced). None of them changes a result."""
+        worker replaced); ``fast_lane``: one more actor, for replacements only. None of them
+        changes a result."""
         import ray
 
         connect(address, workers)
@@ -191,7 +196,12 @@ class RayExecutor(Executor):
         cls = _actor_class().options(num_cpus=per_actor, max_restarts=-1, max_task_retries=0,
                                      scheduling_strategy="SPREAD")
         handles = [cls.remote(dataclasses.asdict(spec), check_step_bound) for _ in range(workers)]
-        self.pool = ActorPool(ray, handles, self.sizer.limit, max_retries, stop, notify)
+        # the fast lane: under sequential counting the commit head waits for each wave of
+        # replacements, which behind a worker's queued chunks would wait seconds; it takes
+        # no CPU of the workers' (it is busy only with replacements, a few % of the runs)
+        lane = _actor_class().options(num_cpus=0, max_restarts=-1, max_task_retries=0)
+        lanes = [lane.remote(dataclasses.asdict(spec), check_step_bound)] if fast_lane else []
+        self.pool = ActorPool(ray, handles, self.sizer.limit, max_retries, stop, notify, lanes)
         self._blocks: dict[tuple, object] = {}  # (coverage id, from seq, to seq) -> ref
         self._static: dict[int, object] = {}  # id(screen) -> ref of a fixed screen
         self._snapshot: tuple = (None, None)  # (coverage id, epoch, seq), ref of its state
@@ -201,7 +211,11 @@ class RayExecutor(Executor):
 
     @property
     def actors(self) -> list:
-        return self.pool.handles()
+        """The workers (not the fast lane)."""
+        return [s.handle for s in self.pool.slots if not s.lane]
+
+    def _actor(self, slot: int):
+        return self.pool.slots[slot].handle
 
     @property
     def stop(self) -> threading.Event | None:
@@ -298,7 +312,7 @@ class RayExecutor(Executor):
         first = first_index + int(rows[0])
         picked = None if indices is None else np.asarray(indices, dtype=np.int64)[rows]
         job = _Job(len(rows), name_runs(self._scenario, first, starts[rows], picked), None, first=first, starts=starts[rows],
-                   screen=screen, actions=actions, indices=picked)
+                   screen=screen, actions=actions, indices=picked, urgent=indices is not None)
         job.launch = lambda actor, job=job: self._launch(job, actor)
         self.pool.send(job)
         self._jobs[self._next] = job
@@ -317,7 +331,7 @@ class RayExecutor(Executor):
         t0 = time.perf_counter()
         message = self._message(actor, job.screen, job.fresh)
         job.sent = self.pool.slots[actor].synced
-        job.ref, job.visited_ref = self.actors[actor].run.remote(job.first, job.starts, message, job.actions,
+        job.ref, job.visited_ref = self._actor(actor).run.remote(job.first, job.starts, message, job.actions,
                                                                  job.indices)
         job.fresh = False
         job.call_s += time.perf_counter() - t0
@@ -339,7 +353,7 @@ class RayExecutor(Executor):
         call = Call(job.runs, f"{job.what} (simulated again: their node was lost)", None)
 
         def launch(actor: int) -> None:
-            call.ref = self.actors[actor].revisit.remote(job.first, job.starts, job.actions, job.indices)
+            call.ref = self._actor(actor).revisit.remote(job.first, job.starts, job.actions, job.indices)
             self.pool.sent(call, actor)
 
         call.launch = launch
@@ -406,7 +420,7 @@ class RayExecutor(Executor):
                 shares.append(piece)
         # one call per actor with its share (balanced by runs), results
         # back in the shares' order
-        up = [i for i, slot in enumerate(self.pool.slots) if not slot.down] or [0]
+        up = [i for i, slot in enumerate(self.pool.slots) if not slot.down and not slot.lane] or [0]
         groups: list[list[int]] = [[] for _ in up]
         load = np.zeros(len(up))
         for i, share in enumerate(shares):
@@ -450,7 +464,7 @@ class RayExecutor(Executor):
 
         def launch(actor: int, fresh: bool = False) -> None:
             message = self._message(actor, screen, fresh)
-            call.ref = self.actors[actor].replay_screen.remote(stripped, sources, message, self._actions)
+            call.ref = self._actor(actor).replay_screen.remote(stripped, sources, message, self._actions)
             self.pool.sent(call, actor)
 
         call.launch = launch

@@ -56,6 +56,7 @@ class Call:
     dropped: bool = False  # nobody waits for it any more (a cancelled chunk): not launched again
     limit: float | None = None  # [s] its own time limit (else the pool's, by its runs)
     call_s: float = 0.0  # [s] the driver's time on sending it and reading its result
+    urgent: bool = False  # the commit head waits for it (replacements): the fast lane may take it
 
 
 @dataclasses.dataclass
@@ -63,6 +64,7 @@ class Slot:
     """One actor, as the driver knows it."""
 
     handle: object
+    lane: bool = False  # the fast lane: only urgent calls, unless no other actor is up
     queue: deque = dataclasses.field(default_factory=deque)  # Calls in the order the actor runs them
     started: float = 0.0  # when the head call started, as far as the driver knows
     synced: tuple | None = None  # the coverage (id, epoch, seq) its mirror was sent ...
@@ -92,10 +94,12 @@ class Slot:
 
 class ActorPool:
     def __init__(self, ray, handles: list, limit: Callable[[int], float], max_retries: int,
-                 stop: threading.Event | None = None, notify: Callable[[str], None] | None = None):
-        """``limit(runs)``: the seconds a call of ``runs`` runs may take once started."""
+                 stop: threading.Event | None = None, notify: Callable[[str], None] | None = None,
+                 lanes: list | None = None):
+        """``limit(runs)``: the seconds a call of ``runs`` runs may take once started;
+        ``lanes``: actors kept for urgent calls (after ``handles`` in the slots)."""
         self.ray = ray
-        self.slots = [Slot(h) for h in handles]
+        self.slots = [Slot(h) for h in handles] + [Slot(h, lane=True) for h in lanes or []]
         self.limit = limit
         for actor, slot in enumerate(self.slots):
             # its start-up is the first thing it runs: the chunks' limits count from its end
@@ -107,14 +111,18 @@ class ActorPool:
         self._all_down_since: float | None = None
 
     # -- sending -------------------------------------------------------------------------
-    def pick(self, interruptible: bool = True) -> int:
-        """The up actor with the fewest runs queued (waits while every actor is down)."""
+    def pick(self, interruptible: bool = True, urgent: bool = False) -> int:
+        """The up actor with the fewest runs queued (waits while every actor is down). An
+        urgent call may go to a fast lane (first, on a tie), another call only where no
+        worker is up: a replacement then never waits behind the chunks queued on a worker."""
         while True:
             self._revive()
             up = [i for i, s in enumerate(self.slots) if not s.down]
+            if not urgent:
+                up = [i for i in up if not self.slots[i].lane] or up
             if up:
                 self._all_down_since = None
-                return min(up, key=lambda i: self.slots[i].runs_queued)
+                return min(up, key=lambda i: (self.slots[i].runs_queued, not self.slots[i].lane))
             self._no_worker_left()
             self._pause(interruptible)
 
@@ -128,7 +136,7 @@ class ActorPool:
 
     def send(self, call: Call, interruptible: bool = True) -> None:
         """Launch ``call`` on the best actor."""
-        call.launch(self.pick(interruptible))
+        call.launch(self.pick(interruptible, call.urgent))
 
     def finished(self, call: Call) -> None:
         """``call``'s result was read: it and every call before it on its actor are over."""
@@ -236,7 +244,7 @@ class ActorPool:
         now = time.monotonic()
         if self._all_down_since is None:
             self._all_down_since = now
-        n = len(self.slots)
+        n = sum(not s.lane for s in self.slots)
         if all(s.dead for s in self.slots):
             raise WorkerError(f"all {n} Ray workers are lost for good (the Ray cluster's head node, or this "
                               f"node's raylet, is gone?)")
