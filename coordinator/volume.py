@@ -18,7 +18,6 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError
 
 
 def _origin(lower: np.ndarray, side: float) -> np.ndarray:
@@ -169,6 +168,8 @@ def hull_volume(centres: np.ndarray, half_widths, bounds=None) -> float:
         return 0.0
     n = centres.shape[1]
     widths = _widths(centres, half_widths)
+    from scipy.spatial import ConvexHull, QhullError  # here: scipy.spatial is 0.4 s of every CLI start
+
     on_hull = np.zeros(len(centres), dtype=bool)
     for width in np.unique(widths):
         group = np.flatnonzero(widths == width)

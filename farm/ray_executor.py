@@ -196,12 +196,9 @@ class RayExecutor(Executor):
         cls = _actor_class().options(num_cpus=per_actor, max_restarts=-1, max_task_retries=0,
                                      scheduling_strategy="SPREAD")
         handles = [cls.remote(dataclasses.asdict(spec), check_step_bound) for _ in range(workers)]
-        # the fast lane: under sequential counting the commit head waits for each wave of
-        # replacements, which behind a worker's queued chunks would wait seconds; it takes
-        # no CPU of the workers' (it is busy only with replacements, a few % of the runs)
-        lane = _actor_class().options(num_cpus=0, max_restarts=-1, max_task_retries=0)
-        lanes = [lane.remote(dataclasses.asdict(spec), check_step_bound)] if fast_lane else []
-        self.pool = ActorPool(ray, handles, self.sizer.limit, max_retries, stop, notify, lanes)
+        self.pool = ActorPool(ray, handles, self.sizer.limit, max_retries, stop, notify)
+        self._check_step_bound = check_step_bound
+        self._lane = fast_lane  # started with the first replacement (many campaigns need none)
         self._blocks: dict[tuple, object] = {}  # (coverage id, from seq, to seq) -> ref
         self._static: dict[int, object] = {}  # id(screen) -> ref of a fixed screen
         self._snapshot: tuple = (None, None)  # (coverage id, epoch, seq), ref of its state
@@ -308,7 +305,17 @@ class RayExecutor(Executor):
                 handles.append(self._send(first_index, starts, screen, actions, indices, rows))
         return handles
 
+    def _start_lane(self) -> None:
+        """The fast lane: under sequential counting the commit head waits for each wave of
+        replacements, which behind a worker's queued chunks would wait seconds. It reserves
+        no CPU: it is busy only with replacements, a few % of the runs."""
+        lane = _actor_class().options(num_cpus=0, max_restarts=-1, max_task_retries=0)
+        self.pool.add(lane.remote(dataclasses.asdict(self.spec), self._check_step_bound), lane=True)
+        self._lane = False
+
     def _send(self, first_index, starts, screen, actions, indices, rows) -> int:
+        if indices is not None and self._lane:
+            self._start_lane()
         first = first_index + int(rows[0])
         picked = None if indices is None else np.asarray(indices, dtype=np.int64)[rows]
         job = _Job(len(rows), name_runs(self._scenario, first, starts[rows], picked), None, first=first, starts=starts[rows],

@@ -94,21 +94,24 @@ class Slot:
 
 class ActorPool:
     def __init__(self, ray, handles: list, limit: Callable[[int], float], max_retries: int,
-                 stop: threading.Event | None = None, notify: Callable[[str], None] | None = None,
-                 lanes: list | None = None):
-        """``limit(runs)``: the seconds a call of ``runs`` runs may take once started;
-        ``lanes``: actors kept for urgent calls (after ``handles`` in the slots)."""
+                 stop: threading.Event | None = None, notify: Callable[[str], None] | None = None):
+        """``limit(runs)``: the seconds a call of ``runs`` runs may take once started."""
         self.ray = ray
-        self.slots = [Slot(h) for h in handles] + [Slot(h, lane=True) for h in lanes or []]
+        self.slots: list[Slot] = []
         self.limit = limit
-        for actor, slot in enumerate(self.slots):
-            # its start-up is the first thing it runs: the chunks' limits count from its end
-            up = Call(0, "the worker's start-up", None, slot.handle.pid.remote(), dropped=True, limit=STARTUP_LIMIT_S)
-            self.sent(up, actor)
+        for handle in handles:
+            self.add(handle)
         self.max_retries = max_retries
         self.stop = stop
         self.notify = notify
         self._all_down_since: float | None = None
+
+    def add(self, handle, lane: bool = False) -> None:
+        """One more actor; ``lane``: kept for urgent calls (a fast lane)."""
+        self.slots.append(Slot(handle, lane=lane))
+        # its start-up is the first thing it runs: the chunks' limits count from its end
+        up = Call(0, "the worker's start-up", None, handle.pid.remote(), dropped=True, limit=STARTUP_LIMIT_S)
+        self.sent(up, len(self.slots) - 1)
 
     # -- sending -------------------------------------------------------------------------
     def pick(self, interruptible: bool = True, urgent: bool = False) -> int:

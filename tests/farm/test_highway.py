@@ -70,6 +70,7 @@ def test_reversing_vehicles_truncate_runs_that_collide_once_clamped(highway_on_p
     assert not np.isin(runs[True].exits, [0, 2]).any()  # clamped: no vehicle reverses out of Sigma
 
 
+@pytest.mark.soak  # a minute; CI runs highway-env in the lateral case and the clamp test
 def test_highway_idm_quantified_on_ray_certified_and_compared_with_numpy(workdir, highway_on_path):
     cli = shutil.which("scenario-farm")
     (workdir / "small.toml").write_text(small((workdir / "lead_follow_highway.toml").read_text()))

@@ -24,7 +24,7 @@ def test_progress_lines_reach_a_log_and_quiet_silences_them(tmp_path):
 
 
 def test_status_watch_follows_a_campaign_to_its_end(tmp_path):
-    (tmp_path / "c.toml").write_text(lead_follow_toml(delta_min=0.25))
+    (tmp_path / "c.toml").write_text(lead_follow_toml(delta_min=0.5))
     out = tmp_path / "out"
     campaign = subprocess.Popen([sys.executable, "-m", "farm", "quantify", str(tmp_path / "c.toml"), "--out",
                                  str(out), "--quiet"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)

@@ -107,7 +107,7 @@ def test_a_scenario_that_raises_on_a_ray_worker_is_our_one_line_not_rays_traceba
     our_line_only(stderr, "scenario-farm: error: ", "scenario 'raising' raised ValueError: boom on sample index")
 
 
-@pytest.mark.slow
+@pytest.mark.soak  # ~2.5 min; CI keeps kill -9 of the driver, a killed worker and a lost worker node's cluster
 def test_a_killed_raylet_ends_with_our_line_and_exit_4_then_resume_finishes(tmp_path):
     (tmp_path / "c.toml").write_text(CAMPAIGN)
     proc = popen("quantify", tmp_path / "c.toml", "--out", tmp_path / "out")

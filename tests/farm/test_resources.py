@@ -71,7 +71,7 @@ def test_a_degenerate_domain_is_decided_within_bounded_memory(tmp_path):
 
 
 def test_a_set_of_another_scenario_is_refused_as_domain(tmp_path):
-    (tmp_path / "f.toml").write_text(LEAD_FOLLOW.replace('"lead-follow"', '"fleet3"'))
+    (tmp_path / "f.toml").write_text(lead_follow_toml(delta_min=4.0).replace('"lead-follow"', '"fleet3"'))  # one round
     assert cli("quantify", str(tmp_path / "f.toml"), "--out", str(tmp_path / "f")).returncode == 0
     (tmp_path / "v.toml").write_text(f'[scenario]\nname = "lead-follow"\nsv_policy = "idm"\n[validate]\n'
                                      f'domain_set = "{tmp_path / "f" / "safe_set.parquet"}"\ndelta = 2.0\n')
