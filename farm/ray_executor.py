@@ -76,6 +76,7 @@ def _actor_class():
             self.static = (None, None)
             self.busy_s = 0.0
             self.tasks = 0
+            self.runs = 0
 
         @ray.method(num_returns=2)
         def run(self, first_index: int, starts: np.ndarray, message, actions=None, indices=None):
@@ -89,6 +90,7 @@ def _actor_class():
             summary["busy_s"] = busy  # the chunk sizes follow it (farm/chunking.py)
             self.busy_s += busy
             self.tasks += 1
+            self.runs += len(starts)
             return summary, visited
 
         def _screen(self, message):
@@ -137,7 +139,7 @@ def _actor_class():
             return found
 
         def stats(self) -> dict:
-            return {"busy_s": self.busy_s, "tasks": self.tasks, "pid": os.getpid()}
+            return {"busy_s": self.busy_s, "tasks": self.tasks, "runs": self.runs, "pid": os.getpid()}
 
         def pid(self) -> int:
             return os.getpid()
@@ -243,7 +245,7 @@ class RayExecutor(Executor):
         return self.ray.get([a.node.remote() for a in self.actors])
 
     def worker_stats(self) -> list[dict]:
-        """Busy seconds and tasks per actor (for idle-fraction measurements)."""
+        """Busy seconds, tasks and runs per worker (for idle-fraction measurements)."""
         return self.ray.get([a.stats.remote() for a in self.actors])
 
     # -- what a chunk's actor needs to screen it ------------------------------------------
