@@ -27,7 +27,7 @@ def factories(algorithm: str, mode: str, **options):
 
     # VS draws a new box after every failure: most runs change its state, so it is given
     # a small budget (it is incomplete anyway: Theorem 5)
-    campaign = dataclasses.replace(testing.SETTINGS, budget=1_500) if algorithm == "vs" else testing.SETTINGS
+    campaign = dataclasses.replace(testing.SETTINGS, budget=600) if algorithm == "vs" else testing.SETTINGS
     return make, lambda: LocalExecutor(spec), scenario, campaign
 
 

@@ -149,6 +149,7 @@ def test_search_campaign_finds_the_papers_gamma_star_and_names_its_mixture(in_pr
     assert summary["actions"].startswith("search mixture (") and f"vertex -5 {final[1]:.3f}" in summary["actions"]
 
 
+@pytest.mark.soak  # CI keeps the search in-process, and Ray's result = in-process for SPE's other modes
 @pytest.mark.parametrize("workers", [2])
 def test_ray_gives_the_in_process_search_result(ray_local, in_process, tmp_path, workers):
     summary, out = in_process
