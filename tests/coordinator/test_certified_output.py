@@ -21,7 +21,9 @@ def validate_set(path, algorithm, delta, seed=0, eps=0.001, beta=0.01):
                          "farm": {"executor": "local", "seed": seed}})
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
+# CI: seed 0 and seed 2 (the regression); the soak tests all five
+@pytest.mark.parametrize("seed", [0, pytest.param(1, marks=pytest.mark.soak), 2, pytest.param(3, marks=pytest.mark.soak),
+                                  pytest.param(4, marks=pytest.mark.soak)])
 def test_the_exported_set_certifies_with_delta_and_eps_delta(tmp_path, seed):
     # the README's example (Gamma*, delta 2 -> 1); seed 2 once exported a set that
     # VAL^delta refuted, through a certificate missing the witness of a re-decided state
