@@ -258,7 +258,3 @@ class ActorPool:
     def _say(self, text: str) -> None:
         if self.notify is not None:
             self.notify(text)
-
-    # -- the end -------------------------------------------------------------------------
-    def handles(self) -> list:
-        return [s.handle for s in self.slots]
