@@ -231,8 +231,11 @@ class Campaign:
     def _fill(self) -> None:
         """Keep ``pipeline_depth`` batches drawn and submitted (fewer when the budget ends)."""
         s, algo = self.settings, self.algorithm
-        # sequential counting: the batch size changes no result, so it follows the workers
-        batch = self.executor.batch_size(s.batch_size) if s.lag == 0 else s.batch_size
+        # sequential counting: the batch size changes no sampled run, so it follows the
+        # workers; an enumeration (every centre once) hands centres out batch by batch, so
+        # its order follows the configured batch size, never the workers
+        follows = s.lag == 0 and not algo.enumerates
+        batch = self.executor.batch_size(s.batch_size) if follows else s.batch_size
         while len(self.pending) < s.pipeline_depth:
             first = self._next_draw_index()
             size = min(batch, s.budget - first)

@@ -6,11 +6,13 @@ noticed the raylet's death and still lived on for a minute (they report it to th
 which is gone too, and wait for the RPC to time out). Run as a script by
 ``farm.ray_session`` (standard library only, ``python -I``):
 
-    python -I ray_reaper.py RAYLET_PID [PID ...]
+    python -I ray_reaper.py [--session SESSION_NAME] RAYLET_PID [PID ...]
 
 It learns the raylet's descendants every ``SCAN_S`` seconds, and when its stdin (a pipe
 the driver holds) reaches end of file or the raylet is gone, it kills those of them that
-are still the same processes (pid and start time) and exits. Linux only (/proc).
+are still the same processes (pid and start time), and every process whose command line
+names the session (``--session-name=SESSION_NAME``: a worker the raylet forked after the
+last scan, orphaned when the raylet went with the driver), and exits. Linux only (/proc).
 """
 
 from __future__ import annotations
@@ -52,8 +54,27 @@ def learn(raylet: int, known: dict[int, str]) -> None:
             stack.append(child)
 
 
+def of_session(session: str) -> dict[int, str]:
+    """Processes whose command line names Ray session ``session``, with their start times."""
+    found, mark = {}, f"--session-name={session}".encode()
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit() or int(entry) == os.getpid():
+            continue
+        try:
+            with open(f"/proc/{entry}/cmdline", "rb") as fh:
+                words = fh.read().split(b"\0")
+        except OSError:
+            continue
+        if mark in words and (started := start_time(int(entry))) is not None:
+            found[int(entry)] = started
+    return found
+
+
 def main(argv: list[str]) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # a terminal's Ctrl-C is for the driver
+    session = ""
+    if argv[:1] == ["--session"]:
+        session, argv = argv[1], argv[2:]
     raylet = int(argv[0])
     known = {pid: started for pid in map(int, argv) if (started := start_time(pid)) is not None}
     if raylet not in known:
@@ -64,6 +85,8 @@ def main(argv: list[str]) -> None:
         if ready and not os.read(sys.stdin.fileno(), 4096):
             break  # the driver is gone
     learn(raylet, known)
+    if session:
+        known.update(of_session(session))
     for pid, started in known.items():
         if start_time(pid) == started:
             try:

@@ -95,9 +95,10 @@ def _start_reaper(ray) -> None:
     if not sys.platform.startswith("linux") or not pids.get("raylet"):
         return
     others = [pid for name, group in pids.items() if name != "raylet" for pid in group]
+    session = ["--session", node.session_name] if getattr(node, "session_name", "") else []
     _reapers[:] = [r for r in _reapers if r.poll() is None]  # those of an earlier Ray here have ended
     _reapers.append(subprocess.Popen(
-        [sys.executable, "-I", str(Path(__file__).with_name("ray_reaper.py")), str(pids["raylet"][0]),
+        [sys.executable, "-I", str(Path(__file__).with_name("ray_reaper.py")), *session, str(pids["raylet"][0]),
          *map(str, others)], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
         start_new_session=True))
 
