@@ -6,7 +6,8 @@ half-width, aligned with the boxes' most common lattice; a box whose faces lie o
 faces fills whole cells (one cell for a box of half-width f, k^n for one of k f), every
 other cell is resolved by coordinate compression over the few box pieces that reach into
 it (a box of half-width w meets at most (ceil(w / f) + 1)^n cells, and pieces in one
-cell share most of their coordinates).
+cell share most of their coordinates). A box clipped by the bounds fills whole cells too
+when its clipped faces lie on cell faces.
 
 ``hull_volume`` is the volume of the convex hull of the union (the paper's
 "cardinality"): for boxes of one size conv(union) = conv(centres) + cube, so only the
@@ -70,8 +71,17 @@ def union_volume(centres: np.ndarray, half_widths, origin=None, bounds=None) -> 
         aligned = (np.abs(rel - np.round(rel)) < 1e-9).all(axis=1)
         if not uniform:
             aligned &= integral[first : first + CHUNK]
-        if bounds is not None:  # only unclipped boxes fill their cells
-            aligned &= ((lo >= blo - 1e-12) & (lo + 2 * widths[first : first + CHUNK, None] <= bhi + 1e-12)).all(axis=1)
+        if bounds is not None:  # an unclipped aligned box fills its cells
+            hi_box = lo + 2 * widths[first : first + CHUNK, None]
+            clipped = ~((lo >= blo - 1e-12) & (hi_box <= bhi + 1e-12)).all(axis=1)
+            aligned &= ~clipped
+            # a clipped box whose clipped faces lie on cell faces fills its cells too
+            # (a coarse box overhanging Sigma would otherwise be cut into thousands of pieces)
+            clip_lo, clip_hi = np.maximum(lo, blo), np.minimum(hi_box, bhi)
+            filled = clipped & _on_cell_faces(clip_lo, clip_hi, origin, side)
+            full_keys += _filled_keys(keys, clip_lo[filled], clip_hi[filled], origin, side)
+        else:
+            filled = np.zeros(len(lo), dtype=bool)
         cells = np.round(rel[aligned]).astype(np.int64)
         if uniform:
             full_keys.append(keys(cells))
@@ -79,7 +89,7 @@ def union_volume(centres: np.ndarray, half_widths, origin=None, bounds=None) -> 
             k = whole[first : first + CHUNK][aligned]
             for size in np.unique(k):
                 full_keys += _spanned_keys(keys, cells[k == size], int(size))
-        ragged.append(first + np.flatnonzero(~aligned))
+        ragged.append(first + np.flatnonzero(~aligned & ~filled))
     full_keys = np.sort(np.concatenate(full_keys)) if full_keys else np.zeros(0, dtype=np.int64)
     full_keys = full_keys[np.r_[True, full_keys[1:] != full_keys[:-1]]] if len(full_keys) else full_keys
     ragged = np.concatenate(ragged)
@@ -127,6 +137,29 @@ def _spanned_keys(keys: "_CellKeys", corners: np.ndarray, size: int) -> list[np.
     step = max(1, CHUNK // len(offsets))
     return [keys((corners[at : at + step, None, :] + offsets[None]).reshape(-1, corners.shape[1]))
             for at in range(0, len(corners), step)]
+
+
+def _on_cell_faces(lo: np.ndarray, hi: np.ndarray, origin: np.ndarray, side: float) -> np.ndarray:
+    """(k,) bool: do the boxes [lo, hi] have every face on a cell face, and volume?"""
+    rel_lo, rel_hi = (lo - origin) / side, (hi - origin) / side
+    on_faces = (np.abs(rel_lo - np.round(rel_lo)) < 1e-9) & (np.abs(rel_hi - np.round(rel_hi)) < 1e-9)
+    return on_faces.all(axis=1) & (np.round(rel_hi) > np.round(rel_lo)).all(axis=1)
+
+
+def _filled_keys(keys: "_CellKeys", lo: np.ndarray, hi: np.ndarray, origin: np.ndarray,
+                 side: float) -> list[np.ndarray]:
+    """Keys of the cells filled by boxes [lo, hi] (k, n) whose faces lie on cell faces,
+    each its own number of cells per axis, in passes of at most CHUNK cells."""
+    first = np.round((lo - origin) / side).astype(np.int64)
+    spans = np.round((hi - origin) / side).astype(np.int64) - first
+    out = []
+    for span in np.unique(spans, axis=0):
+        corners = first[(spans == span).all(axis=1)]
+        offsets = np.stack(np.meshgrid(*[np.arange(s) for s in span], indexing="ij"), -1).reshape(-1, len(span))
+        step = max(1, CHUNK // len(offsets))
+        out += [keys((corners[at : at + step, None, :] + offsets[None]).reshape(-1, len(span)))
+                for at in range(0, len(corners), step)]
+    return out
 
 
 class _CellKeys:

@@ -42,3 +42,27 @@ def test_union_volume_equals_a_raster_count_on_mixed_lattices(monkeypatch, chunk
     assert volume.union_volume(centres, 0.5, bounds=(lo, hi)) == pytest.approx(expected, rel=1e-12)
     assert volume.union_volume(centres, 0.5, origin=np.zeros(3)) == pytest.approx(
         volume.union_volume(centres, 0.5), rel=1e-12)
+
+
+@pytest.mark.parametrize("bounds", [(0.0, 7.0), (0.0, 6.875)])
+def test_coarse_boxes_overhanging_the_bounds_fill_their_clipped_cells(monkeypatch, bounds):
+    """Coarse aligned boxes that overhang Sigma (a band set's interior at the domain's
+    edge): clipped on cell faces they fill whole cells, so no cell is resolved piece by
+    piece; off cell faces they are cut as before. Both equal a raster count."""
+    from coordinator import volume
+
+    calls = []
+    real = volume._compressed_union
+    monkeypatch.setattr(volume, "_compressed_union", lambda lo, hi: calls.append(len(lo)) or real(lo, hi))
+    coarse = np.array([[-1.0, 3.0], [3.0, 7.0], [7.0, 7.0]])  # half-width 2, on the 0.25 grid
+    fine = np.array([[4.125, 0.125], [5.375, 0.625]])  # half-width 0.125
+    centres = np.concatenate([coarse, fine])
+    widths = np.r_[np.full(3, 2.0), np.full(2, 0.125)]
+    lo, hi = np.full(2, bounds[0]), np.full(2, bounds[1])
+    axes = np.arange(lo[0], hi[0], 0.125) + 0.0625
+    mid = np.stack(np.meshgrid(axes, axes, indexing="ij"), -1).reshape(-1, 2)
+    inside = (np.abs(mid[:, None, :] - centres[None]) <= widths[None, :, None]).all(axis=2).any(axis=1)
+    expected = inside.sum() * 0.125**2
+    assert volume.union_volume(centres, widths, bounds=(lo, hi)) == pytest.approx(expected, rel=1e-12)
+    on_faces = bounds[1] == 7.0
+    assert (len(calls) == 0) == on_faces, calls
