@@ -39,20 +39,22 @@ class LeveledIndex(AlivePoints):
         self._level = np.full(capacity, -1, dtype=np.int8)
         self._local = np.full(capacity, -1, dtype=np.int64)
         self.count = 0
-        self._levels: list[tuple[float, PointIndex, list]] = []  # (half-width, index, [global ids per insert])
-        self._globals: list[np.ndarray] = []  # per level: local id -> global id (materialized lazily)
+        self._levels: list[tuple[float, PointIndex]] = []  # (half-width, index)
+        # per level: local id -> global id, in a buffer grown by doubling (a level of a
+        # million points takes thousands of small inserts)
+        self._globals: list[np.ndarray] = []
         # per level: (start, largest id before it): global ids increase from local id start on
         self._sorted: list[tuple[int, int]] = []
         self._last: list[int] = []  # per level: the last global id placed
 
     # -- levels ----------------------------------------------------------------------------
     def _level_of(self, half_width: float) -> int:
-        for i, (hw, _, _) in enumerate(self._levels):
+        for i, (hw, _) in enumerate(self._levels):
             if abs(hw - half_width) <= 1e-12 * max(1.0, hw):
                 return i
         index = PointIndex(self.n, 2 * half_width, self.origin, bounds=self.bounds)
-        self._levels.append((float(half_width), index, []))
-        self._globals.append(np.zeros(0, dtype=np.int64))
+        self._levels.append((float(half_width), index))
+        self._globals.append(np.zeros(16, dtype=np.int64))
         self._sorted.append((0, -1))
         self._last.append(-1)
         if len(self._levels) > 127:
@@ -60,18 +62,14 @@ class LeveledIndex(AlivePoints):
         return len(self._levels) - 1
 
     def _global(self, level: int) -> np.ndarray:
-        parts = self._levels[level][2]
-        if parts:
-            self._globals[level] = np.concatenate([self._globals[level], *parts])
-            parts.clear()
-        return self._globals[level]
+        return self._globals[level][: self._levels[level][1].count]
 
     def _order(self) -> list[int]:
         """Levels asked by ``cover``: coarsest first (ties cannot occur: one level per width)."""
         return sorted(range(len(self._levels)), key=lambda i: -self._levels[i][0])
 
     def levels(self) -> list[float]:
-        return sorted(hw for hw, _, _ in self._levels)
+        return sorted(hw for hw, _ in self._levels)
 
     # -- mutation --------------------------------------------------------------------------
     def _grow(self, need: int) -> None:
@@ -86,9 +84,13 @@ class LeveledIndex(AlivePoints):
     def _place(self, ids: np.ndarray, half_width: float) -> None:
         """Put points ``ids`` (alive) into the level of ``half_width``."""
         level = self._level_of(half_width)
-        _, index, parts = self._levels[level]
+        _, index = self._levels[level]
         start = index.count
         local = index.insert(self.points[ids])
+        buffer = self._globals[level]
+        if index.count > len(buffer):
+            buffer = self._globals[level] = np.resize(buffer, max(2 * len(buffer), index.count))
+        buffer[start : index.count] = ids
         if len(ids) and (ids[0] <= self._last[level] or np.any(np.diff(ids) <= 0)):
             self._sorted[level] = (start + len(ids), max(self._last[level], int(ids.max())))
         if len(ids):
@@ -96,7 +98,6 @@ class LeveledIndex(AlivePoints):
         self._level[ids] = level
         self._local[ids] = local
         self.half_width[ids] = half_width
-        parts.append(ids.astype(np.int64))
 
     def insert(self, pts: np.ndarray, half_width=None) -> np.ndarray:
         """New alive points (ids continue the count), of half-width ``half_width`` (one
@@ -161,7 +162,7 @@ class LeveledIndex(AlivePoints):
         for level in self._order():
             if len(todo) == 0:
                 break
-            hw, index, _ = self._levels[level]
+            hw, index = self._levels[level]
             local = index.cover(q[todo], hw)
             hit = local >= 0
             found[todo[hit]] = self._global(level)[local[hit]]
@@ -175,7 +176,7 @@ class LeveledIndex(AlivePoints):
         q = np.atleast_2d(np.asarray(queries, dtype=float))
         out = np.zeros(len(q), dtype=bool)
         for level in self._order():
-            hw, index, _ = self._levels[level]
+            hw, index = self._levels[level]
             glob = self._global(level)
             start, before = self._sorted[level]
             if before >= first:  # a point placed out of order has an id >= first
@@ -189,7 +190,7 @@ class LeveledIndex(AlivePoints):
     def state(self) -> dict:
         out = self._snapshot()
         out.update({"half_width": self.half_width[: self.count].copy(),
-                    "levels": np.array([hw for hw, _, _ in self._levels]),
+                    "levels": np.array([hw for hw, _ in self._levels]),
                     "level": self._level[: self.count].copy(), "local": self._local[: self.count].copy()})
         # each level's points in its own insertion order: the witnesses a mirror names
         for i in range(len(self._levels)):
