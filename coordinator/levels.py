@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from coordinator.level_grid import NestedGrid
 from coordinator.spatial import AlivePoints, PointIndex
 
 
@@ -46,6 +47,10 @@ class LeveledIndex(AlivePoints):
         # per level: (start, largest id before it): global ids increase from local id start on
         self._sorted: list[tuple[int, int]] = []
         self._last: list[int] = []  # per level: the last global id placed
+        # what the levels say per finest cell (coordinator/level_grid.py): None when the
+        # levels are not nested; rebuilt at the first query after a level is added
+        self._grid: NestedGrid | None = None
+        self._grid_stale = True
 
     # -- levels ----------------------------------------------------------------------------
     def _level_of(self, half_width: float) -> int:
@@ -57,6 +62,7 @@ class LeveledIndex(AlivePoints):
         self._globals.append(np.zeros(16, dtype=np.int64))
         self._sorted.append((0, -1))
         self._last.append(-1)
+        self._grid, self._grid_stale = None, True
         if len(self._levels) > 127:
             raise OverflowError("leveled index: more than 127 half-widths")
         return len(self._levels) - 1
@@ -98,6 +104,10 @@ class LeveledIndex(AlivePoints):
         self._level[ids] = level
         self._local[ids] = local
         self.half_width[ids] = half_width
+        if self._grid is not None:
+            cells = index._centre_cell[local]
+            self._grid.centres_changed(level, cells[cells >= 0])
+            self._grid.off_centre(level, local[cells < 0], 1)
 
     def insert(self, pts: np.ndarray, half_width=None) -> np.ndarray:
         """New alive points (ids continue the count), of half-width ``half_width`` (one
@@ -116,21 +126,29 @@ class LeveledIndex(AlivePoints):
             self._place(ids[widths == hw], float(hw))
         return ids
 
+    def _unplace(self, ids: np.ndarray) -> None:
+        """Take alive points ``ids`` out of their levels."""
+        for level in np.unique(self._level[ids]):
+            mine = ids[self._level[ids] == level]
+            index = self._levels[level][1]
+            local = self._local[mine]
+            index.kill(local)
+            if self._grid is not None:
+                cells = index._centre_cell[local]
+                self._grid.centres_changed(level, cells[cells >= 0])
+                self._grid.off_centre(level, local[cells < 0], -1)
+
     def kill(self, ids) -> None:
         ids = np.unique(np.asarray(ids, dtype=np.int64))
         ids = ids[self.alive[ids]]
-        for level in np.unique(self._level[ids]):
-            mine = ids[self._level[ids] == level]
-            self._levels[level][1].kill(self._local[mine])
+        self._unplace(ids)
         self.alive[ids] = False
 
     def resize(self, ids, half_width: float) -> None:
         """Alive points ``ids`` become boxes of ``half_width`` (same ids)."""
         ids = np.unique(np.asarray(ids, dtype=np.int64))
         ids = ids[self.alive[ids]]
-        for level in np.unique(self._level[ids]):
-            mine = ids[self._level[ids] == level]
-            self._levels[level][1].kill(self._local[mine])
+        self._unplace(ids)
         if len(ids):
             self._place(ids, float(half_width))
 
@@ -146,27 +164,40 @@ class LeveledIndex(AlivePoints):
     def cover(self, queries: np.ndarray, radius: float | None = None) -> np.ndarray:
         """(B, n) -> (B,) int64: the id of an alive box holding each query, or -1."""
         q = np.atleast_2d(np.asarray(queries, dtype=float))
-        found = np.full(len(q), -1, dtype=np.int64)
-        todo = np.arange(len(q))
+        if self._grid_stale:
+            self._grid = NestedGrid.build(self._levels, self._global, self._order())
+            self._grid_stale = False
+        if self._grid is None or len(q) == 0:
+            found = np.full(len(q), -1, dtype=np.int64)
+            todo = np.arange(len(q))
+            levels = None
+        else:  # the first step, and the levels worth a search, from the finest grid
+            found, levels, outside = self._grid.lookup(q)
+            todo = np.flatnonzero(outside)
         # first every level's home cell (one lookup each: most states lie in a lattice
         # box of some level), then the full search for the rest, level by level
         for level in self._order():
             if len(todo) == 0:
-                return found
+                break
             local = self._levels[level][1].home_cover(q[todo])
             if local is None:
                 continue
             hit = local >= 0
             found[todo[hit]] = self._global(level)[local[hit]]
             todo = todo[~hit]
+        if levels is not None:
+            todo = np.flatnonzero((found < 0) & (levels != 0))
         for level in self._order():
             if len(todo) == 0:
                 break
             hw, index = self._levels[level]
-            local = index.cover(q[todo], hw)
+            rows = todo if levels is None else todo[(levels[todo] & (1 << level)) != 0]
+            if len(rows) == 0:
+                continue
+            local = index.cover(q[rows], hw)
             hit = local >= 0
-            found[todo[hit]] = self._global(level)[local[hit]]
-            todo = todo[~hit]
+            found[rows[hit]] = self._global(level)[local[hit]]
+            todo = todo[found[todo] < 0]
         return found
 
     def covered_by_since(self, queries: np.ndarray, radius: float | None, first: int) -> np.ndarray | None:
