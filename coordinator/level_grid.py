@@ -11,7 +11,8 @@ one array over the finest grid holds, per cell:
 - ``witness``: the id the first step names for any query in that cell (the centre
   point of the first level, in order, whose cell holds one), or -1;
 - ``reach``: one bit per level: an off-centre point of that level comes within its
-  half-width (plus the tolerance) of the cell (``counts``: how many, per level).
+  half-width (plus the tolerance) of the cell, or came (bits are set as points come,
+  and cleared only by a rebuild).
 
 A query in the grid's interior whose cell has a witness gets it. One whose cell has no
 witness can be covered only by an off-centre point (the levels whose ``reach`` bit is
@@ -21,7 +22,7 @@ more: ``centred``, a bit per level, says which levels have one there); only thos
 levels are searched, each exactly as before. Queries outside the interior ask every
 level. Answers are the ones the levels give, so the witnesses named do not change.
 
-The arrays follow every change the index makes (``centres_changed``, ``off_centre``);
+The arrays follow every change the index makes (``centres_changed``, ``reached``);
 a new level (a finer one changes the grid) marks them stale and the next query rebuilds
 them. Arrays are laid out as the finest level's dense grid (coordinator/spatial.py).
 """
@@ -69,8 +70,6 @@ class NestedGrid:
         self.witness = np.full(size, -1, dtype=LINK)
         self.reach = np.zeros(size, dtype=np.uint8)
         self.centred = np.zeros(size, dtype=np.uint8)  # bit per level: its cell there has a centre point
-        # per level, per finest cell: its off-centre points whose boxes reach the cell
-        self.counts = [np.zeros(size, dtype=np.int32) for _ in levels]
         self._fill()
 
     @classmethod
@@ -120,7 +119,7 @@ class NestedGrid:
             self._refresh(cells)
         for level, (_, index) in enumerate(self.levels):
             off = np.flatnonzero(index.alive[: index.count] & (index._centre_cell[: index.count] < 0))
-            self.off_centre(level, off, 1)
+            self.reached(level, off)
 
     # -- changes ---------------------------------------------------------------------------------
     def _finest_of(self, level: int, flat: np.ndarray):
@@ -141,10 +140,11 @@ class NestedGrid:
             for cells in self._finest_of(level, np.unique(flat)):
                 self._refresh(cells)
 
-    def off_centre(self, level: int, local: np.ndarray, sign: int) -> None:
-        """Off-centre points ``local`` of ``level`` came (+1) or went (-1): the interior
-        finest cells their boxes reach (half-width plus the tolerance, widened by EDGE)
-        count them, and a cell's bit of the level is set while its count is positive."""
+    def reached(self, level: int, local: np.ndarray) -> None:
+        """Off-centre points ``local`` of ``level`` came: set the level's bit in the
+        interior finest cells their boxes reach (half-width plus the tolerance, widened
+        by EDGE). A point that goes leaves its bits set: a bit may only send a query to
+        a search that finds nothing, and the next new level rebuilds them."""
         if len(local) == 0:
             return
         hw, index = self.levels[level]
@@ -152,6 +152,7 @@ class NestedGrid:
         reach = (hw + TOLERANCE) / self.cell + EDGE
         span = int(np.ceil(2 * reach)) + 1  # finest cells a box reaches per axis, at most
         step = max(1, SLAB // span**n)
+        bit = np.uint8(1 << level)
         for at in range(0, len(local), step):
             rel = (index.points[local[at : at + step]] - self.origin) / self.cell
             lo = np.maximum(np.floor(rel - reach).astype(np.int64), 0)
@@ -166,17 +167,7 @@ class NestedGrid:
                 parts = (cells + 1) * self.strides[axis]
                 flat = (flat[:, :, None] + parts[:, None, :]).reshape(k, -1)
                 valid = (valid[:, :, None] & ok[:, None, :]).reshape(k, -1)
-            self._count(level, flat[valid], sign)
-
-    def _count(self, level: int, flat: np.ndarray, sign: int) -> None:
-        cells, times = np.unique(flat, return_counts=True)
-        counts = self.counts[level]
-        before = counts[cells] > 0
-        counts[cells] += sign * times.astype(np.int32)
-        after = counts[cells] > 0
-        bit = np.uint8(1 << level)
-        self.reach[cells[after & ~before]] |= bit
-        self.reach[cells[before & ~after]] &= ~bit
+            self.reach[flat[valid]] |= bit
 
     # -- queries --------------------------------------------------------------------------------
     def lookup(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -107,7 +107,7 @@ class LeveledIndex(AlivePoints):
         if self._grid is not None:
             cells = index._centre_cell[local]
             self._grid.centres_changed(level, cells[cells >= 0])
-            self._grid.off_centre(level, local[cells < 0], 1)
+            self._grid.reached(level, local[cells < 0])
 
     def insert(self, pts: np.ndarray, half_width=None) -> np.ndarray:
         """New alive points (ids continue the count), of half-width ``half_width`` (one
@@ -136,7 +136,6 @@ class LeveledIndex(AlivePoints):
             if self._grid is not None:
                 cells = index._centre_cell[local]
                 self._grid.centres_changed(level, cells[cells >= 0])
-                self._grid.off_centre(level, local[cells < 0], -1)
 
     def kill(self, ids) -> None:
         ids = np.unique(np.asarray(ids, dtype=np.int64))

@@ -32,6 +32,7 @@ def _origin(lower: np.ndarray, side: float) -> np.ndarray:
 
 
 CHUNK = 1 << 18  # boxes (or cells of boxes) per pass: temporaries stay ~50 MB however large the set
+COMPRESSED_LIMIT = 1 << 22  # boxes x compressed cells marked at once in a cell (above: box by box)
 
 
 def _widths(centres: np.ndarray, half_widths) -> np.ndarray:
@@ -180,10 +181,20 @@ def _compressed_union(lo: np.ndarray, hi: np.ndarray) -> float:
     """Exact union volume of a few boxes by coordinate compression."""
     n = lo.shape[1]
     coords = [np.unique(np.concatenate([lo[:, a], hi[:, a]])) for a in range(n)]
-    covered = np.zeros([len(c) - 1 for c in coords], dtype=bool)
-    for box_lo, box_hi in zip(lo, hi):
-        sl = tuple(slice(np.searchsorted(c, l), np.searchsorted(c, u)) for c, l, u in zip(coords, box_lo, box_hi))
-        covered[sl] = True
+    cells = [len(c) - 1 for c in coords]
+    if len(lo) * np.prod(cells, dtype=float) <= COMPRESSED_LIMIT:
+        # each box's span of compressed intervals per axis, all boxes at once
+        covered = np.ones((len(lo),) + (1,) * n, dtype=bool)
+        for a, c in enumerate(coords):
+            i = np.arange(cells[a])
+            inside = (i >= np.searchsorted(c, lo[:, a])[:, None]) & (i < np.searchsorted(c, hi[:, a])[:, None])
+            covered = covered & inside.reshape((len(lo),) + (1,) * a + (cells[a],) + (1,) * (n - a - 1))
+        covered = covered.any(axis=0)
+    else:
+        covered = np.zeros(cells, dtype=bool)
+        for box_lo, box_hi in zip(lo, hi):
+            sl = tuple(slice(np.searchsorted(c, l), np.searchsorted(c, u)) for c, l, u in zip(coords, box_lo, box_hi))
+            covered[sl] = True
     widths = [np.diff(c) for c in coords]
     cell_volume = widths[0]
     for w in widths[1:]:
