@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.levels import LeveledIndex
-from coordinator.spatial import PointIndex
+from coordinator.spatial import FrozenPoints, PointIndex
 from scenarios.base import FAILURE
 
 QUIET, FAIL, EXPLORE = 0, 1, 2
@@ -222,7 +222,17 @@ class Coverage:
 
     @property
     def mixed(self) -> bool:
+        if isinstance(self.vertices, FrozenPoints):
+            return self.vertices.half_width is not None
         return isinstance(self.vertices, LeveledIndex)
+
+    def freeze(self) -> None:
+        """The campaign is done: keep the points, alive flags and half-widths, drop the
+        indexes (no query, change or snapshot follows)."""
+        mixed = self.mixed
+        self.vertices = FrozenPoints(self.vertices, self.vertices.half_width if mixed else None)
+        if self.failures is not None:
+            self.failures = FrozenPoints(self.failures, None)
 
     def _insert(self, points: np.ndarray, half_width) -> None:
         if self.mixed:

@@ -51,10 +51,12 @@ def _dot(cells: np.ndarray, strides: np.ndarray) -> np.ndarray:
 class NestedGrid:
     """Per finest cell: the first-step witness and the levels within reach (see above)."""
 
-    def __init__(self, levels: list[tuple[float, PointIndex]], globals_of, order: list[int]):
-        """``levels``: (half-width, index) per level id; ``globals_of(level)``: its local ->
-        global ids; ``order``: the level ids in the order ``cover`` asks them."""
-        self.levels, self.globals_of, self.order = levels, globals_of, order
+    def __init__(self, levels: list[tuple[float, PointIndex]], globals_: list[np.ndarray], order: list[int]):
+        """``levels``: (half-width, index) per level id; ``globals_[level]``: its local ->
+        global ids (the index's own list, read at each use: its buffers grow); ``order``:
+        the level ids in the order ``cover`` asks them. Nothing here refers back to the
+        index, so the index is freed as soon as it is dropped (no reference cycle)."""
+        self.levels, self.globals_, self.order = levels, globals_, order
         finest = min(range(len(levels)), key=lambda i: levels[i][0])
         self.finest = levels[finest][1]
         self.cell = self.finest.cell
@@ -73,7 +75,7 @@ class NestedGrid:
         self._fill()
 
     @classmethod
-    def build(cls, levels, globals_of, order) -> "NestedGrid | None":
+    def build(cls, levels, globals_, order) -> "NestedGrid | None":
         """The grid of ``levels``, or None when they are not nested powers of two of the
         finest on one origin, one of them has no dense grid, or they are too many."""
         if not levels or len(levels) > MAX_LEVELS:
@@ -85,7 +87,7 @@ class NestedGrid:
             if (index._dense is None or abs(k - round(k)) > 1e-9 or hw != hw_min * 2.0 ** round(k)
                     or not np.array_equal(index.origin, finest.origin) or index.cell != 2 * hw):
                 return None
-        return cls(levels, globals_of, order)
+        return cls(levels, globals_, order)
 
     # -- building ------------------------------------------------------------------------------
     def _parent_flat(self, level: int, cells: np.ndarray) -> np.ndarray:
@@ -102,7 +104,7 @@ class NestedGrid:
         for level in reversed(self.order):  # the first level in order is written last: it wins
             centre = self.levels[level][1]._centre_point[self._parent_flat(level, cells)]
             hit = centre >= 0
-            out[hit] = self.globals_of(level)[centre[hit]]
+            out[hit] = self.globals_[level][centre[hit]]
             bits[hit] |= np.uint8(1 << level)
         flat = _dot(cells + 1, self.strides)
         self.witness[flat] = out

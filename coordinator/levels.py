@@ -164,7 +164,7 @@ class LeveledIndex(AlivePoints):
         """(B, n) -> (B,) int64: the id of an alive box holding each query, or -1."""
         q = np.atleast_2d(np.asarray(queries, dtype=float))
         if self._grid_stale:
-            self._grid = NestedGrid.build(self._levels, self._global, self._order())
+            self._grid = NestedGrid.build(self._levels, self._globals, self._order())
             self._grid_stale = False
         if self._grid is None or len(q) == 0:
             found = np.full(len(q), -1, dtype=np.int64)

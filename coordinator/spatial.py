@@ -67,6 +67,19 @@ class AlivePoints:
                    bounds=None if bounds is None else (bounds[0], bounds[1]))
 
 
+class FrozenPoints(AlivePoints):
+    """The points, alive flags and half-widths of an index whose campaign is done: what
+    its result still reads, without the index structures (the bulk of its memory)."""
+
+    def __init__(self, index: AlivePoints, half_width: np.ndarray | None):
+        """``half_width``: one per point (mixed sizes), or None."""
+        self.n, self.cell, self.origin, self.bounds = index.n, index.cell, index.origin, index.bounds
+        self.count = index.count
+        self.points = index.points[: index.count].copy()
+        self.alive = index.alive[: index.count].copy()
+        self.half_width = None if half_width is None else half_width[: index.count].copy()
+
+
 class PointIndex(AlivePoints):
     """Points (N, n) with alive flags, hashed by cell. ``cell`` must be >= 2 * radius of
     every ``any_within`` query."""

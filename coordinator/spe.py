@@ -405,6 +405,9 @@ class SPE(Algorithm):
 
     def release(self) -> None:
         self.certificates.release()  # its entries
+        self.coverage.freeze()  # the spatial indexes: most of a finished campaign's memory
+        self.graph = ExplorationForest()
+        self._fresh_samplers()
 
     # -- output ---------------------------------------------------------------------------
     def result(self) -> SafeSet:

@@ -33,6 +33,7 @@ def _origin(lower: np.ndarray, side: float) -> np.ndarray:
 
 CHUNK = 1 << 18  # boxes (or cells of boxes) per pass: temporaries stay ~50 MB however large the set
 COMPRESSED_LIMIT = 1 << 22  # boxes x compressed cells marked at once in a cell (above: box by box)
+GROUP_LIMIT = 1 << 12  # boxes x compressed cells of a cell computed in a group of cells (above: alone)
 
 
 def _widths(centres: np.ndarray, half_widths) -> np.ndarray:
@@ -122,11 +123,84 @@ def union_volume(centres: np.ndarray, half_widths, origin=None, bounds=None) -> 
     piece_box, piece_key, piece_cell = piece_box[order], piece_key[order], piece_cell[order]
     starts = np.flatnonzero(np.r_[True, piece_key[1:] != piece_key[:-1]]) if len(piece_key) else np.empty(0, int)
     total = len(full_keys) * side**n
-    for first, end in zip(starts, np.r_[starts[1:], len(piece_key)]):
-        boxes = piece_box[first:end]
-        cell_lo = origin + piece_cell[first] * side
-        total += _compressed_union(np.maximum(lo[boxes], cell_lo), np.minimum(hi[boxes], cell_lo + side))
+    cell_lo = origin + piece_cell * side
+    cut_lo, cut_hi = np.maximum(lo[piece_box], cell_lo), np.minimum(hi[piece_box], cell_lo + side)
+    for volume in _ragged_volumes(cut_lo, cut_hi, starts).tolist():  # in key order, as cell by cell
+        total += volume
     return float(total)
+
+
+def _ragged_volumes(lo: np.ndarray, hi: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """(C,) the union volume in each ragged cell, whose pieces (cut to the cell) are
+    rows ``starts[c]:starts[c + 1]`` of (lo, hi), each by coordinate compression.
+
+    Cells are taken in groups of the same compressed shape (unique coordinates per
+    axis), all of a group's boxes marked at once, so that a set of many small cells
+    costs a few dozen array operations per group rather than per cell; each cell's
+    volume is the sum ``_compressed_union`` forms (the same products, summed in the same
+    order). Cells with many boxes or compressed cells go through ``_compressed_union``."""
+    cells, n = len(starts), lo.shape[1]
+    if cells == 0:
+        return np.zeros(0)
+    k = np.diff(np.r_[starts, len(lo)])
+    cell = np.repeat(np.arange(cells), k)
+    # per axis: each cell's unique coordinates (flattened, cell by cell) and the rank of
+    # every piece's faces among them
+    coords, first, rank_lo, rank_hi = [], [], np.empty((len(lo), n), np.int64), np.empty((len(lo), n), np.int64)
+    for a in range(n):
+        values = np.concatenate([lo[:, a], hi[:, a]])
+        owner = np.concatenate([cell, cell])
+        order = np.lexsort((values, owner))
+        v, o = values[order], owner[order]
+        new = np.ones(len(v), dtype=bool)
+        new[1:] = (o[1:] != o[:-1]) | (v[1:] != v[:-1])
+        unique_id = np.cumsum(new) - 1
+        start = np.searchsorted(o[new], np.arange(cells))
+        rank = np.empty(len(v), np.int64)
+        rank[order] = unique_id - start[o]
+        rank_lo[:, a], rank_hi[:, a] = rank[: len(lo)], rank[len(lo) :]
+        coords.append(v[new])
+        first.append(start)
+    shape = np.stack([np.diff(np.r_[f, len(c)]) - 1 for f, c in zip(first, coords)], axis=1)  # (C, n)
+    size = np.prod(shape.astype(float), axis=1)
+    out = np.empty(cells)
+    small = np.flatnonzero(k * size <= GROUP_LIMIT)
+    for c in np.setdiff1d(np.arange(cells), small):
+        rows = slice(starts[c], starts[c] + k[c])
+        out[c] = _compressed_union(lo[rows], hi[rows])
+    if len(small) == 0:
+        return out
+    key = np.ravel_multi_index(shape[small].T, shape[small].max(axis=0) + 1)
+    order = np.argsort(key, kind="stable")
+    bounds = np.flatnonzero(np.r_[True, key[order][1:] != key[order][:-1], True])
+    for g0, g1 in zip(bounds[:-1], bounds[1:]):
+        group = small[order[g0:g1]]
+        dims = [int(d) for d in shape[group[0]]]
+        kmax = int(k[group].max())
+        # the boxes' compressed spans, (G, kmax, n); a missing box spans nothing
+        take = starts[group][:, None] + np.arange(kmax)
+        real = np.arange(kmax) < k[group][:, None]
+        take = np.where(real, take, 0)
+        span_lo = np.where(real[..., None], rank_lo[take], 0)
+        span_hi = np.where(real[..., None], rank_hi[take], 0)
+        covered = np.zeros([len(group)] + dims, dtype=bool)
+        for j in range(kmax):
+            box = np.ones([len(group)] + [1] * n, dtype=bool)
+            for a in range(n):
+                i = np.arange(dims[a])
+                inside = (i >= span_lo[:, j, a, None]) & (i < span_hi[:, j, a, None])
+                box = box & inside.reshape([len(group)] + [1] * a + [dims[a]] + [1] * (n - a - 1))
+            covered |= box
+        cell_volume = None
+        for a in range(n):
+            at = first[a][group][:, None] + np.arange(dims[a])
+            widths = coords[a][at + 1] - coords[a][at]  # np.diff of the cell's coordinates
+            if cell_volume is None:
+                cell_volume = widths
+            else:  # np.multiply.outer's products, in its order
+                cell_volume = cell_volume[..., None] * widths.reshape([len(group)] + [1] * a + [dims[a]])
+        out[group] = (cell_volume * covered).reshape(len(group), -1).sum(axis=1)
+    return out
 
 
 def _spanned_keys(keys: "_CellKeys", corners: np.ndarray, size: int) -> list[np.ndarray]:

@@ -41,7 +41,7 @@ def _asking_every_level(index, q):
 
 def _assert_like_rebuilt(index):
     grid = index._grid
-    fresh = NestedGrid.build(index._levels, index._global, index._order())
+    fresh = NestedGrid.build(index._levels, index._globals, index._order())
     assert np.array_equal(grid.witness, fresh.witness)
     assert np.array_equal(grid.centred, fresh.centred)
     assert not (fresh.reach & ~grid.reach).any()  # bits of points gone may stay, no bit may lack
@@ -83,7 +83,7 @@ def test_the_grid_follows_every_change_and_cover_names_the_same_witnesses(seed):
     assert len(inside) > 20 and (witness >= 0).all() and not outside.any()
     far = np.array([[7.99, 7.99, 11.99]])
     index.kill(np.flatnonzero(np.abs(index.points[: index.count] - far).max(axis=1) <= 9.0))  # beyond the cells of every level holding it
-    fresh = NestedGrid.build(index._levels, index._global, index._order())
+    fresh = NestedGrid.build(index._levels, index._globals, index._order())
     witness, levels, outside = fresh.lookup(far)
     assert witness[0] == -1 and levels[0] == 0 and index.cover(far)[0] == -1
     again = LeveledIndex.from_state(index.state())
