@@ -51,9 +51,9 @@ def test_coarse_boxes_overhanging_the_bounds_fill_their_clipped_cells(monkeypatc
     piece; off cell faces they are cut as before. Both equal a raster count."""
     from coordinator import volume
 
-    calls = []
-    real = volume._compressed_union
-    monkeypatch.setattr(volume, "_compressed_union", lambda lo, hi: calls.append(len(lo)) or real(lo, hi))
+    calls = []  # ragged cells resolved piece by piece
+    real = volume._ragged_volumes
+    monkeypatch.setattr(volume, "_ragged_volumes", lambda lo, hi, starts: calls.extend(starts) or real(lo, hi, starts))
     coarse = np.array([[-1.0, 3.0], [3.0, 7.0], [7.0, 7.0]])  # half-width 2, on the 0.25 grid
     fine = np.array([[4.125, 0.125], [5.375, 0.625]])  # half-width 0.125
     centres = np.concatenate([coarse, fine])
@@ -66,3 +66,23 @@ def test_coarse_boxes_overhanging_the_bounds_fill_their_clipped_cells(monkeypatc
     assert volume.union_volume(centres, widths, bounds=(lo, hi)) == pytest.approx(expected, rel=1e-12)
     on_faces = bounds[1] == 7.0
     assert (len(calls) == 0) == on_faces, calls
+
+
+@pytest.mark.parametrize("n", [2, 3, 5])
+def test_ragged_cells_in_groups_sum_as_cell_by_cell(monkeypatch, n):
+    """Cells of one compressed shape are computed together: each cell's volume is the
+    very float ``_compressed_union`` gives it alone (so a set's volume does not change),
+    and cells too large for a group go through it."""
+    from coordinator import volume
+
+    rng = np.random.default_rng(n)
+    cells = 300
+    k = rng.integers(1, 7, size=cells)
+    starts = np.r_[0, np.cumsum(k)[:-1]]
+    cell_lo = rng.integers(0, 50, size=(cells, n)).astype(float)
+    lo = np.repeat(cell_lo, k, axis=0) + rng.choice([0.0, 0.25, 0.5, 0.3], size=(k.sum(), n))
+    hi = np.minimum(lo + rng.choice([0.25, 0.5, 1.0, 0.7], size=(k.sum(), n)), np.repeat(cell_lo, k, axis=0) + 1)
+    alone = [volume._compressed_union(lo[s : s + m], hi[s : s + m]) for s, m in zip(starts, k)]
+    assert volume._ragged_volumes(lo, hi, starts).tolist() == alone
+    monkeypatch.setattr(volume, "GROUP_LIMIT", 8)  # most cells alone
+    assert volume._ragged_volumes(lo, hi, starts).tolist() == alone
