@@ -36,13 +36,16 @@ class _Membership:
     only boxes within a half-width of those values can contain its points, often a few percent of
     a large set. The index over them is built on first use and kept per held values;
     a full index (one over every box, ~130 bytes per box) is built only for a query that
-    holds nothing. The answers are those of one index over all boxes."""
+    holds nothing. Only the index of the last held values is kept: a figure asks each cut
+    once, and an index over Sigma's dense grid is large. The answers are those of one
+    index over all boxes."""
 
     def __init__(self, centres: np.ndarray, half_width: float, lower, upper=None, distinct: bool = False):
         self.centres, self.half_width, self.distinct = centres, float(half_width), distinct
         self.lower = np.asarray(lower, float)
         self.bounds = None if upper is None else (self.lower, np.asarray(upper, float))
-        self._indexes: dict[tuple, PointIndex | None] = {}
+        self._held: tuple | None = None
+        self._index_of_held: PointIndex | None = None
 
     def __call__(self, pts: np.ndarray) -> np.ndarray:
         pts = np.atleast_2d(np.asarray(pts, dtype=float))
@@ -51,9 +54,10 @@ class _Membership:
         first = pts[0]
         held = tuple((a, float(first[a])) for a in range(pts.shape[1])
                      if np.isfinite(first[a]) and (pts[:, a] == first[a]).all())
-        if held not in self._indexes:
-            self._indexes[held] = self._index(held)
-        index = self._indexes[held]
+        if held != self._held:
+            self._held, self._index_of_held = None, None  # the old index goes before the new one is built
+            self._held, self._index_of_held = held, self._index(held)
+        index = self._index_of_held
         return index.any_within(pts, self.half_width) if index is not None else np.zeros(len(pts), dtype=bool)
 
     def _index(self, held: tuple) -> PointIndex | None:
