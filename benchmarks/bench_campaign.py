@@ -6,6 +6,7 @@ result files and plots, and the process's peak resident memory.
     python benchmarks/bench_campaign.py --delta-min 0.125 --no-certify    # the scale-out target
     python benchmarks/bench_campaign.py --delta-min 0.125 --refine band   # issue 36's target
     python benchmarks/bench_campaign.py --scenario fleet3 --delta-min 0.25 --refine band
+    python benchmarks/bench_campaign.py --delta-min 0.125 --refine band --executor ray   # 2 Ray workers
 
 The second is issue 11's target (<= 45 s, <= 1.5 GB on a 2-core machine): 1.8 M boxes,
 1.8 M runs, the campaign as it was specified (before certification was the default).
@@ -33,6 +34,7 @@ def main() -> None:
     ap.add_argument("--refine", choices=["all", "band"], default="all", help="quantify.refine")
     ap.add_argument("--scenario", choices=["lead-follow", "fleet3"], default="lead-follow")
     ap.add_argument("--sv-policy", default="idm")
+    ap.add_argument("--executor", choices=["local", "ray"], default="local", help="farm.executor (ray: farm.workers 2)")
     args = ap.parse_args()
     quantify = {"delta0": 2.0, "delta_min": args.delta_min, "epsilon": 0.001, "beta": 0.1, "horizon": 50,
                 "budget": 40_000_000, "refine": args.refine}
@@ -40,7 +42,7 @@ def main() -> None:
         quantify["certify"] = False
     cfg = config_mod.normalize({
         "scenario": {"name": args.scenario, "sv_policy": args.sv_policy}, "actions": {"mode": "adversarial"},
-        "quantify": quantify, "farm": {"executor": "local", "seed": 0}})
+        "quantify": quantify, "farm": {"executor": args.executor, "seed": 0}})
     with tempfile.TemporaryDirectory() as tmp:
         t0 = time.perf_counter()
         s = run(cfg, Path(tmp) / "c", resume=False)
@@ -54,7 +56,7 @@ def main() -> None:
     if target_gb:
         verdict.append(f"target <= {target_gb} GB: {'met' if peak_gb <= target_gb else 'not met'}")
     print(f"{args.scenario} {args.sv_policy} SPE campaign, delta 2 -> {args.delta_min:g}, certify "
-          f"{not args.no_certify}, refine {args.refine}: "
+          f"{not args.no_certify}, refine {args.refine}, executor {args.executor}: "
           f"{wall:.1f} s wall including result files and plots, peak memory {peak_gb:.2f} GB = "
           f"{peak_bytes / 2**30:.2f} GiB "
           f"({'; '.join(verdict) or 'no target'}); {s.runs_committed:,} committed runs, {s.boxes:,} boxes, "
