@@ -20,6 +20,7 @@ those and merges them into the JSON.
 from __future__ import annotations
 
 import json
+import os
 import resource
 from pathlib import Path
 
@@ -56,7 +57,8 @@ def run(scenario: str, policy: str, delta_min: float, refine: str, truths: dict)
             "half_width_max": safe_set.coarsest, "volume": safe_set.volume_union(),
             "iou": m["iou"], "precision": m["precision"], "recall": m["recall"],
             "result_hash": safe_set.result_hash, "seconds_in_process": round(seconds, 1),
-            "peak_gb_so_far": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 1e9, 2)}
+            "peak_gb_so_far": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 1e9, 2),
+            "load_average": round(os.getloadavg()[0], 1)}
 
 
 def _key(row: dict) -> tuple:
@@ -78,6 +80,15 @@ def study(args: list[str]) -> None:
     print(render())
 
 
+def _load(rows: list[dict]) -> str:
+    """The machine's load while the rows ran (rows from before it was recorded: 12-16)."""
+    loads = [r["load_average"] for r in rows if "load_average" in r]
+    if not loads:
+        return "load average 12-16 during these runs"
+    older = " (12-16 for the rows without one)" if len(loads) < len(rows) else ""
+    return f"1-minute load average {min(loads):g}-{max(loads):g} at the end of the rows{older}"
+
+
 def render() -> Path:
     """docs/refinement.md from docs/refinement.json."""
     data = json.loads(JSON.read_text())
@@ -93,7 +104,7 @@ def render() -> Path:
         "run once), seed 0, in-process. `refine = all` splits every box at every round end; `band` only the boxes",
         "within sigma-bar + delta (per axis) of the set's failure-side boundary (Theorem 3), the others keep their",
         "size (`max half-width`). Accuracy against the model-based reference on the compare grid. Seconds are",
-        "wall time on a shared 2-core machine (load average 12-16 during these runs: noisy); the counts are exact.",
+        f"wall time on a shared 2-core machine ({_load(rows)}: noisy); the counts are exact.",
         "",
         "| scenario | SV | delta_min | refine | boxes | committed runs | max half-width | IoU | precision | "
         "recall | s |",

@@ -99,3 +99,23 @@ def test_levels_that_are_not_nested_ask_every_level():
     found = index.cover(q)
     assert index._grid is None
     assert np.array_equal(found, _asking_every_level(index, q))
+
+
+def test_a_dropped_index_is_freed_without_a_collection():
+    """The grid refers to its index's lists, never to the index: a coverage dropped (a
+    finished campaign's, a replaced mirror's) frees its arrays at once."""
+    import gc
+    import weakref
+
+    rng = np.random.default_rng(2)
+    index = LeveledIndex(3, 4.0, LOWER, bounds=(LOWER, UPPER))
+    index.insert(_points(rng, 40, 2.0))
+    index.cover(_queries(rng, 30))
+    assert index._grid is not None
+    gone = weakref.ref(index)
+    gc.disable()
+    try:
+        del index
+        assert gone() is None
+    finally:
+        gc.enable()
