@@ -80,6 +80,24 @@ def study(args: list[str]) -> None:
     print(render())
 
 
+def _verdict(rows: list[dict]) -> list[str]:
+    """Where band falls short of all against the reference (the default stays "all" while
+    it does anywhere)."""
+    pairs = []
+    for r in rows:
+        full = next((a for a in rows if _key(a) == _key(r)[:3] + ("all",)), None)
+        if r["refine"] == "band" and full is not None:
+            pairs.append((r, full))
+    out = []
+    for measure in ("iou", "precision"):
+        below = [(r, r[measure] - full[measure]) for r, full in pairs if r[measure] < full[measure]]
+        worst = min(below, key=lambda x: x[1]) if below else None
+        out.append(f"- {measure}: band below all in {len(below)} of {len(pairs)} pairs"
+                   + (f" (the largest gap {worst[1]:+.5f}: {worst[0]['scenario']} {worst[0]['sv_policy']} at "
+                      f"delta_min {worst[0]['delta_min']:g})" if worst else "") + ".")
+    return out
+
+
 def _load(rows: list[dict]) -> str:
     """The machine's load while the rows ran (rows from before it was recorded: 12-16)."""
     loads = [r["load_average"] for r in rows if "load_average" in r]
@@ -125,6 +143,7 @@ def render() -> Path:
                    f"{r['boxes'] / full['boxes']:.2f}x the boxes and commits {r['committed'] / full['committed']:.2f}x "
                    f"the runs of all; IoU {r['iou'] - full['iou']:+.5f}, precision "
                    f"{r['precision'] - full['precision']:+.5f}, recall {r['recall'] - full['recall']:+.5f}.")
+    out += ["", "## Is band as accurate as all?", "", *_verdict(rows)]
     path = DOCS / "refinement.md"
     path.write_text("\n".join(out) + "\n")
     return path

@@ -18,6 +18,7 @@ RENDERED = {  # renderer -> the docs it writes
     "benchmarks/bench_virtual.py": ["virtual.md"],
     "benchmarks/bench_scaling.py": ["scaling.md"],
     "experiments/refinement.py": ["refinement.md"],
+    "experiments/certified_sets.py": ["guarantee.md"],
 }
 
 
