@@ -346,6 +346,13 @@ class RayExecutor(Executor):
         job.call_s += time.perf_counter() - t0
         self.pool.sent(job, actor)
 
+    def ready(self, handle: int) -> bool:
+        job = self._jobs[handle]
+        if job.summary is not None:
+            return True
+        ready, _ = self.ray.wait([job.ref], timeout=0)
+        return bool(ready)
+
     def result(self, handle: int) -> Chunk:
         job = self._jobs.pop(handle)
         summary = self._read(job)

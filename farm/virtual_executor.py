@@ -170,6 +170,14 @@ class VirtualExecutor(Executor):
             self.waited_s += max(0.0, job.end - self.clock)
             self.clock = max(self.clock, job.end)
 
+    def ready(self, handle: int) -> bool:
+        self._enter()
+        self._dispatch(self.clock)
+        job = self._jobs[handle]
+        back = 0 <= job.start and job.end <= self.clock
+        self._leave()
+        return back
+
     def result(self, handle: int) -> Chunk:
         self._enter()
         self._dispatch(self.clock, handle)
