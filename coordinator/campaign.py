@@ -35,6 +35,7 @@
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import time
 from collections import deque
@@ -107,7 +108,8 @@ class Pending:
     starts: np.ndarray
     handles: list = field(default_factory=list)
     next_handle: int = 0
-    chunks: list = field(default_factory=list)
+    chunks: list = field(default_factory=list)  # fetched, in index order (contiguous)
+    ends: list = field(default_factory=list)  # each fetched chunk's end index
 
     def __len__(self) -> int:
         return len(self.draws)
@@ -122,10 +124,12 @@ class Pending:
 
     def chunk_at(self, index: int) -> Chunk | None:
         """The fetched chunk that holds run ``index``, if fetched."""
-        for chunk in self.chunks:
-            if chunk.first_index <= index < chunk.first_index + len(chunk):
-                return chunk
-        return None
+        at = bisect.bisect_right(self.ends, index)
+        return self.chunks[at] if at < len(self.chunks) else None
+
+    def fetched(self, chunk: Chunk) -> None:
+        self.chunks.append(chunk)
+        self.ends.append(chunk.first_index + len(chunk))
 
 
 @dataclass
@@ -359,7 +363,7 @@ class Campaign:
         group.handles.pop(0)
         c.runs_simulated += len(chunk)
         c.steps_simulated += chunk.steps
-        group.chunks.append(chunk)
+        group.fetched(chunk)
 
     def _fetch(self, r: Replacement) -> tuple[Chunk, int]:
         """Wait for replacement ``r``'s run: its chunk and row."""
@@ -466,7 +470,7 @@ class Campaign:
         """Replacement ``r``'s run (``chunk``, ``row``) as the run of its index; ``held``:
         it is the first hold (the head went past it). True if it changed the state."""
         algo, c = self.algorithm, self.counters
-        rescreen = Rescreen(algo.coverage, chunk.screening, chunk.outcomes, chunk.visited)
+        rescreen = self._rescreen(chunk)
         start_id = r.draws.ids[:1]
         changes = rescreen.next_event(row) == row
         if held and changes:
@@ -498,6 +502,14 @@ class Campaign:
         c.changes += 1
         c.streak_start = c.committed  # runs before the head were decided at the old state
 
+    def _rescreen(self, chunk: Chunk) -> Rescreen:
+        """The chunk's runs re-decided at the current coverage: one per chunk, kept with it
+        (what it found stands until the coverage changes)."""
+        coverage = self.algorithm.coverage
+        if chunk.rescreen is None or chunk.rescreen.coverage is not coverage:
+            chunk.rescreen = Rescreen(coverage, chunk.screening, chunk.outcomes, chunk.visited)
+        return chunk.rescreen
+
     def _commit(self, p: Pending, chunk: Chunk) -> bool:
         """Commit runs of one chunk of batch ``p`` in index order, from the head's index
         (``counters.committed``, the head, walks its indices) to the chunk's end, or until
@@ -506,7 +518,7 @@ class Campaign:
         at = chunk.first_index - p.first_index
         k = len(chunk)
         starts, ids = p.starts[at : at + k], p.draws.ids[at : at + k]
-        rescreen = Rescreen(algo.coverage, chunk.screening, chunk.outcomes, chunk.visited)
+        rescreen = self._rescreen(chunk)
         kind = np.zeros(k, dtype=np.int8)
         changed = np.zeros(k, dtype=bool)
         counted = np.zeros(k, dtype=bool)
@@ -647,7 +659,7 @@ class Campaign:
             p.next_handle += 1
             self.counters.runs_simulated += len(chunk)
             self.counters.steps_simulated += chunk.steps
-            p.chunks.append(chunk)
+            p.fetched(chunk)
             if not chunk.first_index <= head < chunk.first_index + len(chunk):
                 chunk = None
         return p, chunk

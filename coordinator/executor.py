@@ -56,6 +56,7 @@ class Chunk:
     _visited: tuple | None = field(default=None, repr=False)
     exits: np.ndarray | None = field(default=None, repr=False)  # (k,) int8 facet left through (RunBatch.exits)
     indices: np.ndarray | None = None  # (k,) sample indices, when not first_index + row
+    rescreen: Any = field(default=None, repr=False)  # the driver's re-decisions of its runs (coverage.Rescreen)
 
     def __post_init__(self):
         if self.indices is None:

@@ -26,6 +26,7 @@ workers' timing: the hold only hides the replacement's latency.
 
 from __future__ import annotations
 
+import bisect
 from collections import deque
 from dataclasses import dataclass, field
 from typing import Callable
@@ -46,14 +47,18 @@ class ReplacementGroup:
     def __init__(self, handles: list):
         self.handles = list(handles)  # not fetched yet, in order
         self.chunks: list[Chunk] = []
+        self.ends: list[int] = []  # positions in the batch after each fetched chunk
+
+    def fetched(self, chunk: Chunk) -> None:
+        self.chunks.append(chunk)
+        self.ends.append((self.ends[-1] if self.ends else 0) + len(chunk))
 
     def find(self, position: int) -> tuple[Chunk, int] | None:
         """The chunk and row of the batch's ``position``-th run, if fetched."""
-        for chunk in self.chunks:
-            if position < len(chunk):
-                return chunk, position
-            position -= len(chunk)
-        return None
+        at = bisect.bisect_right(self.ends, position)
+        if at == len(self.chunks):
+            return None
+        return self.chunks[at], position - (self.ends[at - 1] if at else 0)
 
 
 @dataclass

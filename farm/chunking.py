@@ -101,11 +101,15 @@ class ChunkSizer:
         return self.chunk_cost_s + self.run_cost_s * runs
 
     # -- what follows ----------------------------------------------------------------------
-    def size(self, runs: int, urgent: bool = False) -> int:
+    def size(self, runs: int, urgent: bool = False, lane: bool = False) -> int:
         """Runs per chunk for a batch of ``runs`` runs (1 up to ``runs``). ``urgent``
         (replacements, which the commit head may be waiting for): one wave over the
-        workers, however small its chunks."""
+        workers, however small its chunks; or, with ``lane`` (one actor takes them all,
+        one after the other), chunks of at most ``CHUNK_S`` of work: more calls to it
+        would only cost the driver more."""
         share = math.ceil(runs / self.workers)
+        if urgent and lane:
+            return runs if self.run_cost_s is None else max(1, min(runs, self._by_time()))
         if urgent or runs <= 1 or self.run_cost_s is None:
             return max(1, min(runs, share))
         return min(runs, max(min(share, self._by_time()), self._floor()))
@@ -122,9 +126,9 @@ class ChunkSizer:
         afford = math.ceil((self.workers * self.call_s / DRIVER_SHARE - a) / b)
         return max(1, efficient, afford)
 
-    def chunks(self, runs: int, urgent: bool = False) -> int:
+    def chunks(self, runs: int, urgent: bool = False, lane: bool = False) -> int:
         """The chunks a batch of ``runs`` runs is cut into."""
-        return max(1, math.ceil(runs / self.size(runs, urgent)))
+        return max(1, math.ceil(runs / self.size(runs, urgent, lane)))
 
     def batch_size(self, requested: int) -> int:
         """Runs per batch that give every worker a chunk of at least the affordable size

@@ -200,6 +200,7 @@ class RayExecutor(Executor):
         handles = [cls.remote(dataclasses.asdict(spec), check_step_bound) for _ in range(workers)]
         self.pool = ActorPool(ray, handles, self.sizer.limit, max_retries, stop, notify)
         self._check_step_bound = check_step_bound
+        self._fast_lane = fast_lane
         self._lane = fast_lane  # started with the first replacement (many campaigns need none)
         self._blocks: dict[tuple, object] = {}  # (coverage id, from seq, to seq) -> ref
         self._static: dict[int, object] = {}  # id(screen) -> ref of a fixed screen
@@ -303,7 +304,9 @@ class RayExecutor(Executor):
             self._read(self._jobs[handles[0]])
             at = 1
         if n > at:
-            for rows in np.array_split(np.arange(at, n), self.sizer.chunks(n - at, urgent=indices is not None)):
+            urgent = indices is not None
+            lane = urgent and self._fast_lane  # replacements go to the lane: one actor
+            for rows in np.array_split(np.arange(at, n), self.sizer.chunks(n - at, urgent, lane)):
                 handles.append(self._send(first_index, starts, screen, actions, indices, rows))
         return handles
 
