@@ -32,6 +32,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 CHUNK_S = 1.0  # [s] of work a chunk holds at most (unless the workers or the driver cannot afford smaller)
 OVERHEAD_SHARE = 0.1  # of a chunk's time on the worker's cost per chunk, at most
 DRIVER_SHARE = 0.25  # of the driver's time on Ray calls, every worker busy
@@ -129,6 +131,21 @@ class ChunkSizer:
     def chunks(self, runs: int, urgent: bool = False, lane: bool = False) -> int:
         """The chunks a batch of ``runs`` runs is cut into."""
         return max(1, math.ceil(runs / self.size(runs, urgent, lane)))
+
+    def cut(self, runs: int, urgent: bool = False, lane: bool = False, idle: int = 0) -> list[np.ndarray]:
+        """The rows of a batch of ``runs`` runs, chunk by chunk. With ``idle`` workers that
+        have nothing queued (a round's first batch: the head waits for its first chunk),
+        the batch's first ``idle`` chunks hold at most ``CHUNK_S`` of work even where the
+        driver's calls want longer chunks: the head starts on the round a chunk of a
+        second later, not of several, and the later chunks are cut as usual."""
+        rows = np.arange(runs)
+        if not urgent and idle and self.run_cost_s is not None:
+            first = min(self.size(runs), self._by_time())
+            if first < self.size(runs):
+                head = min(runs, idle * first)
+                return (np.array_split(rows[:head], math.ceil(head / first))
+                        + (np.array_split(rows[head:], self.chunks(runs - head)) if head < runs else []))
+        return np.array_split(rows, self.chunks(runs, urgent, lane))
 
     def batch_size(self, requested: int) -> int:
         """Runs per batch that give every worker a chunk of at least the affordable size

@@ -306,8 +306,9 @@ class RayExecutor(Executor):
         if n > at:
             urgent = indices is not None
             lane = urgent and self._fast_lane  # replacements go to the lane: one actor
-            for rows in np.array_split(np.arange(at, n), self.sizer.chunks(n - at, urgent, lane)):
-                handles.append(self._send(first_index, starts, screen, actions, indices, rows))
+            idle = sum(1 for slot in self.pool.slots if not slot.queue and not slot.lane and not slot.down)
+            for rows in self.sizer.cut(n - at, urgent, lane, idle):
+                handles.append(self._send(first_index, starts, screen, actions, indices, rows + at))
         return handles
 
     def _start_lane(self) -> None:

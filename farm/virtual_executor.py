@@ -138,8 +138,9 @@ class VirtualExecutor(Executor):
             self._measure(self._jobs[handles[0]])
             at = 1
         if n > at:
-            for rows in np.array_split(np.arange(at, n), self.sizer.chunks(n - at, urgent=indices is not None)):
-                handles.append(self._cut(batch, int(rows[0]), int(rows[-1]) + 1, indices))
+            idle = 0 if self._queue else sum(1 for free in self._free if free <= self.clock)
+            for rows in self.sizer.cut(n - at, indices is not None, idle=idle):
+                handles.append(self._cut(batch, at + int(rows[0]), at + int(rows[-1]) + 1, indices))
         if indices is None:
             self._queue.extend(handles[at:])
         else:  # replacements: the next free worker takes them first
