@@ -81,3 +81,18 @@ def test_the_size_is_always_between_one_run_and_the_batch():
         runs = int(rng.integers(1, 20_000))
         assert 1 <= sizer.size(runs) <= runs
         assert sizer.chunks(runs) * sizer.size(runs) >= runs
+
+
+def test_a_rounds_first_chunks_on_idle_workers_hold_at_most_a_second_of_work():
+    # 1,000 workers of 0.1 s runs at 1 ms a call: the driver affords chunks of 40 runs (4 s)
+    sizer = measured(1000, 0.0, 0.1, call=1e-3)
+    assert sizer.size(40_000) == 40
+    parts = sizer.cut(40_000, idle=1000)
+    sizes = [len(p) for p in parts]
+    first = sizes[0]
+    assert 9 <= first and first * 0.1 <= 1.0  # at most a second's work on each idle worker
+    assert sizes[:1000] == [first] * 1000 and set(sizes[1000:]) == {40}  # then as usual
+    np.testing.assert_array_equal(np.concatenate(parts), np.arange(40_000))  # every row once, in order
+    assert [len(p) for p in sizer.cut(40_000)] == [40] * 1000  # busy workers: cut as usual
+    assert [len(p) for p in sizer.cut(5, urgent=True, idle=1000)] == [1] * 5  # replacements: one wave
+    assert [len(p) for p in sizer.cut(5, urgent=True, lane=True)] == [5]  # for the fast lane: one call
