@@ -36,7 +36,7 @@ import numpy as np
 
 CHUNK_S = 1.0  # [s] of work a chunk holds at most (unless the workers or the driver cannot afford smaller)
 OVERHEAD_SHARE = 0.1  # of a chunk's time on the worker's cost per chunk, at most
-DRIVER_SHARE = 0.25  # of the driver's time on Ray calls, every worker busy
+DRIVER_SHARE = 0.5  # of the driver's time on Ray calls, every worker busy
 CALL_S = 1e-3  # [s] the driver's time per chunk until it is measured
 DECAY = 0.8  # weight of the older chunks in the fitted times, per chunk
 SPREAD = 0.1  # chunk sizes' coefficient of variation below which a and b are not refitted

@@ -306,7 +306,7 @@ class RayExecutor(Executor):
         if n > at:
             urgent = indices is not None
             lane = urgent and self._fast_lane  # replacements go to the lane: one actor
-            idle = sum(1 for slot in self.pool.slots if not slot.queue and not slot.lane and not slot.down)
+            idle = 0 if urgent else sum(1 for slot in self.pool.slots if not slot.queue and not slot.lane and not slot.down)
             for rows in self.sizer.cut(n - at, urgent, lane, idle):
                 handles.append(self._send(first_index, starts, screen, actions, indices, rows + at))
         return handles

@@ -138,7 +138,7 @@ class VirtualExecutor(Executor):
             self._measure(self._jobs[handles[0]])
             at = 1
         if n > at:
-            idle = 0 if self._queue else sum(1 for free in self._free if free <= self.clock)
+            idle = self._idle() if indices is None else 0
             for rows in self.sizer.cut(n - at, indices is not None, idle=idle):
                 handles.append(self._cut(batch, at + int(rows[0]), at + int(rows[-1]) + 1, indices))
         if indices is None:
@@ -148,6 +148,12 @@ class VirtualExecutor(Executor):
         self._dispatch(self.clock)
         self._leave()
         return handles
+
+    def _idle(self) -> int:
+        """Workers free now with nothing queued for them."""
+        if self._queue or self._free[0] > self.clock:
+            return 0
+        return int(np.count_nonzero(np.asarray(self._free) <= self.clock))
 
     def _cut(self, batch: _Batch, lo: int, hi: int, indices) -> int:
         """A chunk of rows ``lo:hi`` of ``batch`` (the caller queues it; the probe, cut
