@@ -255,24 +255,24 @@ class Campaign:
 
     # -- exact or replaced -----------------------------------------------------------------
     def _verify(self, p: Pending, lo: int, hi: int) -> np.ndarray:
-        """(hi - lo,) bool: which runs ``lo:hi`` of batch ``p`` are exact now. A run a change
-        may have moved is drawn again: if its stream draws the same vertex it is exact
-        (its draw record is renewed), else it is mispredicted."""
+        """(hi - lo,) bool: which runs ``lo:hi`` of batch ``p`` are exact now: their streams
+        draw their starts. A stream whose current draw a change may have moved is drawn
+        again (and its current draw kept: a start the set moved away from is not drawn
+        again until a change touches what its stream draws now)."""
         algo = self.algorithm
-        moved = algo.moved(p.draws.span(lo, hi))
-        exact = ~moved
+        span = p.draws.span(lo, hi)
+        moved = algo.moved(span)
+        exact = span.now == span.ids
         if moved.any():
             exact[moved], _ = self._redraw(p, lo + np.flatnonzero(moved))
         return exact
 
     def _redraw(self, p: Pending, rows: np.ndarray) -> tuple[np.ndarray, Draws]:
-        """Draw runs ``rows`` of batch ``p`` again: -> (still the same vertex, the fresh
-        draws). A run still drawn has its draw record renewed (later checks start from now)."""
+        """Draw runs ``rows`` of batch ``p`` again: -> (still their starts, the fresh draws);
+        the fresh draws become their current ones (later checks start from now)."""
         fresh = self.algorithm.draw(self._streams(p.first_index + rows))
-        same = fresh.ids == p.draws.ids[rows]
-        if same.any():
-            p.draws.replace_rows(rows[same], fresh.rows(np.flatnonzero(same)))
-        return same, fresh
+        p.draws.track(rows, fresh)
+        return fresh.ids == p.draws.ids[rows], fresh
 
     def _replace(self, index: int) -> None:
         """Launch the replacement of run ``index`` from its stream's current draw, due

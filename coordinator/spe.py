@@ -246,8 +246,7 @@ class SPE(Algorithm):
     def moved(self, draws: Draws) -> np.ndarray:
         if draws.fixed:
             return np.zeros(len(draws), dtype=bool)
-        self._law()  # stamps what changed
-        return self._stable.moved(draws)
+        return self._stable.moved(draws, self._law(), self.version)  # the law first: it stamps what changed
 
     def certify_runs(self, start_ids: np.ndarray, offsets: np.ndarray, witnesses: np.ndarray) -> int:
         """Deterministic certification: quiet runs from centres ``start_ids`` (their
