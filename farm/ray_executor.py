@@ -36,7 +36,7 @@ import numpy as np
 
 from coordinator.coverage import Coverage, Reset
 from coordinator.executor import Chunk, Executor, chunk_of, screen_piece, summarize
-from farm.chunking import ChunkSizer
+from farm.chunking import ChunkSizer, fast_lanes
 from farm.ray_pool import ActorPool, Call, check_started
 from farm.ray_session import connect
 from farm.simulators import build_simulator
@@ -176,8 +176,8 @@ class RayExecutor(Executor):
         ``chunk_timeout``: seconds a chunk may take (farm.chunk_timeout; 0: derived from
         the measured run time); ``stop``: set on SIGINT / SIGTERM, it ends a wait for a
         chunk (``farm.waiting.Interrupted``); ``notify``: takes a line for the user (a
-        worker replaced); ``fast_lane``: one more actor, for replacements only. None of them
-        changes a result."""
+        worker replaced); ``fast_lane``: actors for replacements only (one per 16 workers).
+        None of them changes a result."""
         import ray
 
         connect(address, workers)
@@ -200,7 +200,7 @@ class RayExecutor(Executor):
         handles = [cls.remote(dataclasses.asdict(spec), check_step_bound) for _ in range(workers)]
         self.pool = ActorPool(ray, handles, self.sizer.limit, max_retries, stop, notify)
         self._check_step_bound = check_step_bound
-        self._fast_lane = fast_lane
+        self._lanes = fast_lanes(workers) if fast_lane else 0
         self._lane = fast_lane  # started with the first replacement (many campaigns need none)
         self._blocks: dict[tuple, object] = {}  # (coverage id, from seq, to seq) -> ref
         self._static: dict[int, object] = {}  # id(screen) -> ref of a fixed screen
@@ -305,18 +305,20 @@ class RayExecutor(Executor):
             at = 1
         if n > at:
             urgent = indices is not None
-            lane = urgent and self._fast_lane  # replacements go to the lane: one actor
+            lanes = self._lanes if urgent else 0  # replacements go to the lanes
             idle = 0 if urgent else sum(1 for slot in self.pool.slots if not slot.queue and not slot.lane and not slot.down)
-            for rows in self.sizer.cut(n - at, urgent, lane, idle):
+            for rows in self.sizer.cut(n - at, urgent, lanes, idle):
                 handles.append(self._send(first_index, starts, screen, actions, indices, rows + at))
         return handles
 
     def _start_lane(self) -> None:
-        """The fast lane: under sequential counting the commit head waits for each wave of
-        replacements, which behind a worker's queued chunks would wait seconds. It reserves
-        no CPU: it is busy only with replacements, a few % of the runs."""
-        lane = _actor_class().options(num_cpus=0, max_restarts=-1, max_task_retries=0)
-        self.pool.add(lane.remote(dataclasses.asdict(self.spec), self._check_step_bound), lane=True)
+        """The fast lanes (farm/chunking.py ``fast_lanes``): under sequential counting the
+        commit head may wait for a replacement, which behind a worker's queued chunks would
+        wait seconds. They reserve no CPU: they are busy only with replacements, a few %
+        of the runs."""
+        lane = _actor_class().options(num_cpus=0, max_restarts=-1, max_task_retries=0, scheduling_strategy="SPREAD")
+        for _ in range(self._lanes):
+            self.pool.add(lane.remote(dataclasses.asdict(self.spec), self._check_step_bound), lane=True)
         self._lane = False
 
     def _send(self, first_index, starts, screen, actions, indices, rows) -> int:

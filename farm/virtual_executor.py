@@ -17,7 +17,9 @@ simulator (shared/spec/scaling.md):
 - the coordinator's own CPU time between executor calls is charged to the clock (its
   thread time, the in-process simulation excluded): a driver that cannot keep up shows;
 - a chunk cancelled before a worker took it never runs; experience replay's screening
-  is shared by the workers.
+  is shared by the workers;
+- replacements go to fast lanes of their own, as on Ray (one per 16 workers), as a wave
+  over them; the lanes' time is not counted in the workers' utilisation.
 
 ``clock`` is the simulated time to the result; ``utilisation`` the share of worker time
 spent on runs.
@@ -33,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.executor import Chunk, Executor
-from farm.chunking import ChunkSizer
+from farm.chunking import ChunkSizer, fast_lanes
 from farm.local_executor import LocalExecutor
 from scenarios.simulator import SimSpec
 from scenarios.streams import RunStreams
@@ -65,7 +67,10 @@ class VirtualExecutor(Executor):
     name = "virtual"
 
     def __init__(self, spec: SimSpec, workers: int, run_time: float, jitter: float = 0.0, call_cost: float = 0.001,
-                 pipeline_depth: int = 2, check_step_bound: bool = False):
+                 pipeline_depth: int = 2, check_step_bound: bool = False, lanes: int | None = None):
+        """``lanes``: replacements go to workers of their own that take nothing else, as
+        a wave over them (None: as many as the Ray executor starts, farm/chunking.py
+        ``fast_lanes``); 0: to the next free worker, before any queued chunk."""
         self.spec = spec
         self.local = LocalExecutor(spec, check_step_bound)
         self.workers = workers
@@ -79,6 +84,9 @@ class VirtualExecutor(Executor):
         self.waited_s = 0.0  # the clock's time spent waiting for a chunk
         self._free: list[float] = [0.0] * workers  # a heap of the workers' free times
         self._queue: deque[int] = deque()  # handles no worker has taken yet, in order
+        self.lanes = fast_lanes(workers) if lanes is None else int(lanes)
+        self._lane_free: list[float] = [0.0] * self.lanes  # a heap of the lanes' free times
+        self._lane_queue: deque[int] = deque()
         self._jobs: dict[int, _Job] = {}
         self._next = 0
         self._mark = time.thread_time()  # the coordinator's CPU time charged up to here
@@ -95,15 +103,21 @@ class VirtualExecutor(Executor):
         self._mark = time.thread_time()  # what the executor did in-process is the workers' work
 
     def _dispatch(self, until: float, handle: int | None = None) -> None:
-        """Workers take queued chunks in order: every one that starts by ``until``, and
-        those up to ``handle`` whatever their start."""
-        while self._queue:
-            key = self._queue[0]
+        """Workers (and lanes) take queued chunks in order: every one that starts by
+        ``until``, and those up to ``handle`` whatever their start."""
+        self._take(self._queue, self._free, until, handle)
+        if self.lanes:
+            self._take(self._lane_queue, self._lane_free, until, handle, lane=True)
+
+    def _take(self, queue: deque, free: list[float], until: float, handle: int | None, lane: bool = False) -> None:
+        target = handle if handle is not None and queue and self._jobs[handle].start < 0 and handle in queue else None
+        while queue:
+            key = queue[0]
             job = self._jobs[key]
-            start = max(job.submitted, self._free[0])
-            if start > until and (handle is None or self._jobs[handle].start >= 0):
+            start = max(job.submitted, free[0])
+            if start > until and target is None:
                 break
-            self._queue.popleft()
+            queue.popleft()
             job.start = start
             batch = job.batch
             if batch.chunk is None:  # one in-process call per batch, whatever its chunks
@@ -112,9 +126,10 @@ class VirtualExecutor(Executor):
             job.chunk = batch.chunk.part(*job.rows)
             duration = self._duration(job.chunk)
             job.end = start + self.call_cost + duration
-            self._runs.append((start + self.call_cost, job.end))
-            heapq.heapreplace(self._free, job.end)
-            if key == handle:
+            if not lane:  # the lanes are not counted among the workers
+                self._runs.append((start + self.call_cost, job.end))
+            heapq.heapreplace(free, job.end)
+            if key == target:
                 break
 
     def _duration(self, chunk: Chunk) -> float:
@@ -139,10 +154,12 @@ class VirtualExecutor(Executor):
             at = 1
         if n > at:
             idle = self._idle() if indices is None else 0
-            for rows in self.sizer.cut(n - at, indices is not None, idle=idle):
+            for rows in self.sizer.cut(n - at, indices is not None, self.lanes, idle=idle):
                 handles.append(self._cut(batch, at + int(rows[0]), at + int(rows[-1]) + 1, indices))
         if indices is None:
             self._queue.extend(handles[at:])
+        elif self.lanes:  # replacements: to the lanes, which take nothing else
+            self._lane_queue.extend(handles[at:])
         else:  # replacements: the next free worker takes them first
             self._queue.extendleft(reversed(handles[at:]))
         self._dispatch(self.clock)
@@ -198,7 +215,7 @@ class VirtualExecutor(Executor):
         self._dispatch(self.clock)
         job = self._jobs.pop(handle, None)
         if job is not None and job.start < 0:  # no worker took it: it never runs
-            self._queue.remove(handle)
+            (self._queue if handle in self._queue else self._lane_queue).remove(handle)
             job.batch.waiting -= 1
             if job.batch.waiting == 0 and job.batch.chunk is None:
                 self.local.cancel(job.batch.local)

@@ -100,4 +100,4 @@ def test_a_rounds_first_chunks_on_idle_workers_hold_at_most_a_second_of_work():
     np.testing.assert_array_equal(np.concatenate(parts), np.arange(40_000))  # every row once, in order
     assert [len(p) for p in sizer.cut(40_000)] == [steady] * 2000  # busy workers: cut as usual
     assert [len(p) for p in sizer.cut(5, urgent=True, idle=1000)] == [1] * 5  # replacements: one wave
-    assert [len(p) for p in sizer.cut(5, urgent=True, lane=True)] == [5]  # for the fast lane: one call
+    assert [len(p) for p in sizer.cut(5, urgent=True, lanes=1)] == [5]  # for the fast lane: one call

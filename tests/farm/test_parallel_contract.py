@@ -29,7 +29,7 @@ def chunk_per_worker(monkeypatch):
     out of order, which is what the index-order commit must get right."""
     from farm.chunking import ChunkSizer
 
-    monkeypatch.setattr(ChunkSizer, "size", lambda self, runs, urgent=False, lane=False: max(1, -(-runs // self.workers)))
+    monkeypatch.setattr(ChunkSizer, "size", lambda self, runs, urgent=False, lanes=0: max(1, -(-runs // self.workers)))
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +53,7 @@ def test_any_chunking_gives_the_same_result(ray_local, reference, tmp_path, monk
     rng = np.random.default_rng(3)
     sizes = []
 
-    def any_size(self, runs, urgent=False, lane=False):
+    def any_size(self, runs, urgent=False, lanes=0):
         sizes.append(int(rng.integers(1, runs + 1)))
         return sizes[-1]
 
@@ -206,7 +206,7 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
 
     from farm.chunking import ChunkSizer
 
-    monkeypatch.setattr(ChunkSizer, "size", lambda self, runs, urgent=False, lane=False: runs)  # 20 runs: one chunk
+    monkeypatch.setattr(ChunkSizer, "size", lambda self, runs, urgent=False, lanes=0: runs)  # 20 runs: one chunk
     cfg = contract_config("ray", 4)
     lower, upper = np.array([0.0, 0.0, 0.0]), np.array([100.0, 30.0, 30.0])
     cov = Coverage(3, 2.0, lower, bounds=(lower, upper))
