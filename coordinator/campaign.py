@@ -10,7 +10,7 @@
   re-decides each run at the current version from its witnesses.
 - Coupled counting. At commit a run is *exact* when its start is still the draw its
   stream makes at the current state (only runs whose examined slots a change touched are
-  drawn again to know); an exact run is what the one-run-at-a-time campaign runs at that
+  looked at again, and the law asked about those slots); an exact run is what the one-run-at-a-time campaign runs at that
   index, and is used as it would use it. A *mispredicted* run is discarded unseen and
   replaced: the current draw, the same index and streams, applied ``lag`` indices later
   (``counting = "sequential"``: lag 0, waited for at the head, so the committed sequence
