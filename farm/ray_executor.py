@@ -207,6 +207,7 @@ class RayExecutor(Executor):
         self._snapshot: tuple = (None, None)  # (coverage id, epoch, seq), ref of its state
         self._jobs: dict[int, _Job] = {}
         self._next = 0
+        self._since_trim = 0  # change messages since the coverage's log was last trimmed
         self._actions: dict | None = None  # the newest adaptive policy state submitted
 
     @property
@@ -276,7 +277,10 @@ class RayExecutor(Executor):
             # a small block goes inside the call (Ray inlines it; a put costs the driver
             # ~1 ms), a large one once into the object store for every actor that needs it
             self._blocks[key] = changes if _nbytes(changes) <= INLINE_BYTES else self.ray.put(changes)
-        self._trim(screen)
+        self._since_trim += 1
+        if self._since_trim >= len(self.pool.slots):  # a look at every actor: about once a wave
+            self._trim(screen)
+            self._since_trim = 0
         return ("changes", [self._blocks[key]], sent[2])
 
     def _trim(self, screen: Coverage) -> None:

@@ -105,6 +105,7 @@ class ActorPool:
         self.stop = stop
         self.notify = notify
         self._all_down_since: float | None = None
+        self._swept = 0.0  # when the calls queued were last looked at
 
     def add(self, handle, lane: bool = False) -> None:
         """One more actor; ``lane``: kept for urgent calls (a fast lane)."""
@@ -158,7 +159,8 @@ class ActorPool:
         while not ready:
             if interruptible:
                 stop_asked(self.stop)
-            self._sweep()
+            if time.monotonic() - self._swept >= POLL_S:  # a sweep asks Ray about every call queued
+                self._sweep()
             self._revive()
             ready, _ = self.ray.wait([call.ref], timeout=POLL_S)
 
@@ -169,6 +171,7 @@ class ActorPool:
 
     def _sweep(self) -> None:
         """Note the calls that have finished; replace an actor whose running call overran."""
+        self._swept = time.monotonic()
         refs = [c.ref for s in self.slots for c in s.queue]
         if not refs:
             return

@@ -221,7 +221,8 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
             chunk = ex.result(handle)
             assert chunk.screening.seq == cov.seq  # screened at the coverage as submitted
         assert [s["tasks"] for s in ex.worker_stats()] == [8, 0, 0, 0]
-        assert len(cov.changes_since(-1)) <= 3  # not all 24 changes are kept
+        # not all 24 changes are kept: the log is trimmed about once a wave of messages (4 actors)
+        assert len(cov.changes_since(-1)) <= 3 * 4 < 24
     finally:
         ex.close()
 
