@@ -10,13 +10,14 @@ PhiBar) or visits a state sigma' with d(sigma', Phi_delta) > delta and d(sigma',
 Certification (after the last round, ``begin_certification``): the final set is checked
 the way ``validate`` checks a set: a run must neither fail nor leave Phi_delta, near a
 known failure or not. A deterministic system runs every final centre once (VAL^delta);
-otherwise start states are drawn uniformly over the final centres (VAL^eps-delta) until
-N_eps runs in a row pass. A run that fails or leaves the set re-opens SPE: a failure
-prunes as usual, a new state is explored as usual, and a run that leaves only toward a
-known failure prunes its start's tree as a failure would (removing the start alone, with
-or without adding it to PhiBar, makes certification peel or churn for many more runs:
-docs/benchmarks.md), without adding it to PhiBar: it did not fail.
-Certification then starts again, so the set exported is the one the last one passed.
+otherwise closing rounds (drawn over the band near the failure-side boundary) and checks
+(drawn uniformly over the final centres, VAL^eps-delta) alternate as
+coordinator/certification.py describes. A run that fails or leaves the set re-opens SPE:
+a failure prunes as usual, a new state is explored as usual, and a run that leaves only
+toward a known failure prunes its start's tree as a failure would (removing the start
+alone, with or without adding it to PhiBar, makes certification peel or churn for many
+more runs: docs/benchmarks.md), without adding it to PhiBar: it did not fail. Pruning
+on a new state instead of exploring it peels the whole set away (docs/benchmarks.md).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from functools import partial
 import numpy as np
 
 from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered
+from coordinator.certification import CHECK, CLOSING
 from coordinator.certificates import Certificates
 from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell, Resize, Strict
 from coordinator.lattice import Lattice
@@ -94,6 +96,7 @@ class SPE(Algorithm):
         self._stable.restart(self.vertices.count, self.version)
         self.replay = ReplayBuffer(settings.replay_capacity if settings.replay else 0, deterministic, scenario.n)
         self.certifying = False
+        self.phase = CHECK  # while certifying a sampled system: CLOSING or CHECK
         self.enumeration = Enumeration()  # deterministic certification: the passes over the centres
         self.certificates = Certificates()  # deterministic certification: centres checked
 
@@ -111,6 +114,7 @@ class SPE(Algorithm):
         self._stable = StableSampler()
         self._law_cache: tuple | None = None
         self._law_kind: tuple | None = None
+        self._band: tuple[int, np.ndarray] | None = None  # (version, mask): the closing law's candidates
 
     def _add_roots(self, centres: np.ndarray) -> None:
         self._insert(centres)
@@ -158,7 +162,47 @@ class SPE(Algorithm):
             ok[ok] = self._near_boundary(ids[ok])
         return ok
 
+    @property
+    def closing(self) -> bool:
+        """In a closing round of a sampled certification (coordinator/certification.py)."""
+        return self.certifying and self.phase == CLOSING
+
+    def _band_mask(self) -> np.ndarray:
+        """(count,) bool, per version: the closing law's candidates, the alive centres
+        near the failure-side boundary (``_near_boundary``; the whole set when none is).
+        Ids whose membership changed since the last mask are touched: their slots move
+        draws (a failure added since brings centres into the band)."""
+        if self._band is not None and self._band[0] == self.version:
+            return self._band[1]
+        count = self.vertices.count
+        ids = self.vertices.alive_ids()
+        mask = np.zeros(count, dtype=bool)
+        mask[ids[self._near_boundary(ids)]] = True
+        if not mask.any():
+            mask[ids] = True
+        if self._band is not None:
+            old = self._band[1]
+            self._stable.touch(np.flatnonzero(mask[: len(old)] != old), self.version)
+        self._band = (self.version, mask)
+        return mask
+
+    def closing_share(self) -> float:
+        """The band's share of the alive centres (closing rounds: coordinator/certification.py)."""
+        return float(np.count_nonzero(self._band_mask())) / max(self.vertices.alive_count, 1)
+
+    def begin_check(self) -> None:
+        """A closing round ended: check the set (uniform over the final centres)."""
+        self.version += 1
+        self.phase = CHECK
+
+    def begin_closing(self) -> None:
+        """A check found a violation (already applied): close the set again."""
+        self.version += 1
+        self.phase = CLOSING
+
     def sampling_description(self) -> str:
+        if self.closing:
+            return "start states uniform over the alive centres near the failure-side boundary (closing round)"
         if self.certifying:
             return ("every final box centre once (VAL^delta)" if self.deterministic
                     else "start states uniform over the final box centres (VAL^eps-delta)")
@@ -186,11 +230,12 @@ class SPE(Algorithm):
             raise EmptySetError("the safe set is empty: every centre was pruned")
         count = self.vertices.count
         self._stable.fit(count, self.version)
-        if not self.certifying and self.failures.count and (self.settings.prioritized or self.settings.boundary):
+        if self.failures.count and (self.settings.prioritized or self.settings.boundary):
             self._failure_distances()
-            lowered = self._dist.take_lowered()
-            self._stable.touch(lowered, self.version)
-            self._sampler.touch(lowered)
+            lowered = self._dist.take_lowered()  # taken while certifying too: they would pile up
+            if not self.certifying:
+                self._stable.touch(lowered, self.version)
+                self._sampler.touch(lowered)
         law, kind = self._make_law(count)
         if kind != self._law_kind:
             self._stable.touch_all(self.version)
@@ -205,6 +250,9 @@ class SPE(Algorithm):
         and the band holds any. Prioritized, once a failure is known: rho = alpha(d* - d)
         over the candidates (d* their largest distance), kept up to date where the state
         changed (coordinator/sampler.py); uniform when every weight is zero."""
+        if self.closing:
+            mask = self._band_mask()
+            return UniformLaw(count, mask.__getitem__, lambda: np.flatnonzero(mask)), ("closing",)
         if self.certifying:
             return UniformLaw(count, self._alive, self.vertices.alive_ids), ("certification",)
         alpha = ALPHAS[self.settings.alpha]
@@ -270,6 +318,7 @@ class SPE(Algorithm):
         """Check the final set the way validate will (see the module docstring)."""
         self.version += 1
         self.certifying = True
+        self.phase = CHECK if self.deterministic else CLOSING
         self.coverage.apply(Strict(True), self.version)
         self._stable.restart(self.vertices.count, self.version)
 
@@ -427,7 +476,7 @@ class SPE(Algorithm):
         out = self.coverage.state()
         out["graph.parent"] = self.graph.parent.copy()
         out["scalars"] = np.array([self.delta, self.round, self.version], dtype=float)
-        out["certification"] = np.array([self.certifying], dtype=np.int64)
+        out["certification"] = np.array([self.certifying, self.phase == CLOSING], dtype=np.int64)
         out["certification.drawn"] = np.flatnonzero(self.enumeration.drawn)
         out.update(self.certificates.state())
         out.update(self.replay.state())
@@ -442,6 +491,8 @@ class SPE(Algorithm):
         _, rnd, version = state["scalars"]
         self.round, self.version = int(rnd), int(version)
         self.certifying = bool(state["certification"][0])
+        closing = len(state["certification"]) > 1 and bool(state["certification"][1])
+        self.phase = CLOSING if closing else CHECK
         drawn = np.zeros(self.vertices.count, dtype=bool)
         drawn[state["certification.drawn"]] = True
         self.enumeration = Enumeration(drawn)
