@@ -226,6 +226,7 @@ class Campaign:
         self._changes_seen = self.counters.changes
         self._ahead_to = 0  # launched ahead up to this index (when nothing changed since)
         self._stop = False
+        self._law_switched = False  # a check failed: the runs in flight were drawn by its law
 
     @property
     def n_eps(self) -> int:
@@ -436,6 +437,7 @@ class Campaign:
             c.attempts += 1
         elif algo.certifying and not algo.closing:  # the check failed: close again (spends no beta)
             algo.begin_closing()
+            self._law_switched = True
         c.quiet = 0
         c.escaped_in_streak = 0
         c.changes += 1
@@ -462,7 +464,7 @@ class Campaign:
                            changed[rows], counted[rows])
             return end
 
-        while pos < k:
+        while pos < k and not self._law_switched:
             if algo.enumerates:  # every centre once: any quiet run whose witnesses hold counts
                 offset = algo.next_event(rescreen, pos, ids) - pos
                 quiet = np.arange(pos, pos + offset)
@@ -577,6 +579,11 @@ class Campaign:
             c.steps_simulated += chunk.steps
             if self._commit(p, chunk):
                 self._end_round()
+            elif self._law_switched:
+                # every draw in flight is moved by the new law: drop them as a round end does
+                # (their indices are drawn again, as their replacements would have been)
+                self._law_switched = False
+                self._drop_in_flight()
             else:
                 if p.done == len(p):
                     self.pending.popleft()

@@ -115,6 +115,7 @@ class SPE(Algorithm):
         self._law_cache: tuple | None = None
         self._law_kind: tuple | None = None
         self._band: tuple[int, np.ndarray] | None = None  # (version, mask): the closing law's candidates
+        self._band_share: tuple[int, float] | None = None  # (version, its share of the alive centres)
 
     def _add_roots(self, centres: np.ndarray) -> None:
         self._insert(centres)
@@ -188,7 +189,10 @@ class SPE(Algorithm):
 
     def closing_share(self) -> float:
         """The band's share of the alive centres (closing rounds: coordinator/certification.py)."""
-        return float(np.count_nonzero(self._band_mask())) / max(self.vertices.alive_count, 1)
+        mask = self._band_mask()
+        if self._band_share is None or self._band_share[0] != self.version:
+            self._band_share = (self.version, float(np.count_nonzero(mask)) / max(self.vertices.alive_count, 1))
+        return self._band_share[1]
 
     def begin_check(self) -> None:
         """A closing round ended: check the set (uniform over the final centres)."""
