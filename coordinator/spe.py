@@ -43,6 +43,25 @@ from coordinator.stable_sampler import Draws, Law, StableSampler, UniformLaw, We
 from scenarios.base import Scenario
 from scenarios.streams import RunStreams
 
+class Appended:
+    """An int64 array that only grows at its end (amortized doubling)."""
+
+    def __init__(self, values: np.ndarray | None = None):
+        values = np.zeros(0, dtype=np.int64) if values is None else np.asarray(values, dtype=np.int64)
+        self._buffer, self.count = values.copy(), len(values)
+
+    @property
+    def values(self) -> np.ndarray:
+        return self._buffer[: self.count]
+
+    def extend(self, ids: np.ndarray) -> None:
+        need = self.count + len(ids)
+        if need > len(self._buffer):
+            self._buffer = np.resize(self._buffer, max(need, 2 * len(self._buffer), 64))
+        self._buffer[self.count : need] = ids
+        self.count = need
+
+
 ALPHAS = {"identity": lambda x: x, "square": np.square, "sqrt": np.sqrt}
 REPLAY_CHUNK = 4096  # stored states per greedy pass in experience replay
 
@@ -75,7 +94,7 @@ class SPE(Algorithm):
     certifies = True
     # certificates' entries too: the bulk of a certified campaign's state
     append_only = ("vertices.points", "failures.points", "graph.parent", "replay.index", "replay.take",
-                   "replay.parent", "replay.start", "cert.vertex", "cert.offsets", "cert.witness")
+                   "replay.parent", "replay.start", "cert.vertex", "cert.offsets", "cert.witness", "holes.ids")
 
     def __init__(self, scenario: Scenario, settings: SPESettings, deterministic: bool = False):
         """``deterministic``: a run is a function of its start state (one adversarial
@@ -97,6 +116,7 @@ class SPE(Algorithm):
         self.replay = ReplayBuffer(settings.replay_capacity if settings.replay else 0, deterministic, scenario.n)
         self.certifying = False
         self.phase = CHECK  # while certifying a sampled system: CLOSING or CHECK
+        self.hole_ids = Appended()  # centres pruned in the last round or since: holes in the set
         self.enumeration = Enumeration()  # deterministic certification: the passes over the centres
         self.certificates = Certificates()  # deterministic certification: centres checked
 
@@ -115,6 +135,7 @@ class SPE(Algorithm):
         self._law_cache: tuple | None = None
         self._law_kind: tuple | None = None
         self._band: tuple[int, np.ndarray] | None = None  # (version, mask): the closing law's candidates
+        self._holes = FailureDistances(self.scenario.lower, self.scenario.upper)  # d(vertex, hole)
         self._band_share: tuple[int, float] | None = None  # (version, its share of the alive centres)
 
     def _add_roots(self, centres: np.ndarray) -> None:
@@ -170,15 +191,23 @@ class SPE(Algorithm):
 
     def _band_mask(self) -> np.ndarray:
         """(count,) bool, per version: the closing law's candidates, the alive centres
-        near the failure-side boundary (``_near_boundary``; the whole set when none is).
-        Ids whose membership changed since the last mask are touched: their slots move
-        draws (a failure added since brings centres into the band)."""
+        within sigma-bar + delta of the set's boundary toward failure (``_near_boundary``)
+        or of a hole in it: a centre of the last round pruned since (its box is outside
+        the set now, and runs that reach it leave the set; measured: a third of the
+        violations checks found came from such centres when the band ignored them). The
+        whole set when the band is empty. Ids whose membership changed since the last
+        mask are touched: their slots move draws."""
         if self._band is not None and self._band[0] == self.version:
             return self._band[1]
         count = self.vertices.count
         ids = self.vertices.alive_ids()
+        near = self._near_boundary(ids)
+        if self.hole_ids.count:
+            holes = self.vertices.points[self.hole_ids.values]
+            near |= self._holes.update(self.vertices.points, count, holes, len(holes))[ids] <= \
+                self.scenario.step_bound() + 2 * self.delta
         mask = np.zeros(count, dtype=bool)
-        mask[ids[self._near_boundary(ids)]] = True
+        mask[ids[near]] = True
         if not mask.any():
             mask[ids] = True
         if self._band is not None:
@@ -357,6 +386,8 @@ class SPE(Algorithm):
         split instead: its children at delta take its place, but for those within delta
         of a failure (the pruning reaches it, not all of its volume)."""
         coarse = self.band.coarse(self, ids) if self.band is not None else None
+        if self.final_round:
+            self.hole_ids.extend(ids[self.vertices.alive[ids]])
         self.enumeration.before_prune(self.vertices, self.certificates, ids)
         self.coverage.apply(Kill(ids), self.version)
         self._stable.touch(ids, self.version)
@@ -482,6 +513,7 @@ class SPE(Algorithm):
         out["scalars"] = np.array([self.delta, self.round, self.version], dtype=float)
         out["certification"] = np.array([self.certifying, self.phase == CLOSING], dtype=np.int64)
         out["certification.drawn"] = np.flatnonzero(self.enumeration.drawn)
+        out["holes.ids"] = self.hole_ids.values.copy()
         out.update(self.certificates.state())
         out.update(self.replay.state())
         out.update(self._stable.state())
@@ -500,6 +532,7 @@ class SPE(Algorithm):
         drawn = np.zeros(self.vertices.count, dtype=bool)
         drawn[state["certification.drawn"]] = True
         self.enumeration = Enumeration(drawn)
+        self.hole_ids = Appended(state.get("holes.ids", np.zeros(0, dtype=np.int64)))
         self.certificates = Certificates.from_state(state)
         self.replay.load_state(state)
         self._fresh_samplers()
