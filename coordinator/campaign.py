@@ -166,6 +166,7 @@ class Counters:
     recorded: int = 0  # runs handed to the recorder so far
     attempts: int = 0  # sampled certification: checks begun; deterministic: 1 + changes while certifying
     certification_from: int = -1  # the committed count when certification began (-1: it did not)
+    closing_ends: list = field(default_factory=list)  # committed count at each closing round's end
     truncations: list = field(default_factory=list)  # committed truncated runs per facet (Scenario.facets() order)
 
     def count_truncations(self, chunk: Chunk, rows: np.ndarray) -> None:
@@ -601,25 +602,27 @@ class Campaign:
         start the next round."""
         c, algo = self.counters, self.algorithm
         self._drop_in_flight()
-        c.round_ends.append(c.committed)
-        c.rounds_completed += 1
-        if algo.final_round and self.certify and not algo.certifying:
-            self._next_mixture()
-            algo.begin_certification()  # a closing round first
-            c.certification_from = c.committed
-        elif algo.certifying and algo.closing:  # the closing round ended: check the set
+        if algo.closing:  # a closing round ended: check the set (within the certification round)
+            c.closing_ends.append(c.committed)
             algo.begin_check()
             c.attempts += 1
-        elif algo.final_round:
-            self.final_distribution = algo.sampling_description()
-            c.converged = True
-            c.done = True
-            return
         else:
-            self._next_mixture()
-            algo.end_round()
-            self._experience_replay()
-            self._certify_at_once()
+            c.round_ends.append(c.committed)
+            c.rounds_completed += 1
+            if algo.final_round and self.certify and not algo.certifying:
+                self._next_mixture()
+                algo.begin_certification()  # a closing round first
+                c.certification_from = c.committed
+            elif algo.final_round:
+                self.final_distribution = algo.sampling_description()
+                c.converged = True
+                c.done = True
+                return
+            else:
+                self._next_mixture()
+                algo.end_round()
+                self._experience_replay()
+                self._certify_at_once()
         c.quiet = 0
         c.escaped_in_streak = 0
         c.streak_start = c.committed

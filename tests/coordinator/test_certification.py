@@ -51,8 +51,11 @@ def test_a_certified_campaign_ends_on_a_passed_check_in_few_attempts(seed):
     spe_end = counters.round_ends[algo.round]
     assert counters.certification_from == spe_end
     assert counters.runs_certification == counters.committed - spe_end > 0
-    # the last round end is the passed check, after at least its N runs in a row
-    assert counters.committed - counters.round_ends[-2] >= check_quiet(EPS, BETA, counters.attempts)
+    # certification is one round (SPE's rounds and it), ended by a passed check after the
+    # last closing round: each check follows a closing round
+    assert len(counters.round_ends) == algo.round + 2 and counters.round_ends[-1] == counters.committed
+    assert len(counters.closing_ends) == counters.attempts
+    assert counters.committed - counters.closing_ends[-1] >= check_quiet(EPS, BETA, counters.attempts)
     uncertified, _, _, _ = run_in_process(_config(seed, certify=False))
     assert uncertified.committed == spe_end  # SPE's rounds are the uncertified campaign's, run for run
 
@@ -74,8 +77,7 @@ def test_the_certified_set_passes_a_fresh_validate_more_often_than_not(tmp_path)
 def test_a_larger_margin_closes_longer_and_checks_no_more_often():
     small, _, _, _ = run_in_process(_config(1, certify_margin=1.0))
     large, _, _, _ = run_in_process(_config(1, certify_margin=64.0))
-    first_closing = [c.round_ends[c.round_ends.index(c.certification_from) + 1] - c.certification_from
-                     for c in (small, large)]
+    first_closing = [c.closing_ends[0] - c.certification_from for c in (small, large)]
     assert first_closing[1] > first_closing[0]
     assert large.attempts <= small.attempts
     assert np.all([c.converged for c in (small, large)])
