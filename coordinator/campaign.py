@@ -27,10 +27,10 @@
 - At a round end the driver decays the algorithm's resolution and runs experience
   replay: the algorithm names its stored runs, the executor screens them where they are,
   the algorithm applies what is new.
-- With ``certify``, the last round is followed by a certification round (the final set
-  checked as validate checks it; its count is N_eps split over attempts, or every final
-  centre once for a deterministic system). A change there re-opens the set and restarts
-  the count.
+- With ``certify``, the last round is followed by certification (the final set checked
+  as validate checks it): closing rounds and checks (coordinator/certification.py), or
+  every final centre once for a deterministic system. A closing round's change restarts
+  its count; a check's change ends the check and a closing round follows.
 """
 
 from __future__ import annotations
@@ -46,11 +46,12 @@ import numpy as np
 
 from coordinator.adversary import AdversarySearch
 from coordinator.algorithm import Algorithm, Event
+from coordinator import certification
 from coordinator.commit_log import CommitLog
 from coordinator.coverage import Rescreen
 from coordinator.executor import Chunk, Executor
 from coordinator.replacements import Held, Replacement, ReplacementGroup
-from coordinator.sample_size import n_eps, n_eps_attempt
+from coordinator.sample_size import n_eps
 from coordinator.stable_sampler import Draws
 from scenarios.base import FAILURE, OUTCOME_NAMES, TRUNCATED
 from scenarios.errors import ConfigError
@@ -65,8 +66,8 @@ LEAD_PER_WORKER = 4  # replacements launched this many runs per worker ahead of 
 @dataclass(frozen=True)
 class CampaignSettings:
     """What the driver needs besides the algorithm and the executor (the config's
-    quantify.epsilon, beta, budget, certify, farm.batch_size, pipeline_depth, counting,
-    seed and record.quantify_runs)."""
+    quantify.epsilon, beta, budget, certify, certify_margin, farm.batch_size,
+    pipeline_depth, counting, seed and record.quantify_runs)."""
 
     epsilon: float = 0.001
     beta: float = 0.1
@@ -77,6 +78,7 @@ class CampaignSettings:
     certify: bool = False
     record_limit: int = 0  # state-changing failures kept for the MCAP recording
     counting: str = "sequential"
+    certify_margin: float = certification.MARGIN  # closing rounds aim at eps / margin
 
     def __post_init__(self):
         if self.counting not in COUNTING:
@@ -93,9 +95,13 @@ class CampaignSettings:
         return 0 if self.counting == "sequential" else self.batch_size * self.pipeline_depth
 
     def certification_quiet(self, attempt: int) -> int:
-        """Quiet runs in a row that certify at sampled attempt ``attempt`` (1, 2, ...): beta
-        split over the attempts, so that the set finally exported keeps it."""
-        return n_eps_attempt(self.epsilon, self.beta, attempt)
+        """Quiet runs in a row that pass check ``attempt`` (1, 2, ...): beta split over the
+        checks, so that the set finally exported keeps it."""
+        return certification.check_quiet(self.epsilon, self.beta, attempt)
+
+    def closing_quiet(self, share: float) -> int:
+        """Quiet runs in a row that end a closing round over a band of ``share`` of the centres."""
+        return certification.closing_quiet(self.epsilon, self.beta, self.certify_margin, share)
 
 
 @dataclass
@@ -152,7 +158,9 @@ class Counters:
     round_ends: list = field(default_factory=list)  # committed count at each round end
     elapsed_s: float = 0.0
     recorded: int = 0  # runs handed to the recorder so far
-    attempts: int = 0  # certification attempts (a change during certification starts the next)
+    attempts: int = 0  # sampled certification: checks begun; deterministic: 1 + changes while certifying
+    certification_from: int = -1  # the committed count when certification began (-1: it did not)
+    closing_ends: list = field(default_factory=list)  # committed count at each closing round's end
     truncations: list = field(default_factory=list)  # committed truncated runs per facet (Scenario.facets() order)
 
     def count_truncations(self, chunk: Chunk, rows: np.ndarray) -> None:
@@ -165,6 +173,12 @@ class Counters:
             counts = np.bincount(left, minlength=len(self.truncations))
             counts[: len(self.truncations)] += np.asarray(self.truncations, dtype=np.int64)
             self.truncations = counts.tolist()
+
+    @property
+    def runs_certification(self) -> int:
+        """Committed runs since certification began (closing rounds and checks; for a
+        deterministic system, its last round, which is its certification)."""
+        return self.committed - self.certification_from if self.certification_from >= 0 else 0
 
     @property
     def runs_dropped(self) -> int:
@@ -209,6 +223,7 @@ class Campaign:
         self.held = Held()  # replacements the head committed past before they were back
         self._rewound = False  # a held replacement changed the state: the head went back
         self._stop = False
+        self._law_switched = False  # a check failed: the runs in flight were drawn by its law
 
     @property
     def n_eps(self) -> int:
@@ -495,8 +510,11 @@ class Campaign:
         algo, c = self.algorithm, self.counters
         algo.apply(event)
         self._maybe_record(chunk, row, event.index, event.start)
-        if algo.certifying:
+        if algo.enumerates:
             c.attempts += 1
+        elif algo.certifying and not algo.closing:  # the check failed: close again (spends no beta)
+            algo.begin_closing()
+            self._law_switched = True
         c.quiet = 0
         c.escaped_in_streak = 0
         c.changes += 1
@@ -534,7 +552,7 @@ class Campaign:
                            changed[rows], counted[rows])
             return end
 
-        while pos < k:
+        while pos < k and not self._law_switched:
             if algo.enumerates:  # every centre once: any quiet run whose witnesses hold counts
                 offset = algo.next_event(rescreen, pos, ids) - pos
                 quiet = np.arange(pos, pos + offset)
@@ -691,6 +709,11 @@ class Campaign:
                 continue
             if self._commit(*located):
                 self._end_round()
+            elif self._law_switched:
+                # every draw in flight is moved by the new law: drop them as a round end does
+                # (their indices are drawn again, as their replacements would have been)
+                self._law_switched = False
+                self._drop_in_flight()
             else:
                 self._release()
             c.elapsed_s = time.monotonic() - started
@@ -704,22 +727,27 @@ class Campaign:
         start the next round."""
         c, algo = self.counters, self.algorithm
         self._drop_in_flight()
-        c.round_ends.append(c.committed)
-        c.rounds_completed += 1
-        if algo.final_round and self.certify and not algo.certifying:
-            self._next_mixture()
-            algo.begin_certification()
-            c.attempts = 1
-        elif algo.final_round:
-            self.final_distribution = algo.sampling_description()
-            c.converged = True
-            c.done = True
-            return
+        if algo.closing:  # a closing round ended: check the set (within the certification round)
+            c.closing_ends.append(c.committed)
+            algo.begin_check()
+            c.attempts += 1
         else:
-            self._next_mixture()
-            algo.end_round()
-            self._experience_replay()
-            self._certify_at_once()
+            c.round_ends.append(c.committed)
+            c.rounds_completed += 1
+            if algo.final_round and self.certify and not algo.certifying:
+                self._next_mixture()
+                algo.begin_certification()  # a closing round first
+                c.certification_from = c.committed
+            elif algo.final_round:
+                self.final_distribution = algo.sampling_description()
+                c.converged = True
+                c.done = True
+                return
+            else:
+                self._next_mixture()
+                algo.end_round()
+                self._experience_replay()
+                self._certify_at_once()
         c.quiet = 0
         c.escaped_in_streak = 0
         c.streak_start = c.committed
@@ -738,6 +766,8 @@ class Campaign:
 
     def quiet_needed(self) -> int:
         """Indices in a row that must be resolved and quiet to end the current round."""
+        if self.algorithm.closing:
+            return self.settings.closing_quiet(self.algorithm.closing_share())
         if self.algorithm.certifying:
             return self.settings.certification_quiet(max(self.counters.attempts, 1))
         return self.settings.n_eps
@@ -750,6 +780,7 @@ class Campaign:
         if self.certify and algo.deterministic and algo.final_round and not algo.certifying:
             algo.begin_certification()
             self.counters.attempts = 1
+            self.counters.certification_from = self.counters.committed
 
     def _drop_in_flight(self) -> None:
         """Batches in flight and replacements not yet applied are dropped; their indices
