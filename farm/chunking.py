@@ -45,6 +45,7 @@ LIMIT_FLOOR_S = 5.0  # [s] ... plus this (a loaded machine, a garbage collection
 REPLAY_FLOOR_S = 120.0  # [s] an experience replay's limit at least: its cost per run is not a chunk's
 UNMEASURED_LIMIT_S = 600.0  # [s] a chunk's limit before any chunk has come back
 WORKERS_PER_LANE = 16  # workers per fast lane (an actor that takes only replacements)
+ONE_AT_A_TIME_S = 0.2  # [s] chunks at least this long are sent to an actor one at a time
 
 
 def fast_lanes(workers: int) -> int:
@@ -156,6 +157,14 @@ class ChunkSizer:
                 return (np.array_split(rows[:head], math.ceil(head / first))
                         + (np.array_split(rows[head:], self.chunks(runs - head)) if head < runs else []))
         return np.array_split(rows, self.chunks(runs, urgent, lanes))
+
+    def one_at_a_time(self, runs: int) -> bool:
+        """Are chunks of ``runs`` runs long enough to send an actor one at a time (the
+        others wait with the driver, replacements first)? An actor then waits for its next
+        chunk as long as the driver takes to see it finish, a few ms: nothing against
+        ``ONE_AT_A_TIME_S``; shorter chunks are sent at once (fast lanes take replacements)."""
+        expected = self.expected_s(runs)
+        return expected is not None and expected >= ONE_AT_A_TIME_S
 
     def batch_size(self, requested: int) -> int:
         """Runs per batch that give every worker a chunk of at least the affordable size

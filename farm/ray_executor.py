@@ -311,7 +311,11 @@ class RayExecutor(Executor):
             urgent = indices is not None
             lanes = self._lanes if urgent else 0  # replacements go to the lanes
             idle = 0 if urgent else sum(1 for slot in self.pool.slots if not slot.queue and not slot.lane and not slot.down)
-            for rows in self.sizer.cut(n - at, urgent, lanes, idle):
+            cut = self.sizer.cut(n - at, urgent, lanes, idle)
+            if not urgent:  # long chunks wait in the pool, so that a replacement waits for none of them
+                self.pool.depth = 1 if self.sizer.one_at_a_time(max(len(rows) for rows in cut)) else 0
+                self.pool.dispatch()
+            for rows in cut:
                 handles.append(self._send(first_index, starts, screen, actions, indices, rows + at))
         return handles
 
@@ -360,6 +364,9 @@ class RayExecutor(Executor):
         job = self._jobs[handle]
         if job.summary is not None:
             return True
+        self.pool.poll_now()  # chunks waiting in the pool go out as actors finish
+        if job.ref is None:
+            return False
         ready, _ = self.ray.wait([job.ref], timeout=0)
         return bool(ready)
 
@@ -508,7 +515,7 @@ class RayExecutor(Executor):
         job = self._jobs.pop(handle, None)
         if job is None:
             return
-        job.dropped = True
+        job.dropped = True  # a chunk still waiting in the pool is never sent
         if job.summary is None and job.actor >= 0:
             # its changes may never reach the actor: the next message starts from what is known
             slot = self.pool.slots[job.actor]

@@ -18,8 +18,11 @@ simulator (shared/spec/scaling.md):
   thread time, the in-process simulation excluded): a driver that cannot keep up shows;
 - a chunk cancelled before a worker took it never runs; experience replay's screening
   is shared by the workers;
-- replacements go to fast lanes of their own, as on Ray (one per 16 workers), as a wave
-  over them; the lanes' time is not counted in the workers' utilisation.
+- replacements, as on Ray: while chunks are long (farm/chunking.py ``one_at_a_time``)
+  a worker holds one chunk and the driver the others, so the next free worker takes a
+  replacement first; short chunks are all sent at once and replacements go to fast
+  lanes (one per 16 workers) as a wave over them; the lanes' time is not counted in the
+  workers' utilisation.
 
 ``clock`` is the simulated time to the result; ``utilisation`` the share of worker time
 spent on runs.
@@ -68,9 +71,9 @@ class VirtualExecutor(Executor):
 
     def __init__(self, spec: SimSpec, workers: int, run_time: float, jitter: float = 0.0, call_cost: float = 0.001,
                  pipeline_depth: int = 2, check_step_bound: bool = False, lanes: int | None = None):
-        """``lanes``: replacements go to workers of their own that take nothing else, as
-        a wave over them (None: as many as the Ray executor starts, farm/chunking.py
-        ``fast_lanes``); 0: to the next free worker, before any queued chunk."""
+        """``lanes``: while chunks are short, replacements go to workers of their own that
+        take nothing else, as a wave over them (None: as many as the Ray executor starts,
+        farm/chunking.py ``fast_lanes``; 0: to the next free worker, before any queued chunk)."""
         self.spec = spec
         self.local = LocalExecutor(spec, check_step_bound)
         self.workers = workers
@@ -85,6 +88,7 @@ class VirtualExecutor(Executor):
         self._free: list[float] = [0.0] * workers  # a heap of the workers' free times
         self._queue: deque[int] = deque()  # handles no worker has taken yet, in order
         self.lanes = fast_lanes(workers) if lanes is None else int(lanes)
+        self._one_at_a_time = False  # the latest batch's chunks are long (see submit)
         self._lane_free: list[float] = [0.0] * self.lanes  # a heap of the lanes' free times
         self._lane_queue: deque[int] = deque()
         self._jobs: dict[int, _Job] = {}
@@ -152,13 +156,20 @@ class VirtualExecutor(Executor):
             self._dispatch(self.clock, handles[0])
             self._measure(self._jobs[handles[0]])
             at = 1
+        # as on Ray: while chunks are long, each worker holds one and the others wait with
+        # the driver, so a replacement goes to the next free worker; short chunks are all
+        # sent at once, and replacements go to the fast lanes
+        lanes = 0 if self._one_at_a_time else self.lanes
         if n > at:
             idle = self._idle() if indices is None else 0
-            for rows in self.sizer.cut(n - at, indices is not None, self.lanes, idle=idle):
+            cut = self.sizer.cut(n - at, indices is not None, lanes, idle=idle)
+            if indices is None:
+                self._one_at_a_time = self.sizer.one_at_a_time(max(len(rows) for rows in cut))
+            for rows in cut:
                 handles.append(self._cut(batch, at + int(rows[0]), at + int(rows[-1]) + 1, indices))
         if indices is None:
             self._queue.extend(handles[at:])
-        elif self.lanes:  # replacements: to the lanes, which take nothing else
+        elif lanes:  # replacements: to the lanes, which take nothing else
             self._lane_queue.extend(handles[at:])
         else:  # replacements: the next free worker takes them first
             self._queue.extendleft(reversed(handles[at:]))
