@@ -16,7 +16,8 @@
                               algorithm names its stored runs, the driver has the executor
                               screen them, the algorithm applies what is new
     begin_certification(), certify_runs(...)   the certification round, for an algorithm
-                              that ``certifies``
+                              that ``certifies``; begin_check(), begin_closing() switch a
+                              sampled one between closing rounds and checks
 
 Everything a run is screened against lives in ``coverage`` and changes only through
 ``coverage.apply``, so that workers can screen runs on mirrors of it (see
@@ -136,7 +137,25 @@ class Algorithm(ABC):
 
     @abstractmethod
     def begin_certification(self) -> None:
-        """Enter the certification round (only when ``certifies``)."""
+        """Enter certification (only when ``certifies``): a sampled system's starts with a
+        closing round (coordinator/certification.py)."""
+
+    @property
+    def closing(self) -> bool:
+        """In a closing round of a sampled certification: its changes spend no beta."""
+        return False
+
+    def closing_share(self) -> float:
+        """The closing rounds' band: its share of the alive centres."""
+        return 1.0
+
+    def begin_check(self) -> None:
+        """A closing round ended: the next rounds check the set (they spend beta)."""
+        raise NotImplementedError(f"{type(self).__name__} has no closing rounds")
+
+    def begin_closing(self) -> None:
+        """A check found a violation, applied already: a closing round follows."""
+        raise NotImplementedError(f"{type(self).__name__} has no closing rounds")
 
     @abstractmethod
     def certify_runs(self, start_ids: np.ndarray, offsets: np.ndarray, witnesses: np.ndarray) -> int:

@@ -10,12 +10,15 @@
   re-decides each run at the current version from its witnesses.
 - Coupled counting. At commit a run is *exact* when its start is still the draw its
   stream makes at the current state (only runs whose examined slots a change touched are
-  drawn again to know); an exact run is what the one-run-at-a-time campaign runs at that
+  looked at again, and the law asked about those slots); an exact run is what the one-run-at-a-time campaign runs at that
   index, and is used as it would use it. A *mispredicted* run is discarded unseen and
   replaced: the current draw, the same index and streams, applied ``lag`` indices later
   (``counting = "sequential"``: lag 0, waited for at the head, so the committed sequence
   is the sequential campaign's at any window; ``"deferred"``: lag = the window,
   batch_size x pipeline_depth). A replacement that a later change moves is replaced again.
+- The head does not wait for a due replacement that is not back: it commits on past it
+  (a hold, coordinator/replacements.py) as long as nothing changes the state, and goes
+  back if the replacement, once applied, does. Results never depend on it.
 - The streak is the index range after the last change. A round ends when N_eps
   consecutive indices of it are resolved (exact or replaced) and quiet: the head stops
   at its end and waits for the streak's replacements. Batches in flight and replacements
@@ -24,14 +27,16 @@
 - At a round end the driver decays the algorithm's resolution and runs experience
   replay: the algorithm names its stored runs, the executor screens them where they are,
   the algorithm applies what is new.
-- With ``certify``, the last round is followed by a certification round (the final set
-  checked as validate checks it; its count is N_eps split over attempts, or every final
-  centre once for a deterministic system). A change there re-opens the set and restarts
-  the count.
+- With ``certify``, the last round is followed by certification (the final set checked
+  as validate checks it): closing rounds and checks (coordinator/certification.py), or
+  every final centre once for a deterministic system. A closing round's change restarts
+  its count; a check's change ends the check and a closing round follows.
 """
 
 from __future__ import annotations
 
+import bisect
+import dataclasses
 import time
 from collections import deque
 from dataclasses import asdict, dataclass, field
@@ -41,10 +46,12 @@ import numpy as np
 
 from coordinator.adversary import AdversarySearch
 from coordinator.algorithm import Algorithm, Event
+from coordinator import certification
 from coordinator.commit_log import CommitLog
 from coordinator.coverage import Rescreen
 from coordinator.executor import Chunk, Executor
-from coordinator.sample_size import n_eps, n_eps_attempt
+from coordinator.replacements import Held, Replacement, ReplacementGroup
+from coordinator.sample_size import n_eps
 from coordinator.stable_sampler import Draws
 from scenarios.base import FAILURE, OUTCOME_NAMES, TRUNCATED
 from scenarios.errors import ConfigError
@@ -59,8 +66,8 @@ LEAD_PER_WORKER = 4  # replacements launched this many runs per worker ahead of 
 @dataclass(frozen=True)
 class CampaignSettings:
     """What the driver needs besides the algorithm and the executor (the config's
-    quantify.epsilon, beta, budget, certify, farm.batch_size, pipeline_depth, counting,
-    seed and record.quantify_runs)."""
+    quantify.epsilon, beta, budget, certify, certify_margin, farm.batch_size,
+    pipeline_depth, counting, seed and record.quantify_runs)."""
 
     epsilon: float = 0.001
     beta: float = 0.1
@@ -71,6 +78,7 @@ class CampaignSettings:
     certify: bool = False
     record_limit: int = 0  # state-changing failures kept for the MCAP recording
     counting: str = "sequential"
+    certify_margin: float = certification.MARGIN  # closing rounds aim at eps / margin
 
     def __post_init__(self):
         if self.counting not in COUNTING:
@@ -87,55 +95,47 @@ class CampaignSettings:
         return 0 if self.counting == "sequential" else self.batch_size * self.pipeline_depth
 
     def certification_quiet(self, attempt: int) -> int:
-        """Quiet runs in a row that certify at sampled attempt ``attempt`` (1, 2, ...): beta
-        split over the attempts, so that the set finally exported keeps it."""
-        return n_eps_attempt(self.epsilon, self.beta, attempt)
+        """Quiet runs in a row that pass check ``attempt`` (1, 2, ...): beta split over the
+        checks, so that the set finally exported keeps it."""
+        return certification.check_quiet(self.epsilon, self.beta, attempt)
+
+    def closing_quiet(self, share: float) -> int:
+        """Quiet runs in a row that end a closing round over a band of ``share`` of the centres."""
+        return certification.closing_quiet(self.epsilon, self.beta, self.certify_margin, share)
 
 
 @dataclass
 class Pending:
-    """A batch of draws from ``first_index`` on; ``done`` of its runs are committed."""
+    """A batch of draws from ``first_index`` on, and its chunks fetched so far (kept until
+    every run of the batch is committed for good: the head may go back into it)."""
 
     first_index: int
     draws: Draws
     starts: np.ndarray
     handles: list = field(default_factory=list)
-    done: int = 0
     next_handle: int = 0
+    chunks: list = field(default_factory=list)  # fetched, in index order (contiguous)
+    ends: list = field(default_factory=list)  # each fetched chunk's end index
 
     def __len__(self) -> int:
         return len(self.draws)
 
+    @property
+    def end(self) -> int:
+        return self.first_index + len(self.draws)
 
-class ReplacementGroup:
-    """Replacements submitted together, as one batch: the chunks they travel in (in the
-    batch's order), fetched on demand."""
+    def done(self, head: int) -> int:
+        """Its runs before index ``head``."""
+        return min(max(head - self.first_index, 0), len(self.draws))
 
-    def __init__(self, handles: list):
-        self.handles = list(handles)
-        self.chunks: list[Chunk] = []
-        self.rows = 0  # rows of the chunks fetched so far
+    def chunk_at(self, index: int) -> Chunk | None:
+        """The fetched chunk that holds run ``index``, if fetched."""
+        at = bisect.bisect_right(self.ends, index)
+        return self.chunks[at] if at < len(self.chunks) else None
 
-    def find(self, position: int) -> tuple[Chunk, int] | None:
-        """The chunk and row of the batch's ``position``-th run, if fetched."""
-        for chunk in self.chunks:
-            if position < len(chunk):
-                return chunk, position
-            position -= len(chunk)
-        return None
-
-
-@dataclass
-class Replacement:
-    """The run that replaces a mispredicted one: index ``index``, drawn as ``draws``
-    (one draw), applied before the head commits index ``due`` + 1."""
-
-    index: int
-    draws: Draws
-    start: np.ndarray
-    due: int
-    group: ReplacementGroup | None = None
-    position: int = 0  # its row in its group's batch
+    def fetched(self, chunk: Chunk) -> None:
+        self.chunks.append(chunk)
+        self.ends.append(chunk.first_index + len(chunk))
 
 
 @dataclass
@@ -158,7 +158,9 @@ class Counters:
     round_ends: list = field(default_factory=list)  # committed count at each round end
     elapsed_s: float = 0.0
     recorded: int = 0  # runs handed to the recorder so far
-    attempts: int = 0  # certification attempts (a change during certification starts the next)
+    attempts: int = 0  # sampled certification: checks begun; deterministic: 1 + changes while certifying
+    certification_from: int = -1  # the committed count when certification began (-1: it did not)
+    closing_ends: list = field(default_factory=list)  # committed count at each closing round's end
     truncations: list = field(default_factory=list)  # committed truncated runs per facet (Scenario.facets() order)
 
     def count_truncations(self, chunk: Chunk, rows: np.ndarray) -> None:
@@ -171,6 +173,12 @@ class Counters:
             counts = np.bincount(left, minlength=len(self.truncations))
             counts[: len(self.truncations)] += np.asarray(self.truncations, dtype=np.int64)
             self.truncations = counts.tolist()
+
+    @property
+    def runs_certification(self) -> int:
+        """Committed runs since certification began (closing rounds and checks; for a
+        deterministic system, its last round, which is its certification)."""
+        return self.committed - self.certification_from if self.certification_from >= 0 else 0
 
     @property
     def runs_dropped(self) -> int:
@@ -212,7 +220,10 @@ class Campaign:
         self._ahead: dict[int, Replacement] = {}
         self._changes_seen = self.counters.changes
         self._ahead_to = 0  # launched ahead up to this index (when nothing changed since)
+        self.held = Held()  # replacements the head committed past before they were back
+        self._rewound = False  # a held replacement changed the state: the head went back
         self._stop = False
+        self._law_switched = False  # a check failed: the runs in flight were drawn by its law
 
     @property
     def n_eps(self) -> int:
@@ -224,28 +235,32 @@ class Campaign:
     # -- drawing ------------------------------------------------------------------------
     def _next_draw_index(self) -> int:
         if self.pending:
-            last = self.pending[-1]
-            return last.first_index + len(last)
+            return self.pending[-1].end
         return self.counters.committed
 
     def _fill(self) -> None:
-        """Keep ``pipeline_depth`` batches drawn and submitted (fewer when the budget ends)."""
+        """Keep ``pipeline_depth`` batches drawn and submitted ahead of the head (fewer
+        when the budget ends); batches the head has passed but may go back into do not count."""
         s, algo = self.settings, self.algorithm
         # sequential counting: the batch size changes no sampled run, so it follows the
         # workers; an enumeration (every centre once) hands centres out batch by batch, so
         # its order follows the configured batch size, never the workers
         follows = s.lag == 0 and not algo.enumerates
         batch = self.executor.batch_size(s.batch_size) if follows else s.batch_size
-        while len(self.pending) < s.pipeline_depth:
+        head = self.counters.committed
+        ahead = sum(1 for p in self.pending if p.end > head)
+        while ahead < s.pipeline_depth:
             first = self._next_draw_index()
             size = min(batch, s.budget - first)
             if size <= 0:
                 break
             draws = algo.draw(self._streams(np.arange(first, first + size)))
             self.pending.append(Pending(first, draws, algo.vertices.points[draws.ids]))  # may be < size
+            ahead += 1
         for p in self.pending:
-            if not p.handles:
-                p.handles = self.executor.submit(p.first_index + p.done, p.starts[p.done :], algo.coverage,
+            if not p.handles and not p.chunks:
+                done = p.done(head)
+                p.handles = self.executor.submit(p.first_index + done, p.starts[done:], algo.coverage,
                                                  actions=self._actions())
         self._launch_ahead()
         self._send_replacements()
@@ -255,24 +270,24 @@ class Campaign:
 
     # -- exact or replaced -----------------------------------------------------------------
     def _verify(self, p: Pending, lo: int, hi: int) -> np.ndarray:
-        """(hi - lo,) bool: which runs ``lo:hi`` of batch ``p`` are exact now. A run a change
-        may have moved is drawn again: if its stream draws the same vertex it is exact
-        (its draw record is renewed), else it is mispredicted."""
+        """(hi - lo,) bool: which runs ``lo:hi`` of batch ``p`` are exact now: their streams
+        draw their starts. A stream whose current draw a change may have moved is drawn
+        again (and its current draw kept: a start the set moved away from is not drawn
+        again until a change touches what its stream draws now)."""
         algo = self.algorithm
-        moved = algo.moved(p.draws.span(lo, hi))
-        exact = ~moved
+        span = p.draws.span(lo, hi)
+        moved = algo.moved(span)
+        exact = span.now == span.ids
         if moved.any():
             exact[moved], _ = self._redraw(p, lo + np.flatnonzero(moved))
         return exact
 
     def _redraw(self, p: Pending, rows: np.ndarray) -> tuple[np.ndarray, Draws]:
-        """Draw runs ``rows`` of batch ``p`` again: -> (still the same vertex, the fresh
-        draws). A run still drawn has its draw record renewed (later checks start from now)."""
+        """Draw runs ``rows`` of batch ``p`` again: -> (still their starts, the fresh draws);
+        the fresh draws become their current ones (later checks start from now)."""
         fresh = self.algorithm.draw(self._streams(p.first_index + rows))
-        same = fresh.ids == p.draws.ids[rows]
-        if same.any():
-            p.draws.replace_rows(rows[same], fresh.rows(np.flatnonzero(same)))
-        return same, fresh
+        p.draws.track(rows, fresh)
+        return fresh.ids == p.draws.ids[rows], fresh
 
     def _replace(self, index: int) -> None:
         """Launch the replacement of run ``index`` from its stream's current draw, due
@@ -282,13 +297,20 @@ class Campaign:
         ahead = self._ahead.pop(index, None)
         if ahead is not None and self._still_drawn(ahead):
             ahead.due = due
-            self.replacements.append(ahead)
+            self._queue(ahead)
         else:
             draws = self.algorithm.draw(self._streams([index]))
             replacement = Replacement(index, draws, self.algorithm.vertices.points[draws.ids[0]], due)
-            self.replacements.append(replacement)  # in due order: due grows with the head
+            self._queue(replacement)
             self._unsent.append(replacement)
         c.runs_discarded += 1
+
+    def _queue(self, r: Replacement) -> None:
+        """Queue ``r`` in due order (then index order: a replacement drawn again keeps its place)."""
+        at = len(self.replacements)
+        while at and (self.replacements[at - 1].due, self.replacements[at - 1].index) > (r.due, r.index):
+            at -= 1
+        self.replacements.insert(at, r)
 
     def _still_drawn(self, r: Replacement) -> bool:
         """Is ``r``'s start what its stream draws now?"""
@@ -315,7 +337,7 @@ class Campaign:
         end = head + self._lead()
         self._ahead_to = end
         for p in self.pending:
-            lo, hi = max(p.done, start - p.first_index), min(len(p), end - p.first_index)
+            lo, hi = max(p.done(head), start - p.first_index), min(len(p), end - p.first_index)
             if not p.handles or lo >= hi:
                 continue
             flagged = lo + np.flatnonzero(algo.moved(p.draws.span(lo, hi)))
@@ -348,19 +370,61 @@ class Campaign:
         for position, r in enumerate(batch):
             r.group, r.position = group, position
 
+    def _take(self, group: ReplacementGroup) -> None:
+        """Fetch the next chunk of ``group`` (its handle is dropped only once it is read:
+        a stop while waiting leaves the group as it was)."""
+        c = self.counters
+        chunk = self.executor.result(group.handles[0])
+        group.handles.pop(0)
+        c.runs_simulated += len(chunk)
+        c.steps_simulated += chunk.steps
+        group.fetched(chunk)
+
     def _fetch(self, r: Replacement) -> tuple[Chunk, int]:
         """Wait for replacement ``r``'s run: its chunk and row."""
         if r.group is None:
             self._send_replacements()
-        group, c = r.group, self.counters
-        found = group.find(r.position)
+        found = r.group.find(r.position)
         while found is None:
-            chunk = self.executor.result(group.handles.pop(0))
-            c.runs_simulated += len(chunk)
-            c.steps_simulated += chunk.steps
-            group.chunks.append(chunk)
-            found = group.find(r.position)
+            self._take(r.group)
+            found = r.group.find(r.position)
         return found
+
+    def _back(self, r: Replacement) -> bool:
+        """Is replacement ``r``'s run back (fetched without waiting for a worker)?"""
+        if r.group is None:
+            self._send_replacements()
+        group = r.group
+        while group.find(r.position) is None:
+            if not group.handles or not self.executor.ready(group.handles[0]):
+                return False
+            self._take(group)
+        return True
+
+    # -- holds -------------------------------------------------------------------------------
+    def _settle(self, wait: bool) -> bool:
+        """Apply the held replacements, oldest first: those that are back (all of them,
+        waiting, with ``wait``). True if one changed the state (the head went back)."""
+        while self.held:
+            r = self.held.first.replacement
+            if not wait and not self._back(r):
+                return False
+            chunk, row = self._fetch(r)  # a stop while waiting leaves the hold in place
+            if self._use_replacement(r, chunk, row, held=True):
+                return True
+        return False
+
+    def _rewind_to_first_hold(self) -> None:
+        """The first hold's replacement changes the state: back to just after its index."""
+        hold, later = self.held.rewind(self.counters)
+        head = self.counters.committed
+        kept = {id(r) for r in hold.queue}
+        dropped = later + [r for r in self.replacements if id(r) not in kept]
+        self.replacements = deque(hold.queue)
+        for r in dropped:  # drawn for indices the head commits again: launched ahead, if still drawn then
+            if r.index >= head and r.index not in self._ahead:
+                self._ahead[r.index] = r
+        self._rewound = True
 
     # -- committing ------------------------------------------------------------------------
     def _streak_complete(self) -> bool:
@@ -368,50 +432,77 @@ class Campaign:
         return c.committed - c.streak_start >= self.quiet_needed()
 
     def _finish_streak(self) -> bool:
-        """The head is at the streak's end: apply the streak's replacements, in due order.
-        True if every index of the streak is resolved and quiet (the round ends); False
-        if one changed the state (the streak starts again at the head)."""
+        """The head is at the streak's end: apply the held replacements and then the
+        streak's queued ones, in due order. True if every index of the streak is resolved
+        and quiet (the round ends); False if one changed the state (the streak starts again)."""
         c = self.counters
+        if self._settle(wait=True):
+            return False
         while True:
             waiting = [r for r in self.replacements if r.index >= c.streak_start]
             if not waiting:
                 return True
-            self.replacements.remove(waiting[0])
             if self._apply_replacement(waiting[0]):
                 return False
 
-    def _resolve_all(self) -> None:
+    def _resolve_all(self) -> bool:
         """The budget is spent: every committed index gets its run, so apply the
-        replacements still pending (as a one-run-at-a-time campaign would have run them)."""
+        replacements still pending (as a one-run-at-a-time campaign would have run them).
+        False if a held one changed the state (the head went back below the budget)."""
+        if self._settle(wait=True):
+            return False
         while self.replacements:
-            self._apply_replacement(self.replacements.popleft())
+            self._apply_replacement(self.replacements[0])
+        return True
 
     def _apply_due(self) -> None:
-        """Apply the replacements due before the head's index."""
+        """The replacements due before the head's index: applied if back and nothing is
+        held, else held (the head commits on past them)."""
         c = self.counters
         while self.replacements and self.replacements[0].due < c.committed:
-            self._apply_replacement(self.replacements.popleft())
+            r = self.replacements[0]
+            if not self._still_drawn(r):  # a change since moved it: replaced again, unseen
+                self.replacements.popleft()
+                self._replace(r.index)
+            elif self.held or not self._back(r):
+                self.replacements.popleft()
+                self.held.hold(r, c, self.replacements)
+            else:
+                self._apply_replacement(r)
 
     def _apply_replacement(self, r: Replacement) -> bool:
-        """Use replacement ``r`` as the run of its index if it is still what its stream
-        draws now, else replace it again (unseen). True if it changed the state."""
-        algo, c = self.algorithm, self.counters
+        """Use queued replacement ``r`` as the run of its index if it is still what its
+        stream draws now, else replace it again (unseen). True if it changed the state."""
         if not self._still_drawn(r):
+            self.replacements.remove(r)
             self._replace(r.index)
             return False
-        chunk, row = self._fetch(r)
-        rescreen = Rescreen(algo.coverage, chunk.screening, chunk.outcomes, chunk.visited)
+        chunk, row = self._fetch(r)  # a stop while waiting leaves it queued
+        self.replacements.remove(r)
+        return self._use_replacement(r, chunk, row)
+
+    def _use_replacement(self, r: Replacement, chunk: Chunk, row: int, held: bool = False) -> bool:
+        """Replacement ``r``'s run (``chunk``, ``row``) as the run of its index; ``held``:
+        it is the first hold (the head went past it). True if it changed the state."""
+        algo, c = self.algorithm, self.counters
+        rescreen = self._rescreen(chunk)
         start_id = r.draws.ids[:1]
         changes = rescreen.next_event(row) == row
+        if held and changes:
+            self._rewind_to_first_hold()
+        counted = not changes and r.index >= c.streak_start
+        escaped = int(chunk.screening.escaped[row]) if counted else 0
         c.runs_replaced += 1
         if changes:
             self._change(Event(r.index, r.start, int(start_id[0]), bool(chunk.outcomes[row] == FAILURE),
                                rescreen.candidates(row), *rescreen.classification(row)), chunk, row)
-        elif r.index >= c.streak_start:
+        elif counted:
             c.quiet += 1
-            c.escaped_in_streak += int(chunk.screening.escaped[row])
+            c.escaped_in_streak += escaped
         self._log_rows(chunk, np.array([row]), r.index, r.start[None, :], start_id, CommitLog.REPLACEMENT,
-                       np.array([changes]), np.array([not changes and r.index >= c.streak_start]))
+                       np.array([changes]), np.array([counted]), now=True)
+        if held and not changes:
+            self.held.applied_quiet({"runs_replaced": 1, "quiet": int(counted), "escaped_in_streak": escaped})
         return changes
 
     def _change(self, event: Event, chunk: Chunk, row: int) -> None:
@@ -419,35 +510,49 @@ class Campaign:
         algo, c = self.algorithm, self.counters
         algo.apply(event)
         self._maybe_record(chunk, row, event.index, event.start)
-        if algo.certifying:
+        if algo.enumerates:
             c.attempts += 1
+        elif algo.certifying and not algo.closing:  # the check failed: close again (spends no beta)
+            algo.begin_closing()
+            self._law_switched = True
         c.quiet = 0
         c.escaped_in_streak = 0
         c.changes += 1
         c.streak_start = c.committed  # runs before the head were decided at the old state
 
+    def _rescreen(self, chunk: Chunk) -> Rescreen:
+        """The chunk's runs re-decided at the current coverage: one per chunk, kept with it
+        (what it found stands until the coverage changes)."""
+        coverage = self.algorithm.coverage
+        if chunk.rescreen is None or chunk.rescreen.coverage is not coverage:
+            chunk.rescreen = Rescreen(coverage, chunk.screening, chunk.outcomes, chunk.visited)
+        return chunk.rescreen
+
     def _commit(self, p: Pending, chunk: Chunk) -> bool:
-        """Commit one chunk of batch ``p`` in index order (``counters.committed``, the head,
-        walks its indices). True if the round ended in it."""
+        """Commit runs of one chunk of batch ``p`` in index order, from the head's index
+        (``counters.committed``, the head, walks its indices) to the chunk's end, or until
+        the head goes back (a held replacement changed the state). True if the round ended."""
         algo, c = self.algorithm, self.counters
         at = chunk.first_index - p.first_index
         k = len(chunk)
         starts, ids = p.starts[at : at + k], p.draws.ids[at : at + k]
-        rescreen = Rescreen(algo.coverage, chunk.screening, chunk.outcomes, chunk.visited)
+        rescreen = self._rescreen(chunk)
         kind = np.zeros(k, dtype=np.int8)
         changed = np.zeros(k, dtype=bool)
         counted = np.zeros(k, dtype=bool)
-        pos, ended, block, logged = 0, False, VERIFY_BLOCK, 0
+        pos = c.committed - chunk.first_index
+        ended, block, logged = False, VERIFY_BLOCK, pos
 
         def log_upto(end: int) -> int:
             """Log rows [logged, end): runs are logged (and stored for experience replay) in
-            the order they are committed, replacements in between."""
+            the order they are committed, replacements in between. Called before anything
+            that may wait: a stop then finds the ledger and the head in step."""
             rows = np.arange(logged, end)
             self._log_rows(chunk, rows, chunk.first_index + logged, starts[rows], ids[rows], kind[rows],
                            changed[rows], counted[rows])
             return end
 
-        while pos < k:
+        while pos < k and not self._law_switched:
             if algo.enumerates:  # every centre once: any quiet run whose witnesses hold counts
                 offset = algo.next_event(rescreen, pos, ids) - pos
                 quiet = np.arange(pos, pos + offset)
@@ -463,7 +568,7 @@ class Campaign:
                 if self._streak_complete():
                     logged = log_upto(pos)
                     ended = self._finish_streak()
-                    if ended:
+                    if ended or self._rewound:
                         break
                     continue
                 if c.committed >= self.settings.budget:
@@ -497,33 +602,48 @@ class Campaign:
                         self._send_replacements()
                     pos += 1
                     continue
+                if self.held:  # a change: only once every replacement before it is applied
+                    logged = log_upto(pos)
+                    if self._settle(wait=True):
+                        break
             c.committed += 1
             self._change(Event(chunk.first_index + pos, starts[pos], int(ids[pos]),
                                bool(chunk.outcomes[pos] == FAILURE), rescreen.candidates(pos),
                                *rescreen.classification(pos)), chunk, pos)
             changed[pos] = True
             pos += 1
-        p.done = at + pos
+        if self._rewound:  # the rows from the hold on are committed again
+            self._rewound = False
+            return False
         log_upto(pos)
         return ended
 
     def _log_rows(self, chunk: Chunk, rows: np.ndarray, first_index: int, starts: np.ndarray, ids: np.ndarray,
-                  kind, changed: np.ndarray, counted: np.ndarray) -> None:
+                  kind, changed: np.ndarray, counted: np.ndarray, now: bool = False) -> None:
         """Rows ``rows`` of ``chunk``, committed or discarded as indices ``first_index,
         first_index + 1, ...`` (``starts``, ``ids``: theirs): to the ledger; the runs used
-        also to experience replay and the adversary."""
+        also to experience replay and the adversary. Held until the holds before them are
+        applied, unless ``now`` (the first hold's own run)."""
         if len(rows) == 0:
             return
         algo = self.algorithm
         kind = np.broadcast_to(np.asarray(kind, dtype=np.int8), (len(rows),))
-        self.log.add(first_index, starts, chunk, rows, algo.round, algo.delta, changed, counted, kind)
-        used = np.flatnonzero(kind != CommitLog.DISCARDED)
-        if len(used) == 0:
-            return
-        algo.record(chunk, rows[used], ids[used], starts[used])
-        self.counters.count_truncations(chunk, rows[used])
-        if self.adversary is not None:
-            self.adversary.observe(first_index + used, chunk.outcomes[rows[used]])
+        round_, delta = algo.round, algo.delta
+
+        def apply() -> None:
+            self.log.add(first_index, starts, chunk, rows, round_, delta, changed, counted, kind)
+            used = np.flatnonzero(kind != CommitLog.DISCARDED)
+            if len(used) == 0:
+                return
+            algo.record(chunk, rows[used], ids[used], starts[used])
+            self.counters.count_truncations(chunk, rows[used])
+            if self.adversary is not None:
+                self.adversary.observe(first_index + used, chunk.outcomes[rows[used]])
+
+        if now:
+            apply()
+        else:
+            self.held.effect(apply)
 
     def _maybe_record(self, chunk: Chunk, row: int, index: int, start: np.ndarray) -> None:
         """Keep the trajectory of a state-changing failure for the MCAP recording (the
@@ -544,6 +664,31 @@ class Campaign:
     def stopping(self) -> bool:
         return self._stop
 
+    def _at_head(self) -> tuple[Pending, Chunk] | None:
+        """The batch and fetched chunk that hold the head's run (fetching, in order, the
+        chunks up to it); None when no batch is drawn there (the budget is spent)."""
+        head = self.counters.committed
+        p = next((q for q in self.pending if q.first_index <= head < q.end), None)
+        if p is None:
+            return None
+        chunk = p.chunk_at(head)
+        while chunk is None:
+            chunk = self.executor.result(p.handles[p.next_handle])
+            p.next_handle += 1
+            self.counters.runs_simulated += len(chunk)
+            self.counters.steps_simulated += chunk.steps
+            p.fetched(chunk)
+            if not chunk.first_index <= head < chunk.first_index + len(chunk):
+                chunk = None
+        return p, chunk
+
+    def _release(self) -> None:
+        """Drop the batches whose every run is committed for good (the head cannot go back
+        into them: they end before the first hold's index)."""
+        final = self.held.first.counts["committed"] if self.held else self.counters.committed
+        while self.pending and self.pending[0].end <= final:
+            self.pending.popleft()
+
     def run(self) -> Counters:
         c = self.counters
         started = time.monotonic() - c.elapsed_s
@@ -551,23 +696,26 @@ class Campaign:
             self._certify_at_once()  # delta0 = delta_min: the first round is the last
         while not c.done and not self._stop:
             self._fill()
-            if not self.pending:
-                self._resolve_all()
-                c.done = True  # budget exhausted before the last round converged
-                break
-            p = self.pending[0]
-            chunk = self.executor.result(p.handles[p.next_handle])
-            p.next_handle += 1
-            c.runs_simulated += len(chunk)
-            c.steps_simulated += chunk.steps
-            if self._commit(p, chunk):
+            self._settle(wait=False)
+            if self._rewound:
+                self._rewound = False
+                continue
+            located = self._at_head() if c.committed < self.settings.budget else None
+            if located is None:  # the budget is spent
+                if self._resolve_all():
+                    c.done = True  # budget exhausted before the last round converged
+                    break
+                self._rewound = False
+                continue
+            if self._commit(*located):
                 self._end_round()
+            elif self._law_switched:
+                # every draw in flight is moved by the new law: drop them as a round end does
+                # (their indices are drawn again, as their replacements would have been)
+                self._law_switched = False
+                self._drop_in_flight()
             else:
-                if p.done == len(p):
-                    self.pending.popleft()
-                if c.committed >= self.settings.budget:
-                    self._resolve_all()
-                    c.done = True
+                self._release()
             c.elapsed_s = time.monotonic() - started
             for observe in self.observers:
                 observe(self)
@@ -579,22 +727,27 @@ class Campaign:
         start the next round."""
         c, algo = self.counters, self.algorithm
         self._drop_in_flight()
-        c.round_ends.append(c.committed)
-        c.rounds_completed += 1
-        if algo.final_round and self.certify and not algo.certifying:
-            self._next_mixture()
-            algo.begin_certification()
-            c.attempts = 1
-        elif algo.final_round:
-            self.final_distribution = algo.sampling_description()
-            c.converged = True
-            c.done = True
-            return
+        if algo.closing:  # a closing round ended: check the set (within the certification round)
+            c.closing_ends.append(c.committed)
+            algo.begin_check()
+            c.attempts += 1
         else:
-            self._next_mixture()
-            algo.end_round()
-            self._experience_replay()
-            self._certify_at_once()
+            c.round_ends.append(c.committed)
+            c.rounds_completed += 1
+            if algo.final_round and self.certify and not algo.certifying:
+                self._next_mixture()
+                algo.begin_certification()  # a closing round first
+                c.certification_from = c.committed
+            elif algo.final_round:
+                self.final_distribution = algo.sampling_description()
+                c.converged = True
+                c.done = True
+                return
+            else:
+                self._next_mixture()
+                algo.end_round()
+                self._experience_replay()
+                self._certify_at_once()
         c.quiet = 0
         c.escaped_in_streak = 0
         c.streak_start = c.committed
@@ -613,6 +766,8 @@ class Campaign:
 
     def quiet_needed(self) -> int:
         """Indices in a row that must be resolved and quiet to end the current round."""
+        if self.algorithm.closing:
+            return self.settings.closing_quiet(self.algorithm.closing_share())
         if self.algorithm.certifying:
             return self.settings.certification_quiet(max(self.counters.attempts, 1))
         return self.settings.n_eps
@@ -625,6 +780,7 @@ class Campaign:
         if self.certify and algo.deterministic and algo.final_round and not algo.certifying:
             algo.begin_certification()
             self.counters.attempts = 1
+            self.counters.certification_from = self.counters.committed
 
     def _drop_in_flight(self) -> None:
         """Batches in flight and replacements not yet applied are dropped; their indices
@@ -638,6 +794,7 @@ class Campaign:
             for handle in group.handles:
                 self.executor.cancel(handle)
         self.replacements.clear()
+        self.held.clear()
         self._unsent = []
         self._ahead.clear()
 
@@ -645,20 +802,28 @@ class Campaign:
     def state(self) -> tuple[dict[str, np.ndarray], dict]:
         """The driver's state: arrays (the draws not yet committed and the replacements
         not yet applied, so that a resumed campaign re-simulates exactly them) and
-        JSON-able metadata (the counters)."""
-        arrays = {"pending.count": np.array(len(self.pending))}
-        for i, p in enumerate(self.pending):
-            arrays[f"pending.{i}.first_index"] = np.array(p.first_index + p.done)
-            arrays[f"pending.{i}.starts"] = p.starts[p.done :]
-            arrays[f"pending.{i}.start_ids"] = p.draws.ids[p.done :]
+        JSON-able metadata (the counters). With holds, the state as the head passed the
+        first of them (what follows it is not committed for good)."""
+        counters, replacements = self.counters, list(self.replacements)
+        if self.held:
+            hold = self.held.first
+            counters = dataclasses.replace(self.counters, **hold.counts)
+            replacements = [hold.replacement, *hold.queue]
+        head = counters.committed
+        open_ = [p for p in self.pending if p.end > head]
+        arrays = {"pending.count": np.array(len(open_))}
+        for i, p in enumerate(open_):
+            done = p.done(head)
+            arrays[f"pending.{i}.first_index"] = np.array(p.first_index + done)
+            arrays[f"pending.{i}.starts"] = p.starts[done:]
+            arrays[f"pending.{i}.start_ids"] = p.draws.ids[done:]
             arrays[f"pending.{i}.fixed"] = np.array(p.draws.fixed)
         n = self.algorithm.coverage.n
-        reps = list(self.replacements)
-        arrays["replacements.index"] = np.array([r.index for r in reps], dtype=np.int64)
-        arrays["replacements.start_id"] = np.array([r.draws.ids[0] for r in reps], dtype=np.int64)
-        arrays["replacements.start"] = np.stack([r.start for r in reps]) if reps else np.empty((0, n))
-        arrays["replacements.due"] = np.array([r.due for r in reps], dtype=np.int64)
-        meta = {"counters": asdict(self.counters), "final_distribution": self.final_distribution}
+        arrays["replacements.index"] = np.array([r.index for r in replacements], dtype=np.int64)
+        arrays["replacements.start_id"] = np.array([r.draws.ids[0] for r in replacements], dtype=np.int64)
+        arrays["replacements.start"] = np.stack([r.start for r in replacements]) if replacements else np.empty((0, n))
+        arrays["replacements.due"] = np.array([r.due for r in replacements], dtype=np.int64)
+        meta = {"counters": asdict(counters), "final_distribution": self.final_distribution}
         return arrays, meta
 
 

@@ -354,7 +354,8 @@ class Coverage:
 class Rescreen:
     """Re-decides the runs of one screened chunk at the coverage's current state,
     lazily: only as far as the next run that changes the state (the runs after it are
-    decided again after that change anyway)."""
+    decided again after that change anyway). A run found not to change the state is not
+    asked again until the coverage changes (the head asks from many places in a chunk)."""
 
     def __init__(self, coverage: Coverage, screening: Screening, outcomes: np.ndarray, visited):
         self.coverage, self.screening, self.outcomes = coverage, screening, outcomes
@@ -362,6 +363,8 @@ class Rescreen:
         self._full = np.zeros(len(screening), dtype=bool)  # rows to re-screen from all their states
         self._checked_kills = -2  # kill seq up to which the witnesses were checked
         self._known: tuple | None = None  # (row, epoch, seq, uncovered, near) of the last event found
+        self._cleared = np.zeros(len(screening), dtype=bool)  # rows found quiet at ``_cleared_at``
+        self._cleared_at: tuple | None = None  # the coverage's (epoch, seq) they were found quiet at
 
     def next_event(self, lo: int, allowed: np.ndarray | None = None) -> int:
         """The first run at or after ``lo`` that changes the state now (the chunk's
@@ -379,15 +382,24 @@ class Rescreen:
             self._full[lo:] = True  # vertex ids of another covering: witnesses mean nothing
         elif cov.kill_seq > max(sc.seq, self._checked_kills):
             self._mark_dead_witnesses(lo)  # only a Kill can uncover a state
-        candidates = np.flatnonzero((sc.event[lo:] != QUIET) | self._full[lo:]) + lo
+        now = (cov.epoch, cov.seq)
+        if self._cleared_at != now:
+            self._cleared[:] = False
+            self._cleared_at = now
+        candidates = np.flatnonzero(((sc.event[lo:] != QUIET) | self._full[lo:]) & ~self._cleared[lo:]) + lo
         if allowed is not None:
             candidates = candidates[allowed[candidates]]
         at, block = 0, 1
         while at < len(candidates):  # in growing blocks: the first candidate usually is one
             rows = candidates[at : at + block]
+            if self._known is not None and self._known[:3] == (int(rows[0]), *now):
+                return int(rows[0])  # found by an earlier ask at this coverage
             changes, classified = self._changes(rows)
             if changes.any():
-                return self._found(rows, int(np.argmax(changes)), classified)
+                first = int(np.argmax(changes))
+                self._cleared[rows[:first]] = True
+                return self._found(rows, first, classified)
+            self._cleared[rows] = True
             at, block = at + block, min(4 * block, 256)
         return k
 

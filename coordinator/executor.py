@@ -14,6 +14,7 @@
                                                      first_index, first_index + 1, ...
                                                      (replacement runs), or None
     result(handle) -> Chunk                          wait for one chunk
+    ready(handle) -> bool                            would result() return without waiting
     cancel(handle)                                   drop a chunk (it is not committed)
     screen_stored(pieces, coverage) -> [(states, run)]   experience replay: for each stored
                                                      piece (coordinator/experience_replay.py), its states
@@ -55,6 +56,7 @@ class Chunk:
     _visited: tuple | None = field(default=None, repr=False)
     exits: np.ndarray | None = field(default=None, repr=False)  # (k,) int8 facet left through (RunBatch.exits)
     indices: np.ndarray | None = None  # (k,) sample indices, when not first_index + row
+    rescreen: Any = field(default=None, repr=False)  # the driver's re-decisions of its runs (coverage.Rescreen)
 
     def __post_init__(self):
         if self.indices is None:
@@ -123,6 +125,12 @@ class Executor(ABC):
     @abstractmethod
     def result(self, handle) -> Chunk:
         """Wait for one chunk."""
+
+    def ready(self, handle) -> bool:
+        """Would ``result(handle)`` return without waiting for a worker? (The driver commits
+        on past a replacement that is not back.) An executor that simulates when a result
+        is asked for, in-process, says yes."""
+        return True
 
     @abstractmethod
     def cancel(self, handle) -> None:

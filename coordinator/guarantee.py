@@ -65,8 +65,8 @@ def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, h
     centres were each run once (VAL^delta); ``uniform``: the last N_eps runs were drawn
     uniformly over the final centres (a certification round); ``escaped``: counted runs
     that left Phi_delta toward a known failure (possible only without certification);
-    ``attempts``/``n_final``: the sampled certification's attempt count and the runs the
-    last attempt needed (beta split over attempts, coordinator.sample_size.n_eps_attempt).
+    ``attempts``/``n_final``: the sampled certification's checks and the runs the last
+    one needed (beta split over checks, coordinator/certification.py).
     ``coarsest``: the largest box half-width, when boundary refinement left boxes coarser
     than ``delta`` inside the set."""
     cond, fail, t = _conditions(scenario, policy), scenario.failure_words, _horizon_s(scenario, horizon)
@@ -88,8 +88,9 @@ def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, h
     confidence = _percent(1 - beta)
     nn = f"N_eps = ceil(ln {beta:g} / ln(1 - {epsilon:g})) = {n_eps} runs"
     if uniform and attempts:
-        nn = (f"N = {n_final} runs, the need of certification attempt i = {attempts} with beta_i = 6 beta / "
-              f"(pi^2 i^2), so that the exported set keeps confidence {1 - beta:g} over all attempts,")
+        nn = (f"N = {n_final} runs, the need of certification attempt i = {attempts} (check i, after closing "
+              f"rounds that spend no beta) with beta_i = 6 beta / (pi^2 i^2), so that the exported set keeps "
+              f"confidence {1 - beta:g} over all attempts,")
     if escaped == 0:
         plain = (f"With {confidence} confidence, at most {_percent(epsilon)} of scenarios {where}, {cond}, {fail} or "
                  f"{_leave(delta, coarsest)} within {t}.")

@@ -10,13 +10,14 @@ PhiBar) or visits a state sigma' with d(sigma', Phi_delta) > delta and d(sigma',
 Certification (after the last round, ``begin_certification``): the final set is checked
 the way ``validate`` checks a set: a run must neither fail nor leave Phi_delta, near a
 known failure or not. A deterministic system runs every final centre once (VAL^delta);
-otherwise start states are drawn uniformly over the final centres (VAL^eps-delta) until
-N_eps runs in a row pass. A run that fails or leaves the set re-opens SPE: a failure
-prunes as usual, a new state is explored as usual, and a run that leaves only toward a
-known failure prunes its start's tree as a failure would (removing the start alone, with
-or without adding it to PhiBar, makes certification peel or churn for many more runs:
-docs/benchmarks.md), without adding it to PhiBar: it did not fail.
-Certification then starts again, so the set exported is the one the last one passed.
+otherwise closing rounds (drawn over the band near the failure-side boundary) and checks
+(drawn uniformly over the final centres, VAL^eps-delta) alternate as
+coordinator/certification.py describes. A run that fails or leaves the set re-opens SPE:
+a failure prunes as usual, a new state is explored as usual, and a run that leaves only
+toward a known failure prunes its start's tree as a failure would (removing the start
+alone, with or without adding it to PhiBar, makes certification peel or churn for many
+more runs: docs/benchmarks.md), without adding it to PhiBar: it did not fail. Pruning
+on a new state instead of exploring it peels the whole set away (docs/benchmarks.md).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from functools import partial
 import numpy as np
 
 from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered
+from coordinator.certification import CHECK, CLOSING
 from coordinator.certificates import Certificates
 from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell, Resize, Strict
 from coordinator.lattice import Lattice
@@ -40,6 +42,25 @@ from coordinator.sampler import PrioritySampler
 from coordinator.stable_sampler import Draws, Law, StableSampler, UniformLaw, WeightedLaw
 from scenarios.base import Scenario
 from scenarios.streams import RunStreams
+
+class Appended:
+    """An int64 array that only grows at its end (amortized doubling)."""
+
+    def __init__(self, values: np.ndarray | None = None):
+        values = np.zeros(0, dtype=np.int64) if values is None else np.asarray(values, dtype=np.int64)
+        self._buffer, self.count = values.copy(), len(values)
+
+    @property
+    def values(self) -> np.ndarray:
+        return self._buffer[: self.count]
+
+    def extend(self, ids: np.ndarray) -> None:
+        need = self.count + len(ids)
+        if need > len(self._buffer):
+            self._buffer = np.resize(self._buffer, max(need, 2 * len(self._buffer), 64))
+        self._buffer[self.count : need] = ids
+        self.count = need
+
 
 ALPHAS = {"identity": lambda x: x, "square": np.square, "sqrt": np.sqrt}
 REPLAY_CHUNK = 4096  # stored states per greedy pass in experience replay
@@ -73,7 +94,7 @@ class SPE(Algorithm):
     certifies = True
     # certificates' entries too: the bulk of a certified campaign's state
     append_only = ("vertices.points", "failures.points", "graph.parent", "replay.index", "replay.take",
-                   "replay.parent", "replay.start", "cert.vertex", "cert.offsets", "cert.witness")
+                   "replay.parent", "replay.start", "cert.vertex", "cert.offsets", "cert.witness", "holes.ids")
 
     def __init__(self, scenario: Scenario, settings: SPESettings, deterministic: bool = False):
         """``deterministic``: a run is a function of its start state (one adversarial
@@ -94,6 +115,8 @@ class SPE(Algorithm):
         self._stable.restart(self.vertices.count, self.version)
         self.replay = ReplayBuffer(settings.replay_capacity if settings.replay else 0, deterministic, scenario.n)
         self.certifying = False
+        self.phase = CHECK  # while certifying a sampled system: CLOSING or CHECK
+        self.hole_ids = Appended()  # centres pruned in the last round or since: holes in the set
         self.enumeration = Enumeration()  # deterministic certification: the passes over the centres
         self.certificates = Certificates()  # deterministic certification: centres checked
 
@@ -111,6 +134,9 @@ class SPE(Algorithm):
         self._stable = StableSampler()
         self._law_cache: tuple | None = None
         self._law_kind: tuple | None = None
+        self._band: tuple[int, np.ndarray] | None = None  # (version, mask): the closing law's candidates
+        self._holes = FailureDistances(self.scenario.lower, self.scenario.upper)  # d(vertex, hole)
+        self._band_share: tuple[int, float] | None = None  # (version, its share of the alive centres)
 
     def _add_roots(self, centres: np.ndarray) -> None:
         self._insert(centres)
@@ -158,7 +184,58 @@ class SPE(Algorithm):
             ok[ok] = self._near_boundary(ids[ok])
         return ok
 
+    @property
+    def closing(self) -> bool:
+        """In a closing round of a sampled certification (coordinator/certification.py)."""
+        return self.certifying and self.phase == CLOSING
+
+    def _band_mask(self) -> np.ndarray:
+        """(count,) bool, per version: the closing law's candidates, the alive centres
+        within sigma-bar + delta of the set's boundary toward failure (``_near_boundary``)
+        or of a hole in it: a centre of the last round pruned since (its box is outside
+        the set now, and runs that reach it leave the set; measured: a third of the
+        violations checks found came from such centres when the band ignored them). The
+        whole set when the band is empty. Ids whose membership changed since the last
+        mask are touched: their slots move draws."""
+        if self._band is not None and self._band[0] == self.version:
+            return self._band[1]
+        count = self.vertices.count
+        ids = self.vertices.alive_ids()
+        near = self._near_boundary(ids)
+        if self.hole_ids.count:
+            holes = self.vertices.points[self.hole_ids.values]
+            near |= self._holes.update(self.vertices.points, count, holes, len(holes))[ids] <= \
+                self.scenario.step_bound() + 2 * self.delta
+        mask = np.zeros(count, dtype=bool)
+        mask[ids[near]] = True
+        if not mask.any():
+            mask[ids] = True
+        if self._band is not None:
+            old = self._band[1]
+            self._stable.touch(np.flatnonzero(mask[: len(old)] != old), self.version)
+        self._band = (self.version, mask)
+        return mask
+
+    def closing_share(self) -> float:
+        """The band's share of the alive centres (closing rounds: coordinator/certification.py)."""
+        mask = self._band_mask()
+        if self._band_share is None or self._band_share[0] != self.version:
+            self._band_share = (self.version, float(np.count_nonzero(mask)) / max(self.vertices.alive_count, 1))
+        return self._band_share[1]
+
+    def begin_check(self) -> None:
+        """A closing round ended: check the set (uniform over the final centres)."""
+        self.version += 1
+        self.phase = CHECK
+
+    def begin_closing(self) -> None:
+        """A check found a violation (already applied): close the set again."""
+        self.version += 1
+        self.phase = CLOSING
+
     def sampling_description(self) -> str:
+        if self.closing:
+            return "start states uniform over the alive centres near the failure-side boundary (closing round)"
         if self.certifying:
             return ("every final box centre once (VAL^delta)" if self.deterministic
                     else "start states uniform over the final box centres (VAL^eps-delta)")
@@ -186,11 +263,12 @@ class SPE(Algorithm):
             raise EmptySetError("the safe set is empty: every centre was pruned")
         count = self.vertices.count
         self._stable.fit(count, self.version)
-        if not self.certifying and self.failures.count and (self.settings.prioritized or self.settings.boundary):
+        if self.failures.count and (self.settings.prioritized or self.settings.boundary):
             self._failure_distances()
-            lowered = self._dist.take_lowered()
-            self._stable.touch(lowered, self.version)
-            self._sampler.touch(lowered)
+            lowered = self._dist.take_lowered()  # taken while certifying too: they would pile up
+            if not self.certifying:
+                self._stable.touch(lowered, self.version)
+                self._sampler.touch(lowered)
         law, kind = self._make_law(count)
         if kind != self._law_kind:
             self._stable.touch_all(self.version)
@@ -205,6 +283,9 @@ class SPE(Algorithm):
         and the band holds any. Prioritized, once a failure is known: rho = alpha(d* - d)
         over the candidates (d* their largest distance), kept up to date where the state
         changed (coordinator/sampler.py); uniform when every weight is zero."""
+        if self.closing:
+            mask = self._band_mask()
+            return UniformLaw(count, mask.__getitem__, lambda: np.flatnonzero(mask)), ("closing",)
         if self.certifying:
             return UniformLaw(count, self._alive, self.vertices.alive_ids), ("certification",)
         alpha = ALPHAS[self.settings.alpha]
@@ -246,8 +327,7 @@ class SPE(Algorithm):
     def moved(self, draws: Draws) -> np.ndarray:
         if draws.fixed:
             return np.zeros(len(draws), dtype=bool)
-        self._law()  # stamps what changed
-        return self._stable.moved(draws)
+        return self._stable.moved(draws, self._law(), self.version)  # the law first: it stamps what changed
 
     def certify_runs(self, start_ids: np.ndarray, offsets: np.ndarray, witnesses: np.ndarray) -> int:
         """Deterministic certification: quiet runs from centres ``start_ids`` (their
@@ -270,6 +350,7 @@ class SPE(Algorithm):
         """Check the final set the way validate will (see the module docstring)."""
         self.version += 1
         self.certifying = True
+        self.phase = CHECK if self.deterministic else CLOSING
         self.coverage.apply(Strict(True), self.version)
         self._stable.restart(self.vertices.count, self.version)
 
@@ -304,6 +385,8 @@ class SPE(Algorithm):
         split instead: its children at delta take its place, but for those within delta
         of a failure (the pruning reaches it, not all of its volume)."""
         coarse = self.band.coarse(self, ids) if self.band is not None else None
+        if self.final_round:
+            self.hole_ids.extend(ids[self.vertices.alive[ids]])
         self.enumeration.before_prune(self.vertices, self.certificates, ids)
         self.coverage.apply(Kill(ids), self.version)
         self._stable.touch(ids, self.version)
@@ -430,8 +513,9 @@ class SPE(Algorithm):
         out = self.coverage.state()
         out["graph.parent"] = self.graph.parent.copy()
         out["scalars"] = np.array([self.delta, self.round, self.version], dtype=float)
-        out["certification"] = np.array([self.certifying], dtype=np.int64)
+        out["certification"] = np.array([self.certifying, self.phase == CLOSING], dtype=np.int64)
         out["certification.drawn"] = np.flatnonzero(self.enumeration.drawn)
+        out["holes.ids"] = self.hole_ids.values.copy()
         out.update(self.certificates.state())
         out.update(self.replay.state())
         out.update(self._stable.state())
@@ -445,9 +529,12 @@ class SPE(Algorithm):
         _, rnd, version = state["scalars"]
         self.round, self.version = int(rnd), int(version)
         self.certifying = bool(state["certification"][0])
+        closing = len(state["certification"]) > 1 and bool(state["certification"][1])
+        self.phase = CLOSING if closing else CHECK
         drawn = np.zeros(self.vertices.count, dtype=bool)
         drawn[state["certification.drawn"]] = True
         self.enumeration = Enumeration(drawn)
+        self.hole_ids = Appended(state.get("holes.ids", np.zeros(0, dtype=np.int64)))
         self.certificates = Certificates.from_state(state)
         self.replay.load_state(state)
         self._fresh_samplers()

@@ -15,8 +15,12 @@ A draw depends on the state only through the slots it examined. Each slot carrie
 version of the last change that may have moved its acceptance (``stamp``): a kill, an
 insert, a distance that fell. A change of the law as a whole (d*, the bound, the cap, a
 switch between uniform and weighted, a new round) moves every draw (``everything``). So
-``moved`` answers "is this draw still what its stream draws now?" without redrawing
-runs whose examined slots nothing touched; a run it flags is drawn again and compared.
+``moved`` answers "is this draw still what its stream draws now?" without looking at
+runs whose examined slots nothing touched; for a run whose examined slots a change did
+touch, it asks the law again about those slots with the numbers the run drew for them
+(kept with the draw): the draw stands iff every slot before the accepted one is still
+rejected and the accepted one still accepted. Only runs that examined more slots than
+are kept, or drew directly, are flagged without that answer (drawn again to know).
 """
 
 from __future__ import annotations
@@ -30,7 +34,10 @@ from scenarios.streams import PURPOSE_START, RunStreams
 
 MAX_TRIES = 64  # candidates a run examines before it draws directly from the law
 TRY_BLOCK = 8  # tries drawn at once for the runs still searching
-TRACKED = 16  # examined slots kept per run (a run that examined more may move with any change)
+# examined slots kept per run (a run that examined more may move with any change): all of
+# them, so that a sparse law (a closing round's band: ~1 slot in 16 accepted) still moves
+# only the draws a change touched; results never depend on it, only what is re-drawn
+TRACKED = MAX_TRIES
 
 
 class Law(Protocol):
@@ -82,30 +89,42 @@ class WeightedLaw:
 
 @dataclass
 class Draws:
-    """A batch of stable draws: per run its vertex id, and the slots it examined (up to
-    ``TRACKED``; a run that examined more, or drew directly, may move with any change)."""
+    """A batch of stable draws: per run its vertex id (its start), and what its stream
+    draws now as far as known: that draw's id, the version it was last known at, the
+    slots it examined (up to ``TRACKED``; a run that examined more, or drew directly, may
+    move with any change) and the numbers it drew for them."""
 
-    ids: np.ndarray  # (B,) vertex ids
-    versions: np.ndarray  # (B,) int64: the state version each was drawn at (-1: unknown)
-    slots: np.ndarray  # (B, TRACKED) int64: the slots examined, -1 past the last
+    ids: np.ndarray  # (B,) vertex ids: the runs' starts
+    versions: np.ndarray  # (B,) int64: the state version the current draw is known at (-1: unknown)
+    slots: np.ndarray  # (B, TRACKED) int64: the slots the current draw examined, -1 past the last
     untracked: np.ndarray  # (B,) bool: examined more slots than tracked, or drew directly
     fixed: bool = False  # no change moves them (an enumeration's centres)
+    vs: np.ndarray | None = None  # (B, TRACKED) the acceptance number drawn for each examined slot
+    now: np.ndarray | None = None  # (B,) the current draw's vertex id (a start the set moved away from differs)
+
+    def __post_init__(self):
+        if self.vs is None:
+            self.vs = np.zeros(self.slots.shape)
+        if self.now is None:
+            self.now = self.ids.copy()
 
     def __len__(self) -> int:
         return len(self.ids)
 
     def rows(self, rows) -> "Draws":
-        """The draws of ``rows`` (an index array or a slice), as a batch of their own."""
-        return Draws(self.ids[rows], self.versions[rows], self.slots[rows], self.untracked[rows], self.fixed)
+        """The draws of ``rows`` (an index array or a slice: views), as a batch of their own."""
+        return Draws(self.ids[rows], self.versions[rows], self.slots[rows], self.untracked[rows], self.fixed,
+                     self.vs[rows], self.now[rows])
 
     def span(self, lo: int, hi: int) -> "Draws":
         """The draws of rows ``lo:hi`` (views, no copy)."""
         return self.rows(slice(lo, hi))
 
-    def replace_rows(self, rows: np.ndarray, fresh: "Draws") -> None:
-        """Rows ``rows`` drawn again (``fresh``, one per row, in order), in place."""
-        self.ids[rows], self.versions[rows] = fresh.ids, fresh.versions
-        self.slots[rows], self.untracked[rows] = fresh.slots, fresh.untracked
+    def track(self, rows: np.ndarray, fresh: "Draws") -> None:
+        """Rows ``rows``' streams drawn again (``fresh``, one per row, in order): their
+        current draws, in place; their starts stay."""
+        self.versions[rows], self.now[rows] = fresh.versions, fresh.ids
+        self.slots[rows], self.untracked[rows], self.vs[rows] = fresh.slots, fresh.untracked, fresh.vs
 
     @classmethod
     def fixed_at(cls, ids: np.ndarray, version: int) -> "Draws":
@@ -168,6 +187,7 @@ class StableSampler:
         ids = np.full(b, -1, dtype=np.int64)
         tries = np.zeros(b, dtype=np.int64)  # candidates examined, the accepted one included
         slots = np.zeros((b, MAX_TRIES), dtype=np.int64)
+        vs = np.zeros((b, MAX_TRIES))
         searching = np.arange(b)
         for first in range(0, MAX_TRIES, TRY_BLOCK):
             if len(searching) == 0:
@@ -180,6 +200,7 @@ class StableSampler:
             cand = np.minimum((u * self.cap).astype(np.int64), self.cap - 1)
             ok = law.accept(cand.ravel(), v.ravel()).reshape(-1, k)
             slots[searching, first : first + k] = cand
+            vs[searching, first : first + k] = v
             found = ok.any(axis=1)
             at = np.argmax(ok, axis=1)
             hit = searching[found]
@@ -195,21 +216,47 @@ class StableSampler:
             ids[searching] = law.direct(u)
         examined = slots[:, :TRACKED].copy()
         examined[np.arange(TRACKED)[None, :] >= tries[:, None]] = -1
-        return Draws(ids, np.full(b, version, dtype=np.int64), examined, untracked)
+        return Draws(ids, np.full(b, version, dtype=np.int64), examined, untracked, vs=vs[:, :TRACKED].copy())
 
-    def moved(self, draws: Draws) -> np.ndarray:
-        """(B,) bool: draws a change since they were drawn may have moved (a flagged draw
-        may still stand: draw it again to know)."""
+    def moved(self, draws: Draws, law: Law | None = None, version: int | None = None) -> np.ndarray:
+        """(B,) bool: draws that a change since they were drawn may have moved (draw them
+        again to know). With the current ``law`` (and its ``version``), a tracked draw whose
+        examined slots a change touched is asked again (see the module docstring): flagged
+        only if its accepted try changed (rarely, a later try finds the same id), and
+        renewed (its version set to ``version``) if it stands. Without, or for an untracked
+        draw, flagged."""
         if draws.fixed:
             return np.zeros(len(draws), dtype=bool)
-        out = draws.versions < self.everything
-        out |= draws.untracked & (draws.versions < self.last)
+        whole = draws.versions < self.everything
+        out = whole | (draws.untracked & (draws.versions < self.last))
         if len(draws):
             slots = draws.slots
             self._grow(max(int(slots.max()) + 1, 1))  # all -1 (drawn before a restore): one slot
             latest = np.where(slots >= 0, self.stamp[np.maximum(slots, 0)], -1).max(axis=1)
-            out |= latest > draws.versions
+            touched = latest > draws.versions
+            if law is not None:
+                ask = np.flatnonzero(touched & ~out)
+                if len(ask):
+                    stands = self._stands(draws, ask, law)
+                    touched[ask[stands]] = False
+                    if version is not None:
+                        draws.versions[ask[stands]] = version
+            out |= touched
         return out
+
+    @staticmethod
+    def _stands(draws: Draws, rows: np.ndarray, law: Law) -> np.ndarray:
+        """(len(rows),) bool: tracked draws ``rows`` are still what their streams draw under
+        ``law``: every examined slot before the last still rejected, the last still accepted."""
+        slots, vs = draws.slots[rows], draws.vs[rows]
+        examined = slots >= 0
+        accepted = np.zeros(slots.shape, dtype=bool)
+        accepted[examined] = law.accept(slots[examined], vs[examined])
+        last = examined.sum(axis=1) - 1
+        at = np.arange(len(rows))
+        still = accepted[at, last]
+        accepted[at, last] = False
+        return still & ~accepted.any(axis=1)
 
     # -- persistence ---------------------------------------------------------------------------
     def state(self) -> dict[str, np.ndarray]:

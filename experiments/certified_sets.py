@@ -1,7 +1,7 @@
 """Does the exported set of a stochastic campaign keep its guarantee? (issue: certified output)
 
-Lead-follow idm, uniform Gamma (a stochastic system: the certification round draws N_eps
-runs uniformly over the final centres). For each quantification seed:
+Lead-follow idm, uniform Gamma (a stochastic system: certification's closing rounds and
+checks, coordinator/certification.py). For each quantification seed:
   - the exported set's true violation rate p: the share of runs, started at a centre drawn
     uniformly and with uniform actions, that fail or leave Phi_delta, measured on an
     independent Monte Carlo sample (its own seed, ``--mc`` runs);
@@ -78,7 +78,8 @@ def one_seed(seed: int, mc: int, workdir: Path, refine: str = "all") -> dict:
     row = {"seed": seed, "boxes": result.summary.boxes, "half_width_max": result.safe_set.coarsest,
            "runs": result.summary.runs_committed,
            "replaced": result.summary.runs_replaced, "counting": result.summary.counting,
-           "violations": bad, "mc_runs": n, "p": bad / n, "validate_certified": cert.certified,
+           "violations": bad, "mc_runs": n, "p": bad / n, "attempts": result.summary.certification_attempts,
+           "runs_certification": result.summary.runs_certification, "validate_certified": cert.certified,
            "validate_runs": cert.n_run, "seconds": round(time.time() - t, 1)}
     print(json.dumps(row), flush=True)
     return row
@@ -124,18 +125,19 @@ def render(data: dict) -> str:
         f"idm, uniform Gamma, delta {data['quantify']['delta0']:g} -> {data['quantify']['delta_min']:g}"
         f"{' with boundary refinement (`refine = band`: boxes of mixed sizes, validated at the finest)' if band else ''}"
         f", eps = {eps:g}, "
-        f"beta = {beta:g}, certification on (runs uniform over the final centres; attempt i needs N_eps at "
-        f"beta_i = 6 beta / (pi^2 i^2), from {int(np.ceil(np.log(beta) / np.log(1 - eps)))} runs at i = 1). p is the exported set's true violation rate (a run from a uniformly drawn "
+        f"beta = {beta:g}, certification on (closing rounds near the boundary, then checks uniform over the "
+        f"final centres; check i needs N_eps at beta_i = 6 beta / (pi^2 i^2) quiet runs, coordinator/"
+        f"certification.py). p is the exported set's true violation rate (a run from a uniformly drawn "
         f"centre fails or leaves Phi_delta), measured on {data['mc_runs']:,} independent runs per set."
         + (f" Coupled counting ({data['rows'][0].get('counting')}), {data['window']['batch_size']} x "
            f"{data['window']['pipeline_depth']} runs in flight; `replaced`: runs discarded unseen and re-run."
            if data.get("window") else ""),
         "",
-        "| seed | boxes | campaign runs | replaced | violations / MC runs | p | p > eps | fresh validate |",
-        "| ---: | ---: | ---: | ---: | ---: | ---: | :---: | :---: |",
+        "| seed | boxes | campaign runs | replaced | checks | violations / MC runs | p | p > eps | fresh validate |",
+        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | :---: | :---: |",
     ]
     for r in data["rows"]:
-        lines.append(f"| {r['seed']} | {r['boxes']:,} | {r['runs']:,} | {r.get('replaced', '')} | "
+        lines.append(f"| {r['seed']} | {r['boxes']:,} | {r['runs']:,} | {r.get('replaced', '')} | {r.get('attempts', '')} | "
                      f"{r['violations']} / {r['mc_runs']:,} | "
                      f"{r['p']:.5f} | {'yes' if r['p'] > eps else 'no'} | "
                      f"{'certified' if r['validate_certified'] else 'counterexample'} |")

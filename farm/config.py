@@ -27,6 +27,7 @@ from typing import Annotated, Any, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from coordinator.certification import MARGIN as CERTIFY_MARGIN
 from coordinator.spe import SPESettings
 from scenarios.errors import ConfigError
 
@@ -160,6 +161,10 @@ class QuantifyConfig(Section):
     sides: bool | None = None
     certify: Annotated[bool, Field(description="end with a certification round (spe): the exported set "
                                                "passes validate")] = True
+    certify_margin: Annotated[float, Field(ge=1.0, le=1e6, description=(
+        "sampled certification: closing rounds end after N_eps(eps / (margin x band share)) quiet runs near "
+        "the failure-side boundary, so that a check (N_eps at eps, beta split over checks) usually passes "
+        "at once (docs/certification.md)"), json_schema_extra={"hashed_when_default": False})] = CERTIFY_MARGIN
 
     @model_validator(mode="after")
     def _delta_order(self):

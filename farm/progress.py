@@ -70,8 +70,8 @@ class Progress:
         done, total = (s["certified"], s["centres"]) if "certified" in s else (s["n_eps_counter"], s["n_eps_needed"])
         side = "" if label == "total" else f"{label} side: "  # no [brackets]: rich reads them as markup
         self._bar.update(self._task, description=f"{side}round {s['round']} delta {s['delta']:g}",
-                         completed=done, total=max(total, 1), what="certified" if "certified" in s else "N_eps",
-                         detail=f"boxes {s['boxes']:,}  runs {s['runs_committed']:,}  "
+                         completed=done, total=max(total, 1), what="certified" if "certified" in s else _what(s),
+                         detail=f"boxes {s['boxes']:,}  runs {s['runs_committed']:,}{_certification_runs(s)}  "
                                 f"{s['runs_per_s'] or 0:,.0f}/s", refresh=True)
 
     # -- anything with a count ---------------------------------------------------------------
@@ -105,5 +105,19 @@ class Progress:
 def _counter(s: dict) -> str:
     if "certified" in s:
         return f"certified {s['certified']:,}/{s['centres']:,} centres"
-    return f"N_eps {s['n_eps_counter']:,}/{s['n_eps_needed']:,}"
+    return f"{_what(s)} {s['n_eps_counter']:,}/{s['n_eps_needed']:,}" + _certification_runs(s)
+
+
+def _what(s: dict) -> str:
+    """What the quiet-run counter counts toward: a round's N_eps, a closing round's end or a check."""
+    phase = s.get("certification_phase")
+    if phase == "closing":
+        return "closing"
+    if phase == "check":
+        return f"check {s['certification_attempts']}"
+    return "N_eps"
+
+
+def _certification_runs(s: dict) -> str:
+    return f" (certification {s['runs_certification']:,} runs)" if "runs_certification" in s else ""
 

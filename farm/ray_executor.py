@@ -36,7 +36,7 @@ import numpy as np
 
 from coordinator.coverage import Coverage, Reset
 from coordinator.executor import Chunk, Executor, chunk_of, screen_piece, summarize
-from farm.chunking import ChunkSizer
+from farm.chunking import ChunkSizer, fast_lanes
 from farm.ray_pool import ActorPool, Call, check_started
 from farm.ray_session import connect
 from farm.simulators import build_simulator
@@ -176,8 +176,8 @@ class RayExecutor(Executor):
         ``chunk_timeout``: seconds a chunk may take (farm.chunk_timeout; 0: derived from
         the measured run time); ``stop``: set on SIGINT / SIGTERM, it ends a wait for a
         chunk (``farm.waiting.Interrupted``); ``notify``: takes a line for the user (a
-        worker replaced); ``fast_lane``: one more actor, for replacements only. None of them
-        changes a result."""
+        worker replaced); ``fast_lane``: actors for replacements only (one per 16 workers).
+        None of them changes a result."""
         import ray
 
         connect(address, workers)
@@ -200,12 +200,14 @@ class RayExecutor(Executor):
         handles = [cls.remote(dataclasses.asdict(spec), check_step_bound) for _ in range(workers)]
         self.pool = ActorPool(ray, handles, self.sizer.limit, max_retries, stop, notify)
         self._check_step_bound = check_step_bound
+        self._lanes = fast_lanes(workers) if fast_lane else 0
         self._lane = fast_lane  # started with the first replacement (many campaigns need none)
         self._blocks: dict[tuple, object] = {}  # (coverage id, from seq, to seq) -> ref
         self._static: dict[int, object] = {}  # id(screen) -> ref of a fixed screen
         self._snapshot: tuple = (None, None)  # (coverage id, epoch, seq), ref of its state
         self._jobs: dict[int, _Job] = {}
         self._next = 0
+        self._since_trim = 0  # change messages since the coverage's log was last trimmed
         self._actions: dict | None = None  # the newest adaptive policy state submitted
 
     @property
@@ -275,7 +277,10 @@ class RayExecutor(Executor):
             # a small block goes inside the call (Ray inlines it; a put costs the driver
             # ~1 ms), a large one once into the object store for every actor that needs it
             self._blocks[key] = changes if _nbytes(changes) <= INLINE_BYTES else self.ray.put(changes)
-        self._trim(screen)
+        self._since_trim += 1
+        if self._since_trim >= len(self.pool.slots):  # a look at every actor: about once a wave
+            self._trim(screen)
+            self._since_trim = 0
         return ("changes", [self._blocks[key]], sent[2])
 
     def _trim(self, screen: Coverage) -> None:
@@ -303,16 +308,25 @@ class RayExecutor(Executor):
             self._read(self._jobs[handles[0]])
             at = 1
         if n > at:
-            for rows in np.array_split(np.arange(at, n), self.sizer.chunks(n - at, urgent=indices is not None)):
-                handles.append(self._send(first_index, starts, screen, actions, indices, rows))
+            urgent = indices is not None
+            lanes = self._lanes if urgent else 0  # replacements go to the lanes
+            idle = 0 if urgent else sum(1 for slot in self.pool.slots if not slot.queue and not slot.lane and not slot.down)
+            cut = self.sizer.cut(n - at, urgent, lanes, idle)
+            if not urgent:  # long chunks wait in the pool, so that a replacement waits for none of them
+                self.pool.depth = 1 if self.sizer.one_at_a_time(max(len(rows) for rows in cut)) else 0
+                self.pool.dispatch()
+            for rows in cut:
+                handles.append(self._send(first_index, starts, screen, actions, indices, rows + at))
         return handles
 
     def _start_lane(self) -> None:
-        """The fast lane: under sequential counting the commit head waits for each wave of
-        replacements, which behind a worker's queued chunks would wait seconds. It reserves
-        no CPU: it is busy only with replacements, a few % of the runs."""
-        lane = _actor_class().options(num_cpus=0, max_restarts=-1, max_task_retries=0)
-        self.pool.add(lane.remote(dataclasses.asdict(self.spec), self._check_step_bound), lane=True)
+        """The fast lanes (farm/chunking.py ``fast_lanes``): under sequential counting the
+        commit head may wait for a replacement, which behind a worker's queued chunks would
+        wait seconds. They reserve no CPU: they are busy only with replacements, a few %
+        of the runs."""
+        lane = _actor_class().options(num_cpus=0, max_restarts=-1, max_task_retries=0, scheduling_strategy="SPREAD")
+        for _ in range(self._lanes):
+            self.pool.add(lane.remote(dataclasses.asdict(self.spec), self._check_step_bound), lane=True)
         self._lane = False
 
     def _send(self, first_index, starts, screen, actions, indices, rows) -> int:
@@ -345,6 +359,16 @@ class RayExecutor(Executor):
         job.fresh = False
         job.call_s += time.perf_counter() - t0
         self.pool.sent(job, actor)
+
+    def ready(self, handle: int) -> bool:
+        job = self._jobs[handle]
+        if job.summary is not None:
+            return True
+        self.pool.poll_now()  # chunks waiting in the pool go out as actors finish
+        if job.ref is None:
+            return False
+        ready, _ = self.ray.wait([job.ref], timeout=0)
+        return bool(ready)
 
     def result(self, handle: int) -> Chunk:
         job = self._jobs.pop(handle)
@@ -491,7 +515,7 @@ class RayExecutor(Executor):
         job = self._jobs.pop(handle, None)
         if job is None:
             return
-        job.dropped = True
+        job.dropped = True  # a chunk still waiting in the pool is never sent
         if job.summary is None and job.actor >= 0:
             # its changes may never reach the actor: the next message starts from what is known
             slot = self.pool.slots[job.actor]

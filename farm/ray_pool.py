@@ -4,7 +4,11 @@ chunks go to the others, and every wait for a result wakes for a stop.
 
 An actor runs its calls one after the other, in the order they were sent. The pool keeps
 them in that order per actor (``Slot.queue``), and when the driver last saw the one at the
-head start (``Slot.started``: when the one before it was seen finished). A wait looks
+head start (``Slot.started``: when the one before it was seen finished). With ``depth``
+set (long chunks), an actor is sent at most that many calls; the others wait in the pool,
+urgent ones (replacements) first, and go to the next actor that has room: a replacement
+then waits for no queued chunk (the actor is not idle for long: the driver looks for
+finished calls whenever it waits or asks whether a chunk is back). A wait looks
 every ``POLL_S`` at the stop flag and at the head calls: the one that has run longer than
 its limit (farm/chunking.py) has its actor killed (``ray.kill``; Ray restarts it from its
 constructor) and every call queued there is launched again on another actor; the call
@@ -30,6 +34,7 @@ from typing import Callable
 from farm.waiting import POLL_S, WorkerError, stop_asked
 
 PING_S = 2.0  # [s] between asks whether a down actor is back
+POLL_QUIET_S = 0.005  # [s] between looks for finished calls outside a wait
 STARTUP_LIMIT_S = 600.0  # [s] for an actor to start (import, build its simulator) before it is replaced
 NO_WORKER_S = 120.0  # [s] with every actor down before the campaign stops
 
@@ -105,6 +110,12 @@ class ActorPool:
         self.stop = stop
         self.notify = notify
         self._all_down_since: float | None = None
+        self._swept = 0.0  # when the calls queued were last looked at
+        self.depth = 0  # calls an actor is sent at most (running and queued); 0: every call at once
+        self._later: deque[Call] = deque()  # calls no actor had room for, in order
+        self._later_urgent: deque[Call] = deque()
+        self._polled = 0.0
+        self.held_back = 0  # calls that waited in the pool for an actor with room (a statistic)
 
     def add(self, handle, lane: bool = False) -> None:
         """One more actor; ``lane``: kept for urgent calls (a fast lane)."""
@@ -138,8 +149,65 @@ class ActorPool:
         slot.push(call)
 
     def send(self, call: Call, interruptible: bool = True) -> None:
-        """Launch ``call`` on the best actor."""
-        call.launch(self.pick(interruptible, call.urgent))
+        """Launch ``call`` on the best actor (with ``depth``: the best with room, else when
+        one has room)."""
+        if not self.depth:
+            call.launch(self.pick(interruptible, call.urgent))
+            return
+        later = self._later_urgent if call.urgent else self._later
+        actor = None if later else self._room(call.urgent)
+        if actor is None:
+            later.append(call)
+            self.held_back += 1
+        else:
+            call.launch(actor)
+
+    def _room(self, urgent: bool) -> int | None:
+        """The up actor with room for another call (``pick``'s choice among them), or None."""
+        self._revive()
+        up = [i for i, s in enumerate(self.slots) if not s.down]
+        if not urgent:
+            up = [i for i in up if not self.slots[i].lane] or up
+        if self.depth:
+            up = [i for i in up if len(self.slots[i].queue) < self.depth]
+        if not up:
+            return None
+        self._all_down_since = None
+        return min(up, key=lambda i: (self.slots[i].runs_queued, not self.slots[i].lane))
+
+    def dispatch(self) -> None:
+        """Send the waiting calls (urgent first) to the actors that have room."""
+        for urgent, later in ((True, self._later_urgent), (False, self._later)):
+            while later:
+                if later[0].dropped:  # cancelled before it was sent: it never runs
+                    later.popleft()
+                    continue
+                actor = self._room(urgent)
+                if actor is None:
+                    break
+                later.popleft().launch(actor)
+
+    def poll(self, also=None, timeout: float = 0.0) -> None:
+        """Note the calls that finished (each actor's oldest) and send waiting calls where
+        that made room; waits up to ``timeout`` for one of them or for ref ``also``."""
+        self._polled = time.monotonic()
+        heads = [s.queue[0].ref for s in self.slots if s.queue and not s.down]
+        refs = heads + ([also] if also is not None and also not in set(heads) else [])
+        if refs:
+            ready, _ = self.ray.wait(refs, num_returns=1, timeout=timeout)
+            if ready and len(refs) > 1:
+                ready, _ = self.ray.wait(refs, num_returns=len(refs), timeout=0)
+            done, now = set(ready), time.monotonic()
+            for slot in self.slots:
+                while slot.queue and slot.queue[0].ref in done:
+                    slot.pop()
+                    slot.started = now
+        self.dispatch()
+
+    def poll_now(self) -> None:
+        """``poll`` unless it ran in the last few milliseconds (it asks Ray about every actor)."""
+        if self.depth and time.monotonic() - self._polled >= POLL_QUIET_S:
+            self.poll()
 
     def finished(self, call: Call) -> None:
         """``call``'s result was read: it and every call before it on its actor are over."""
@@ -148,19 +216,40 @@ class ActorPool:
             while slot.pop() is not call:
                 pass
             slot.started = time.monotonic()
+            if self.depth:
+                self.dispatch()
 
     # -- waiting -------------------------------------------------------------------------
     def wait(self, call: Call, interruptible: bool = True) -> None:
         """Until ``call``'s result is ready (it may be launched again meanwhile, on another
         actor). Raises Interrupted on a stop (``interruptible``), WorkerError when it
         failed too often or no worker is left."""
+        if self.depth:
+            self._wait_lazily(call, interruptible)
+            return
         ready, _ = self.ray.wait([call.ref], timeout=0)
         while not ready:
             if interruptible:
                 stop_asked(self.stop)
-            self._sweep()
+            if time.monotonic() - self._swept >= POLL_S:  # a sweep asks Ray about every call queued
+                self._sweep()
             self._revive()
             ready, _ = self.ray.wait([call.ref], timeout=POLL_S)
+
+    def _wait_lazily(self, call: Call, interruptible: bool) -> None:
+        """``wait`` where calls wait in the pool: every finished call makes room for the
+        next, until ``call`` is sent and back."""
+        while call.ref is None or not self.ray.wait([call.ref], timeout=0)[0]:
+            if interruptible:
+                stop_asked(self.stop)
+            if time.monotonic() - self._swept >= POLL_S:
+                self._sweep()
+            if all(s.down for s in self.slots):
+                self._revive()
+                self._no_worker_left()
+                self._pause(interruptible)
+                continue
+            self.poll(also=call.ref, timeout=POLL_S)
 
     def _pause(self, interruptible: bool) -> None:
         if interruptible:
@@ -169,6 +258,7 @@ class ActorPool:
 
     def _sweep(self) -> None:
         """Note the calls that have finished; replace an actor whose running call overran."""
+        self._swept = time.monotonic()
         refs = [c.ref for s in self.slots for c in s.queue]
         if not refs:
             return
@@ -184,6 +274,8 @@ class ActorPool:
                 limit = head.limit or self.limit(head.runs)
                 if now - slot.started > limit:
                     self._overran(actor, head, now - slot.started, limit)
+        if self.depth:
+            self.dispatch()
 
     def _overran(self, actor: int, call: Call, seconds: float, limit: float) -> None:
         call.timeouts += 1

@@ -44,7 +44,7 @@ def snapshot(campaign) -> dict:
             "n_eps_counter": c.quiet, "n_eps": n_eps, "runs_committed": c.committed,
             "runs_simulated": c.runs_simulated, "changes": c.changes, "elapsed_s": round(c.elapsed_s, 1),
             "runs_per_s": round(c.committed / c.elapsed_s, 1) if c.elapsed_s > 0 else None,
-            "n_eps_needed": campaign.quiet_needed(), **_certification(algorithm, counts), **_search(campaign)}
+            "n_eps_needed": campaign.quiet_needed(), **_certification(campaign, counts), **_search(campaign)}
 
 
 def _search(campaign) -> dict:
@@ -55,11 +55,16 @@ def _search(campaign) -> dict:
     return {"search_weights": {f.label(): round(w, 4) for f, w in zip(policy.families, policy.weights)}}
 
 
-def _certification(algorithm, counts) -> dict:
-    """A deterministic certification counts centres run, not runs in a row."""
-    if not algorithm.enumerates:
+def _certification(campaign, counts) -> dict:
+    """A deterministic certification counts centres run, not runs in a row; a sampled one
+    is in a closing round or a check (its attempt)."""
+    algorithm, c = campaign.algorithm, campaign.counters
+    if not algorithm.certifying:
         return {}
-    return {"certified": counts.get("certified", 0), "centres": counts.get("boxes", 0)}
+    out = {"certification_attempts": c.attempts, "runs_certification": c.runs_certification}
+    if algorithm.enumerates:
+        return {**out, "certified": counts.get("certified", 0), "centres": counts.get("boxes", 0)}
+    return {**out, "certification_phase": "closing" if algorithm.closing else "check"}
 
 
 def read_status(directory: Path) -> dict | None:

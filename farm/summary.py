@@ -56,10 +56,13 @@ class Summary(JsonFile):
     epsilon: float = 0.0
     beta: float = 0.0
     n_eps: int = 0
-    # a sampled certification's attempts, and the quiet runs its last one needed (beta
-    # split over attempts); 0 and n_eps without certification
+    # a sampled certification's checks, and the quiet runs its last one needed (beta
+    # split over checks); 0 and n_eps without certification
     certification_attempts: int = 0
     n_eps_final: int = 0
+    # committed runs certification took: its closing rounds and checks (a deterministic
+    # system: its last round, every final centre once); 0 without certification
+    runs_certification: int = 0
     delta_final: float = 0.0  # the boxes' half-width (for boxes of mixed sizes, the smallest)
     half_width_max: float = 0.0  # the largest (quantify.refine = "band" leaves coarser boxes inside)
     rounds: int = 0
@@ -140,6 +143,7 @@ def summarize(cfg: Config, parts: dict, safe_sets: dict[str, SafeSet], guarantee
         n_eps=campaign.n_eps,
         certification_attempts=c.attempts,
         n_eps_final=campaign.quiet_needed() if c.attempts and not part.algorithm.enumerates else campaign.n_eps,
+        runs_certification=sum(k.runs_certification for k in counters),
         delta_final=total.finest,
         half_width_max=total.coarsest,
         rounds=c.rounds_completed,

@@ -25,6 +25,8 @@ from __future__ import annotations
 
 from typing import Callable
 
+import time
+
 import numpy as np
 
 from coordinator.campaign import Campaign, CampaignSettings
@@ -100,6 +102,43 @@ def check_cancel(make_executor: MakeExecutor, spec: SimSpec) -> None:
     _same_runs(got, want, f"{name} after a cancel")
 
 
+def check_ready(make_executor: MakeExecutor, spec: SimSpec) -> None:
+    """``ready(handle)`` says whether ``result(handle)`` would return without waiting for a
+    worker (the driver polls it to commit on past a replacement that is not back): once
+    true it stays true, and it changes nothing a chunk holds. On a real clock it becomes
+    true by waiting alone; on a simulated one, once the clock passed the chunk's end (a
+    later chunk's result read). Replacement batches (``indices``) answer it too."""
+    starts = _starts(spec, 300)
+    executor = make_executor(spec)
+    name = type(executor).__name__
+    simulated = hasattr(executor, "waited_s")
+    try:
+        handles = executor.submit(0, starts[:200])
+        replacements = executor.submit(5000, starts[200:], indices=np.arange(5000, 5100, dtype=np.int64))
+        if simulated:  # a chunk it calls ready is read without the clock waiting for it
+            got, again, said = [], [], []
+            for h in replacements + handles:
+                said.append(executor.ready(h))
+                waited = executor.waited_s
+                (again if h in replacements else got).append(executor.result(h))
+                assert not said[-1] or executor.waited_s == waited, f"{name}: a ready chunk was waited for"
+            assert any(said) and not all(said), f"{name}: ready never, or always, true on a simulated clock"
+        else:
+            deadline = time.monotonic() + 120
+            while not all(executor.ready(h) for h in handles + replacements):
+                assert time.monotonic() < deadline, f"{name}: chunks never became ready"
+                time.sleep(0.01)
+            assert all(executor.ready(h) for h in handles + replacements), f"{name}: a ready chunk is not ready any more"
+            got = [executor.result(h) for h in handles]
+            again = [executor.result(h) for h in replacements]
+    finally:
+        executor.close()
+    reference = LocalExecutor(spec)
+    _same_runs(got, _chunks(reference, 0, starts[:200]), f"{name}, chunks read once ready")
+    assert sum(len(c) for c in again) == 100 and set(np.concatenate([c.indices for c in again])) == \
+        set(range(5000, 5100)), f"{name}: replacement chunks lost runs"
+
+
 def check_close(make_executor: MakeExecutor, spec: SimSpec) -> None:
     executor = make_executor(spec)
     _chunks(executor, 0, _starts(spec, 50))
@@ -150,6 +189,7 @@ def check_executor(make_executor: MakeExecutor, spec: SimSpec, kill_a_worker=Non
     """Every check above (``check_worker_failure`` when ``kill_a_worker`` is given)."""
     check_chunks(make_executor, spec)
     check_cancel(make_executor, spec)
+    check_ready(make_executor, spec)
     check_close(make_executor, spec)
     check_same_campaign(make_executor, spec)
     if kill_a_worker is not None:

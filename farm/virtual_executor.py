@@ -17,7 +17,12 @@ simulator (shared/spec/scaling.md):
 - the coordinator's own CPU time between executor calls is charged to the clock (its
   thread time, the in-process simulation excluded): a driver that cannot keep up shows;
 - a chunk cancelled before a worker took it never runs; experience replay's screening
-  is shared by the workers.
+  is shared by the workers;
+- replacements, as on Ray: while chunks are long (farm/chunking.py ``one_at_a_time``)
+  a worker holds one chunk and the driver the others, so the next free worker takes a
+  replacement first; short chunks are all sent at once and replacements go to fast
+  lanes (one per 16 workers) as a wave over them; the lanes' time is not counted in the
+  workers' utilisation.
 
 ``clock`` is the simulated time to the result; ``utilisation`` the share of worker time
 spent on runs.
@@ -33,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.executor import Chunk, Executor
-from farm.chunking import ChunkSizer
+from farm.chunking import ChunkSizer, fast_lanes
 from farm.local_executor import LocalExecutor
 from scenarios.simulator import SimSpec
 from scenarios.streams import RunStreams
@@ -65,7 +70,10 @@ class VirtualExecutor(Executor):
     name = "virtual"
 
     def __init__(self, spec: SimSpec, workers: int, run_time: float, jitter: float = 0.0, call_cost: float = 0.001,
-                 pipeline_depth: int = 2, check_step_bound: bool = False):
+                 pipeline_depth: int = 2, check_step_bound: bool = False, lanes: int | None = None):
+        """``lanes``: while chunks are short, replacements go to workers of their own that
+        take nothing else, as a wave over them (None: as many as the Ray executor starts,
+        farm/chunking.py ``fast_lanes``; 0: to the next free worker, before any queued chunk)."""
         self.spec = spec
         self.local = LocalExecutor(spec, check_step_bound)
         self.workers = workers
@@ -79,6 +87,10 @@ class VirtualExecutor(Executor):
         self.waited_s = 0.0  # the clock's time spent waiting for a chunk
         self._free: list[float] = [0.0] * workers  # a heap of the workers' free times
         self._queue: deque[int] = deque()  # handles no worker has taken yet, in order
+        self.lanes = fast_lanes(workers) if lanes is None else int(lanes)
+        self._one_at_a_time = False  # the latest batch's chunks are long (see submit)
+        self._lane_free: list[float] = [0.0] * self.lanes  # a heap of the lanes' free times
+        self._lane_queue: deque[int] = deque()
         self._jobs: dict[int, _Job] = {}
         self._next = 0
         self._mark = time.thread_time()  # the coordinator's CPU time charged up to here
@@ -95,15 +107,21 @@ class VirtualExecutor(Executor):
         self._mark = time.thread_time()  # what the executor did in-process is the workers' work
 
     def _dispatch(self, until: float, handle: int | None = None) -> None:
-        """Workers take queued chunks in order: every one that starts by ``until``, and
-        those up to ``handle`` whatever their start."""
-        while self._queue:
-            key = self._queue[0]
+        """Workers (and lanes) take queued chunks in order: every one that starts by
+        ``until``, and those up to ``handle`` whatever their start."""
+        self._take(self._queue, self._free, until, handle)
+        if self.lanes:
+            self._take(self._lane_queue, self._lane_free, until, handle, lane=True)
+
+    def _take(self, queue: deque, free: list[float], until: float, handle: int | None, lane: bool = False) -> None:
+        target = handle if handle is not None and queue and self._jobs[handle].start < 0 and handle in queue else None
+        while queue:
+            key = queue[0]
             job = self._jobs[key]
-            start = max(job.submitted, self._free[0])
-            if start > until and (handle is None or self._jobs[handle].start >= 0):
+            start = max(job.submitted, free[0])
+            if start > until and target is None:
                 break
-            self._queue.popleft()
+            queue.popleft()
             job.start = start
             batch = job.batch
             if batch.chunk is None:  # one in-process call per batch, whatever its chunks
@@ -112,9 +130,10 @@ class VirtualExecutor(Executor):
             job.chunk = batch.chunk.part(*job.rows)
             duration = self._duration(job.chunk)
             job.end = start + self.call_cost + duration
-            self._runs.append((start + self.call_cost, job.end))
-            heapq.heapreplace(self._free, job.end)
-            if key == handle:
+            if not lane:  # the lanes are not counted among the workers
+                self._runs.append((start + self.call_cost, job.end))
+            heapq.heapreplace(free, job.end)
+            if key == target:
                 break
 
     def _duration(self, chunk: Chunk) -> float:
@@ -137,16 +156,32 @@ class VirtualExecutor(Executor):
             self._dispatch(self.clock, handles[0])
             self._measure(self._jobs[handles[0]])
             at = 1
+        # as on Ray: while chunks are long, each worker holds one and the others wait with
+        # the driver, so a replacement goes to the next free worker; short chunks are all
+        # sent at once, and replacements go to the fast lanes
+        lanes = 0 if self._one_at_a_time else self.lanes
         if n > at:
-            for rows in np.array_split(np.arange(at, n), self.sizer.chunks(n - at, urgent=indices is not None)):
-                handles.append(self._cut(batch, int(rows[0]), int(rows[-1]) + 1, indices))
+            idle = self._idle() if indices is None else 0
+            cut = self.sizer.cut(n - at, indices is not None, lanes, idle=idle)
+            if indices is None:
+                self._one_at_a_time = self.sizer.one_at_a_time(max(len(rows) for rows in cut))
+            for rows in cut:
+                handles.append(self._cut(batch, at + int(rows[0]), at + int(rows[-1]) + 1, indices))
         if indices is None:
             self._queue.extend(handles[at:])
+        elif lanes:  # replacements: to the lanes, which take nothing else
+            self._lane_queue.extend(handles[at:])
         else:  # replacements: the next free worker takes them first
             self._queue.extendleft(reversed(handles[at:]))
         self._dispatch(self.clock)
         self._leave()
         return handles
+
+    def _idle(self) -> int:
+        """Workers free now with nothing queued for them."""
+        if self._queue or self._free[0] > self.clock:
+            return 0
+        return int(np.count_nonzero(np.asarray(self._free) <= self.clock))
 
     def _cut(self, batch: _Batch, lo: int, hi: int, indices) -> int:
         """A chunk of rows ``lo:hi`` of ``batch`` (the caller queues it; the probe, cut
@@ -170,6 +205,14 @@ class VirtualExecutor(Executor):
             self.waited_s += max(0.0, job.end - self.clock)
             self.clock = max(self.clock, job.end)
 
+    def ready(self, handle: int) -> bool:
+        self._enter()
+        self._dispatch(self.clock)
+        job = self._jobs[handle]
+        back = 0 <= job.start and job.end <= self.clock
+        self._leave()
+        return back
+
     def result(self, handle: int) -> Chunk:
         self._enter()
         self._dispatch(self.clock, handle)
@@ -183,7 +226,7 @@ class VirtualExecutor(Executor):
         self._dispatch(self.clock)
         job = self._jobs.pop(handle, None)
         if job is not None and job.start < 0:  # no worker took it: it never runs
-            self._queue.remove(handle)
+            (self._queue if handle in self._queue else self._lane_queue).remove(handle)
             job.batch.waiting -= 1
             if job.batch.waiting == 0 and job.batch.chunk is None:
                 self.local.cancel(job.batch.local)

@@ -47,6 +47,10 @@ def test_cancel(make_executor):
     testing.check_cancel(make_executor, SPEC)
 
 
+def test_ready(make_executor):
+    testing.check_ready(make_executor, SPEC)
+
+
 def test_close(make_executor):
     testing.check_close(make_executor, SPEC)
 

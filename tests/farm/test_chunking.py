@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from farm.chunking import LIMIT_FACTOR, LIMIT_FLOOR_S, REPLAY_FLOOR_S, UNMEASURED_LIMIT_S, ChunkSizer
+from farm.chunking import DRIVER_SHARE, LIMIT_FACTOR, LIMIT_FLOOR_S, REPLAY_FLOOR_S, UNMEASURED_LIMIT_S, ChunkSizer
 
 
 def measured(workers, chunk_cost, run_cost, call=1e-3, sizes=(1, 40, 60), timeout=0.0):
@@ -61,16 +61,20 @@ def test_a_chunk_holds_about_a_second():
 
 def test_many_workers_get_a_share_each_unless_the_workers_or_the_driver_cannot_afford_it():
     assert measured(8, 0.007, 0.002).size(1024) == 128  # a share per worker
-    # 32 workers of 2 ms runs: 32-run shares, but the driver (1 ms a chunk) affords chunks of 128 ms
+    # 32 workers of 2 ms runs: 16-run shares, but the workers' cost per chunk (7 ms) and the
+    # driver (1 ms a chunk) afford no chunks that short
     sizer = measured(32, 0.007, 0.002)
-    c = sizer.size(1024)
-    assert c == math.ceil((32 * 1e-3 / 0.25 - 0.007) / 0.002) == 61
+    c = sizer.size(512)
+    afford = math.ceil((32 * 1e-3 / DRIVER_SHARE - 0.007) / 0.002)
+    efficient = math.ceil(0.007 * 0.9 / (0.1 * 0.002))
+    assert c == max(afford, efficient) > 16
     assert sizer.busy_at_most(1024, 2) == 32  # still every worker, 2 batches in flight
     # a fast vectorized back end: the per-chunk cost (7 ms) would dominate a share: whole batches
     assert measured(2, 0.007, 18e-6).size(1024) == 1024
     # 1000 workers of 0.1 s runs: the driver cannot call a thousand 1-run chunks a second
     big = measured(1000, 0.01, 0.1)
-    assert big.size(100_000) == math.ceil((1000 * 1e-3 / 0.25 - 0.01) / 0.1)
+    assert big.size(100_000) == math.ceil((1000 * 1e-3 / DRIVER_SHARE - 0.01) / 0.1)
+    assert big.expected_s(big.size(100_000)) <= 2.1  # still about 2 s of work at most
 
 
 def test_the_size_is_always_between_one_run_and_the_batch():
@@ -81,3 +85,19 @@ def test_the_size_is_always_between_one_run_and_the_batch():
         runs = int(rng.integers(1, 20_000))
         assert 1 <= sizer.size(runs) <= runs
         assert sizer.chunks(runs) * sizer.size(runs) >= runs
+
+
+def test_a_rounds_first_chunks_on_idle_workers_hold_at_most_a_second_of_work():
+    # 1,000 workers of 0.1 s runs at 1 ms a call: the driver affords chunks of 2 s
+    sizer = measured(1000, 0.0, 0.1, call=1e-3)
+    steady = sizer.size(40_000)
+    assert steady == math.ceil(1000 * 1e-3 / DRIVER_SHARE / 0.1) == 20
+    parts = sizer.cut(40_000, idle=1000)
+    sizes = [len(p) for p in parts]
+    first = sizes[0]
+    assert 9 <= first and first * 0.1 <= 1.0  # at most a second's work on each idle worker
+    assert sizes[:1000] == [first] * 1000 and set(sizes[1000:]) == {steady}  # then as usual
+    np.testing.assert_array_equal(np.concatenate(parts), np.arange(40_000))  # every row once, in order
+    assert [len(p) for p in sizer.cut(40_000)] == [steady] * 2000  # busy workers: cut as usual
+    assert [len(p) for p in sizer.cut(5, urgent=True, idle=1000)] == [1] * 5  # replacements: one wave
+    assert [len(p) for p in sizer.cut(5, urgent=True, lanes=1)] == [5]  # for the fast lane: one call

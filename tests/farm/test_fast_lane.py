@@ -1,6 +1,11 @@
-"""The Ray executor's fast lane: replacements, which the sequential commit head waits
-for, go to an actor that takes nothing else, so they never queue behind a worker's
-chunks; the result is the in-process one."""
+"""Replacements never queue behind a worker's chunks on Ray: the sequential commit head
+may wait for them. Short chunks are all sent at once, and replacements go to fast lanes,
+actors that take nothing else; long chunks are sent to an actor one at a time, the
+others wait with the driver, and a replacement goes to the next actor with room before
+them. Either way the result is the in-process one."""
+
+import sys
+from pathlib import Path
 
 from farm import config as config_mod
 from farm.campaign_setup import build_algorithm, build_campaign, spec_of
@@ -14,12 +19,12 @@ RAW = {"scenario": {"name": "lead-follow", "sv_policy": "idm"}, "actions": {"mod
        "farm": {"workers": 2, "batch_size": 128, "pipeline_depth": 3, "seed": 11}}
 
 
-def campaign(make_executor):
-    """The result hash, the counters and the stats of the fast lane (if any) of a campaign
-    on the executor ``make_executor(spec)`` builds."""
+def campaign(make_executor, raw=RAW):
+    """The result hash, the counters and the stats of the fast lanes (if any) of a campaign
+    on the executor ``make_executor(spec)`` builds (RayExecutor: and its pool)."""
     import ray
 
-    cfg = config_mod.normalize(RAW)
+    cfg = config_mod.normalize(raw)
     sim = build_simulator(spec_of(cfg))
     algo = build_algorithm(cfg, sim)
     executor = make_executor(spec_of(cfg))
@@ -27,6 +32,8 @@ def campaign(make_executor):
         counters = build_campaign(cfg, algo, sim, executor).run()
         lanes = [s.handle for s in executor.pool.slots if s.lane] if isinstance(executor, RayExecutor) else []
         stats = ray.get([lane.stats.remote() for lane in lanes])
+        if isinstance(executor, RayExecutor):
+            stats.append({"held_back": executor.pool.held_back})
     finally:
         executor.close()
     return algo.result().result_hash, counters, stats
@@ -63,8 +70,24 @@ def test_a_call_remembers_it_is_urgent_for_its_retries():
 
 def test_a_ray_campaign_sends_its_replacements_to_the_lane_and_gives_the_in_process_result(ray_local):
     local_hash, _, _ = campaign(LocalExecutor)
-    ray_hash, counters, (lane,) = campaign(lambda spec: RayExecutor(spec, 2))
+    ray_hash, counters, (lane, pool) = campaign(lambda spec: RayExecutor(spec, 2))
     assert ray_hash == local_hash
     assert counters.runs_replaced > 0  # the campaign had replacements to send ...
     assert lane["tasks"] > 0  # ... and the lane ran them, and only them
     assert 0 < lane["runs"] <= counters.runs_discarded + counters.runs_replaced
+
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))  # the driver's slow back end too
+SLOW = {**RAW, "scenario": {"name": "lead-follow", "sv_policy": "idm", "backend": "slow_backend:SlowBackend",
+                            "slow_backend:SlowBackend": {"step_cost_s": 1.5e-4}}}  # a 30-state run: ~4.4 ms
+
+
+def test_long_chunks_wait_with_the_driver_and_replacements_go_first(ray_local):
+    """Chunks of ~0.28 s (64 runs of ~4.4 ms): one at a time per actor, the rest wait in the
+    pool; the result is still the in-process one (the slow back end simulates the same
+    runs as the numpy one: tests/benchmarks/test_slow_backend.py)."""
+    local_hash, local_counters, _ = campaign(LocalExecutor)
+    ray_hash, counters, (*lanes, pool) = campaign(lambda spec: RayExecutor(spec, 2), SLOW)
+    assert ray_hash == local_hash and counters.committed == local_counters.committed
+    assert pool["held_back"] > 0  # chunks waited in the pool for an actor with room
+    assert counters.runs_replaced > 0

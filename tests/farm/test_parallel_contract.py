@@ -29,7 +29,7 @@ def chunk_per_worker(monkeypatch):
     out of order, which is what the index-order commit must get right."""
     from farm.chunking import ChunkSizer
 
-    monkeypatch.setattr(ChunkSizer, "size", lambda self, runs, urgent=False: max(1, -(-runs // self.workers)))
+    monkeypatch.setattr(ChunkSizer, "size", lambda self, runs, urgent=False, lanes=0: max(1, -(-runs // self.workers)))
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +53,7 @@ def test_any_chunking_gives_the_same_result(ray_local, reference, tmp_path, monk
     rng = np.random.default_rng(3)
     sizes = []
 
-    def any_size(self, runs, urgent=False):
+    def any_size(self, runs, urgent=False, lanes=0):
         sizes.append(int(rng.integers(1, runs + 1)))
         return sizes[-1]
 
@@ -101,15 +101,16 @@ def test_n_eps_rule_is_exact_in_the_committed_record(reference, tmp_path):
     changed = ledger["changed"].to_numpy()
     counted = ledger["counted"].to_numpy()
     # every round ends after N_eps quiet runs; the certification round (the last) after
-    # the N its attempt needs (beta split over the attempts)
+    # the N its last check needs (beta split over the checks)
     assert summary["certification_attempts"] >= 1
     needs = [n_eps(0.005, 0.1)] * (len(summary["round_ends"]) - 1)
     needs.append(n_eps_attempt(0.005, 0.1, summary["certification_attempts"]))
     assert needs[-1] == summary["n_eps_final"]
-    for end, need in zip(summary["round_ends"], needs):
+    for k, (end, need) in enumerate(zip(summary["round_ends"], needs)):
         tail = slice(end - need, end)
         assert counted[tail].all() and not changed[tail].any()  # N_eps quiet, current-state runs
-        assert changed[end - need - 1] or not counted[end - need - 1]  # ... and not one more
+        if k < len(needs) - 1:  # ... and not one more (a check starts right after a closing round's quiet runs)
+            assert changed[end - need - 1] or not counted[end - need - 1]
     # runs drawn before a change count when their draw is what the changed set draws:
     # the streak starts right after the change, not a window later
     assert counted[np.nonzero(changed)[0] + 1].any()
@@ -206,7 +207,7 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
 
     from farm.chunking import ChunkSizer
 
-    monkeypatch.setattr(ChunkSizer, "size", lambda self, runs, urgent=False: runs)  # 20 runs: one chunk
+    monkeypatch.setattr(ChunkSizer, "size", lambda self, runs, urgent=False, lanes=0: runs)  # 20 runs: one chunk
     cfg = contract_config("ray", 4)
     lower, upper = np.array([0.0, 0.0, 0.0]), np.array([100.0, 30.0, 30.0])
     cov = Coverage(3, 2.0, lower, bounds=(lower, upper))
@@ -221,7 +222,8 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
             chunk = ex.result(handle)
             assert chunk.screening.seq == cov.seq  # screened at the coverage as submitted
         assert [s["tasks"] for s in ex.worker_stats()] == [8, 0, 0, 0]
-        assert len(cov.changes_since(-1)) <= 3  # not all 24 changes are kept
+        # not all 24 changes are kept: the log is trimmed about once a wave of messages (4 actors)
+        assert len(cov.changes_since(-1)) <= 3 * 4 < 24
     finally:
         ex.close()
 

@@ -12,3 +12,21 @@ def test_the_end_of_the_runs_is_announced_unless_quiet():
     log = io.StringIO()
     Progress(stream=log, mode="quiet").close()
     assert log.getvalue() == ""
+
+
+def test_a_certifying_campaign_says_closing_or_which_check_and_what_certification_cost():
+    # a real (small) certified campaign, its plain progress lines captured as a job log has them
+    from farm import config as config_mod
+    from farm.quantification import run
+    from small_campaign import lead_follow_toml
+
+    import tempfile
+    from pathlib import Path
+
+    log = io.StringIO()
+    with tempfile.TemporaryDirectory() as d:
+        summary = run(config_mod.parse(lead_follow_toml()), Path(d) / "q", progress=Progress(stream=log, interval=0.0))
+    lines = log.getvalue().splitlines()
+    assert any(" closing " in line and "(certification " in line for line in lines), lines
+    assert any(" check 1 " in line for line in lines), lines
+    assert summary["runs_certification"] > 0 and summary["certification_attempts"] >= 1

@@ -83,3 +83,47 @@ def test_damaged_campaign_files_give_a_clear_error_and_touch_nothing(tmp_path, d
     assert r.returncode == 2, r.stderr
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
     assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == snapshot
+
+
+class _StopIn:
+    """A progress that stops the campaign at its first commit in a given certification phase
+    (``closing``, or ``check``: a check after at least one failed one when there is one)."""
+
+    enabled = True
+
+    def __init__(self, phase: str):
+        self.phase, self.stopped = phase, None
+
+    def update(self, label, campaign):
+        algo = campaign.algorithm
+        if self.stopped is None and algo.certifying and algo.closing == (self.phase == "closing") \
+                and campaign.counters.quiet > 0:
+            self.stopped = (algo.phase, campaign.counters.attempts, campaign.counters.committed)
+            campaign.stop()
+
+    def line(self, text):
+        pass
+
+    def close(self):
+        pass
+
+
+@pytest.mark.parametrize("phase", ["closing", "check"])
+def test_stopped_mid_certification_then_resumed_gives_the_uninterrupted_result(tmp_path, uninterrupted, phase):
+    # in-process (the committed sequence does not depend on the executor): stopped in a
+    # closing round or in a check, with a checkpoint, then resumed from it
+    from farm import config as config_mod
+    from farm.quantification import Stopped, run
+
+    cfg = config_mod.parse(CONFIG, "c.toml")
+    stop = _StopIn(phase)
+    with pytest.raises(Stopped):
+        run(cfg, tmp_path / "out", progress=stop)
+    assert stop.stopped is not None and stop.stopped[0] == phase, stop.stopped
+    summary = run(cfg, tmp_path / "out", resume=True)
+    want, indices = uninterrupted
+    assert summary["result_hash"] == want["result_hash"]
+    assert summary["runs_committed"] == want["runs_committed"]
+    assert summary["runs_certification"] == want["runs_certification"] > 0
+    assert summary["certification_attempts"] == want["certification_attempts"] >= 1
+    np.testing.assert_array_equal(ledger_indices(tmp_path / "out"), indices)

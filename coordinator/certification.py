@@ -1,0 +1,56 @@
+"""The certification of a stochastic campaign's exported set: closing rounds and checks.
+
+After SPE's last round the set is checked the way ``validate`` checks it (VAL^eps-delta:
+runs uniform over the final centres, strict: a run must neither fail nor leave Phi_delta,
+near a known failure or not). SPE's own rounds excuse a run that leaves only toward a
+known failure, and they draw near failures (prioritized sampling), so the set they hand
+over still violates the strict rule several times as often as eps allows, nearly all of
+it in the boxes near failures (docs/benchmarks.md, "Certification that converges").
+
+The scheme alternates two kinds of round, both strict:
+
+- a *closing* round changes the set as SPE does (a failure prunes, a new state is
+  explored, a run that leaves only toward known failures prunes its start's tree) and
+  spends no beta. It draws uniformly over the *band*: the alive centres within
+  sigma-bar + delta of the set's failure-side boundary (Theorem 3: only their runs can
+  leave the set in one step; SPE's ``_near_boundary``), where the violations are. It ends
+  after ``closing_quiet`` runs in a row that change nothing.
+- a *check* draws uniformly over all final centres and changes nothing while it passes:
+  check i passes after ``check_quiet(i)`` quiet runs in a row (N_eps at beta_i = 6 beta /
+  (pi^2 i^2), coordinator/sample_size.py). A run that fails or leaves the set ends the
+  check: its change is applied and a closing round follows.
+
+Why the exported set keeps its guarantee (docs/guarantee.md has the sketch): only checks
+certify, each on runs drawn after the set it checks was fixed, and their betas sum to
+beta; the closing rounds choose which set is checked and when, which the union bound
+over checks allows.
+
+The closing round's length is chosen so that a check usually passes at its first try: a
+violation rate p_band over the band is, if only the band can violate, a rate
+share x p_band over all centres (share: the band's share of the centres), so
+N_eps(eps / (margin x share)) quiet band runs say about as much as N_eps(eps / margin)
+uniform runs would, and the check (N_eps at eps) then fails with probability about
+1 - (1 - eps / margin)^N_eps (the margin's choice: docs/certification.md).
+
+A deterministic system is certified by running every final centre once (VAL^delta,
+coordinator/enumeration.py) and has no closing rounds.
+"""
+
+from __future__ import annotations
+
+from coordinator.sample_size import n_eps, n_eps_attempt
+
+CLOSING, CHECK = "closing", "check"
+MARGIN = 4.0  # quantify.certify_margin's default (docs/certification.md)
+MAX_CLOSING_EPSILON = 0.5  # a tiny band: a few runs (N_eps at 0.5) still close it
+
+
+def closing_quiet(epsilon: float, beta: float, margin: float, share: float) -> int:
+    """Quiet band runs in a row that end a closing round: N_eps at eps / (margin x share),
+    ``share`` the band's share of the alive centres (1: the band is the whole set)."""
+    return n_eps(min(epsilon / (margin * max(share, 1e-12)), MAX_CLOSING_EPSILON), beta)
+
+
+def check_quiet(epsilon: float, beta: float, attempt: int) -> int:
+    """Quiet uniform runs in a row that pass check ``attempt`` (1, 2, ...)."""
+    return n_eps_attempt(epsilon, beta, attempt)

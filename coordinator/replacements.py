@@ -1,0 +1,147 @@
+"""Replacement runs under coupled counting, and the runs the head commits past one that
+is not back yet (shared/spec/scaling.md; coordinator/campaign.py drives them).
+
+A mispredicted run is discarded unseen and replaced: the current draw, the same index and
+streams (``Replacement``), applied before the head commits index ``due`` + 1. Replacements
+sent together travel as one executor batch (``ReplacementGroup``).
+
+The head does not wait for a replacement that is due but not back (a *hold*): it commits
+on, past it, the runs a one-run-at-a-time campaign would commit next *if the replacement
+leaves the state as it is* (most do). Nothing the head does past a hold changes the
+state: it stops at the next run that would change it, and at the streak's end, until the
+holds before it are applied. What it does do is undone if a held replacement changes the
+state, so ``Held`` keeps, per hold, the counters as they stood when the head passed its
+index, and holds back the effects of every later commit (ledger rows, experience replay,
+the adversary's counts) until the holds before them are applied:
+
+- applied and quiet: the counters (and the later holds' records of them) gain its quiet
+  run, and the effects held up to the next hold take place, in index order;
+- applied and changing the state: the head goes back to just after its index (the
+  counters as recorded, every later effect and hold dropped), the change is applied, and
+  the runs after it are committed again at the new state.
+
+The committed sequence is therefore the one-run-at-a-time campaign's, whatever the
+workers' timing: the hold only hides the replacement's latency.
+"""
+
+from __future__ import annotations
+
+import bisect
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from coordinator.executor import Chunk
+from coordinator.stable_sampler import Draws
+
+# the counters a hold records, and restores if its replacement changes the state
+HELD_COUNTS = ("committed", "quiet", "escaped_in_streak", "runs_discarded", "runs_replaced")
+
+
+class ReplacementGroup:
+    """Replacements submitted together, as one batch: the chunks they travel in (in the
+    batch's order), fetched on demand."""
+
+    def __init__(self, handles: list):
+        self.handles = list(handles)  # not fetched yet, in order
+        self.chunks: list[Chunk] = []
+        self.ends: list[int] = []  # positions in the batch after each fetched chunk
+
+    def fetched(self, chunk: Chunk) -> None:
+        self.chunks.append(chunk)
+        self.ends.append((self.ends[-1] if self.ends else 0) + len(chunk))
+
+    def find(self, position: int) -> tuple[Chunk, int] | None:
+        """The chunk and row of the batch's ``position``-th run, if fetched."""
+        at = bisect.bisect_right(self.ends, position)
+        if at == len(self.chunks):
+            return None
+        return self.chunks[at], position - (self.ends[at - 1] if at else 0)
+
+
+@dataclass
+class Replacement:
+    """The run that replaces a mispredicted one: index ``index``, drawn as ``draws``
+    (one draw), applied before the head commits index ``due`` + 1."""
+
+    index: int
+    draws: Draws
+    start: np.ndarray
+    due: int
+    group: ReplacementGroup | None = None
+    position: int = 0  # its row in its group's batch
+
+
+@dataclass
+class Hold:
+    """A due replacement the head passed before its run was back."""
+
+    replacement: Replacement
+    counts: dict  # HELD_COUNTS as they stood when the head passed its due index
+    queue: list  # the replacements queued then (not yet due)
+    effects: int  # held effects that come before its own
+
+
+@dataclass
+class Held:
+    """The holds, oldest first, and the effects of the commits made past the first."""
+
+    holds: deque = field(default_factory=deque)
+    effects: list = field(default_factory=list)
+    passed: int = 0  # replacements the head passed before they were back (a statistic)
+    rewound: int = 0  # held replacements that changed the state (the head went back)
+
+    def __bool__(self) -> bool:
+        return bool(self.holds)
+
+    @property
+    def first(self) -> Hold:
+        return self.holds[0]
+
+    def hold(self, replacement: Replacement, counters, queue) -> None:
+        """The head passes ``replacement`` (due, not back)."""
+        counts = {name: getattr(counters, name) for name in HELD_COUNTS}
+        self.holds.append(Hold(replacement, counts, list(queue), len(self.effects)))
+        self.passed += 1
+
+    def effect(self, apply: Callable[[], None]) -> None:
+        """A commit's effect: now, or held until the holds before it are applied."""
+        if self.holds:
+            self.effects.append(apply)
+        else:
+            apply()
+
+    def applied_quiet(self, gained: dict) -> None:
+        """The first hold's replacement was applied and left the state as it was: the later
+        holds' records gain what it added (``gained``: counter -> amount), and the effects
+        up to the next hold take place."""
+        self.holds.popleft()
+        for later in self.holds:
+            for name, amount in gained.items():
+                later.counts[name] += amount
+        upto = self.holds[0].effects if self.holds else len(self.effects)
+        ready, self.effects = self.effects[:upto], self.effects[upto:]
+        for later in self.holds:
+            later.effects -= upto
+        for apply in ready:
+            apply()
+
+    def rewind(self, counters) -> tuple[Hold, list[Replacement]]:
+        """The first hold's replacement changes the state: the counters go back to how they
+        stood when the head passed it, every later effect and hold is dropped. Returns the
+        hold and the replacements of the later holds (drawn for indices the head will
+        commit again)."""
+        first = self.holds.popleft()
+        for name, value in first.counts.items():
+            setattr(counters, name, value)
+        later = [h.replacement for h in self.holds]
+        self.holds.clear()
+        self.effects.clear()  # the first hold's effects position is 0: every one came after it
+        self.rewound += 1
+        return first, later
+
+    def clear(self) -> None:
+        self.holds.clear()
+        self.effects.clear()

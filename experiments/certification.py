@@ -1,0 +1,174 @@
+"""What certification costs and buys (issue 35): certified against uncertified campaigns.
+
+Per scenario (lead-follow idm, delta 2 -> 0.5; fleet3 idm, delta 2 -> 1), action mode
+(uniform Gamma; the adversary search) and seed 0-4: the committed runs, the runs
+certification took (closing rounds and checks), its checks (attempts) and the accuracy of
+the exported set against the model-based reference (IoU, precision, recall on the compare
+grid), with quantify.certify on and off. Then the closing rounds' margin
+(quantify.certify_margin) swept on lead-follow, uniform Gamma, seeds 0-4 and 12 (the
+issue's seed). eps = 0.001, beta = 0.1, K = 50, in-process (the committed sequence does
+not depend on the executor).
+
+    python experiments/certification.py            # runs it (~2 h on 2 shared cores): docs/certification.json
+    python experiments/certification.py --render   # docs/certification.md from the JSON only
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from coordinator.certification import MARGIN
+from coordinator.reference import compare_boxes, grid, reference_safe
+from farm import config as config_mod
+
+from experiment import machine_stamp, main, run_in_process
+
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+SCENARIOS = {"lead-follow idm": ({"name": "lead-follow", "sv_policy": "idm"}, {"delta0": 2.0, "delta_min": 0.5}),
+             "fleet3 idm": ({"name": "fleet3", "sv_policy": "idm"}, {"delta0": 2.0, "delta_min": 1.0})}
+MODES = ["uniform", "search"]
+SEEDS = [0, 1, 2, 3, 4]
+SWEEP = {"case": "lead-follow idm", "mode": "uniform", "seeds": [0, 1, 2, 3, 4, 12], "margins": [1.0, 2.0, 4.0, 8.0, 16.0]}
+EPS, BETA = 0.001, 0.1
+
+
+def config(case: str, mode: str, seed: int, certify: bool, margin: float = MARGIN):
+    scenario, deltas = SCENARIOS[case]
+    return config_mod.normalize({
+        "scenario": scenario, "actions": {"mode": mode},
+        "quantify": {**deltas, "epsilon": EPS, "beta": BETA, "horizon": 50, "certify": certify,
+                     "certify_margin": margin, "budget": 20_000_000},
+        "farm": {"executor": "local", "seed": seed}})
+
+
+def run(case: str, mode: str, seed: int, certify: bool, truth: dict, margin: float = MARGIN) -> dict:
+    c, algo, backend, seconds = run_in_process(config(case, mode, seed, certify, margin))
+    safe_set = algo.result()
+    if case not in truth:  # the reference depends on the scenario alone
+        truth[case] = reference_safe(backend, grid(backend.scenario))
+    m = compare_boxes(backend, safe_set, truth=truth[case])
+    row = {"case": case, "mode": mode, "seed": seed, "certify": certify, "margin": margin if certify else None,
+           "committed": c.committed, "runs_certification": c.runs_certification, "attempts": c.attempts,
+           "rounds": c.rounds_completed, "converged": c.converged, "boxes": len(safe_set),
+           "iou": m["iou"], "precision": m["precision"], "recall": m["recall"],
+           "result_hash": safe_set.result_hash, "seconds_in_process": round(seconds, 1)}
+    print(json.dumps({k: row[k] for k in ("case", "mode", "seed", "certify", "margin", "committed", "attempts",
+                                          "precision", "seconds_in_process")}), flush=True)
+    return row
+
+
+def study(args: list[str]) -> dict:
+    truth, rows, sweep = {}, [], []
+    for case in SCENARIOS:
+        for mode in MODES:
+            for seed in SEEDS:
+                for certify in (False, True):
+                    rows.append(run(case, mode, seed, certify, truth))
+    for margin in SWEEP["margins"]:
+        for seed in SWEEP["seeds"]:
+            done = [r for r in rows if r["case"] == SWEEP["case"] and r["mode"] == SWEEP["mode"]
+                    and r["seed"] == seed and r["certify"] and r["margin"] == margin]
+            sweep.append(done[0] if done else run(SWEEP["case"], SWEEP["mode"], seed, True, truth, margin))
+        for seed in SWEEP["seeds"]:  # the uncertified yardstick of the seeds the main table lacks
+            if not any(r["case"] == SWEEP["case"] and r["mode"] == SWEEP["mode"] and r["seed"] == seed
+                       and not r["certify"] for r in rows + sweep):
+                sweep.append(run(SWEEP["case"], SWEEP["mode"], seed, False, truth))
+    data = {"meta": machine_stamp(epsilon=EPS, beta=BETA, default_margin=MARGIN), "rows": rows, "sweep": sweep}
+    (DOCS / "certification.json").write_text(json.dumps(data, indent=1) + "\n")
+    print(render())
+    return data
+
+
+def _pair(rows: list[dict], case: str, mode: str, seed: int, margin: float | None = None) -> tuple[dict, dict]:
+    """The uncertified and the certified row of one campaign."""
+    def pick(certify):
+        return next(r for r in rows if r["case"] == case and r["mode"] == mode and r["seed"] == seed
+                    and r["certify"] == certify and (not certify or margin is None or r["margin"] == margin))
+    return pick(False), pick(True)
+
+
+def render() -> Path:
+    """docs/certification.md from docs/certification.json."""
+    data = json.loads((DOCS / "certification.json").read_text())
+    rows, sweep, meta = data["rows"], data["sweep"], data["meta"]
+    everything = rows + sweep
+    out = [
+        "# What certification costs",
+        "",
+        "<!-- rendered by `python experiments/certification.py --render` from docs/certification.json: edit the "
+        "script, not this file -->",
+        "",
+        f"`python experiments/certification.py` ({meta['date']}, {meta['machine']}, Python {meta['python']}, numpy "
+        f"{meta['numpy']}): eps = {meta['epsilon']:g}, beta = {meta['beta']:g}, K = 50, in-process. "
+        "Certification (coordinator/certification.py, docs/guarantee.md) alternates closing rounds (strict, drawn",
+        "over the band near the failure-side boundary, spending no beta, ending after N_eps(eps / (margin x",
+        "share)) quiet runs) and checks (strict, uniform over the final centres, check i passing after N_eps at",
+        "beta_i = 6 beta / (pi^2 i^2) quiet runs). `runs` are committed runs, `cert runs` those certification",
+        "took, `attempts` its checks; accuracy is against the model-based reference on the compare grid.",
+        "",
+        f"## Certified against uncertified (margin {meta['default_margin']:g}), medians over seeds "
+        + ", ".join(map(str, SEEDS)),
+        "",
+        "| scenario | actions | runs uncertified | runs certified | ratio (median, max) | attempts (median, max) | "
+        "precision uncert. -> cert. | IoU uncert. -> cert. | recall uncert. -> cert. |",
+        "| --- | --- | ---: | ---: | ---: | ---: | --- | --- | --- |",
+    ]
+    for case in SCENARIOS:
+        for mode in MODES:
+            pairs = [_pair(rows, case, mode, s) for s in SEEDS]
+            ratio = [c["committed"] / u["committed"] for u, c in pairs]
+            att = [c["attempts"] for _, c in pairs]
+            med = lambda key, which: float(np.median([p[which][key] for p in pairs]))  # noqa: E731
+            out.append(f"| {case} | {mode} | {med('committed', 0):,.0f} | {med('committed', 1):,.0f} | "
+                       f"{np.median(ratio):.2f}x, {max(ratio):.2f}x | {np.median(att):g}, {max(att)} | "
+                       f"{med('precision', 0):.4f} -> {med('precision', 1):.4f} | "
+                       f"{med('iou', 0):.4f} -> {med('iou', 1):.4f} | {med('recall', 0):.4f} -> {med('recall', 1):.4f} |")
+    out += ["", "## Seed by seed", "",
+            "| scenario | actions | seed | runs uncert. | runs cert. | cert runs | ratio | attempts | boxes uncert. -> "
+            "cert. | precision uncert. -> cert. | IoU uncert. -> cert. |",
+            "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | --- | --- | --- |"]
+    for case in SCENARIOS:
+        for mode in MODES:
+            for seed in SEEDS:
+                u, c = _pair(rows, case, mode, seed)
+                out.append(f"| {case} | {mode} | {seed} | {u['committed']:,} | {c['committed']:,} | "
+                           f"{c['runs_certification']:,} | {c['committed'] / u['committed']:.2f} | {c['attempts']} | "
+                           f"{u['boxes']:,} -> {c['boxes']:,} | {u['precision']:.4f} -> {c['precision']:.4f} | "
+                           f"{u['iou']:.4f} -> {c['iou']:.4f} |")
+    out += ["", f"## The margin: {SWEEP['case']}, {SWEEP['mode']} Gamma, seeds "
+            + ", ".join(map(str, SWEEP["seeds"])), "",
+            "A closing round ends after N_eps(eps / (margin x share)) quiet band runs: a larger margin closes",
+            "longer (more runs per closing round) so that a check fails less often (fewer attempts, fewer",
+            "closing rounds after a failed check).", "",
+            "| margin | runs / uncertified (median, max) | attempts (median, max) | precision (median) | IoU (median) |",
+            "| ---: | ---: | ---: | ---: | ---: |"]
+    for margin in SWEEP["margins"]:
+        pairs = [_pair(everything, SWEEP["case"], SWEEP["mode"], s, margin) for s in SWEEP["seeds"]]
+        ratio = [c["committed"] / u["committed"] for u, c in pairs]
+        att = [c["attempts"] for _, c in pairs]
+        out.append(f"| {margin:g} | {np.median(ratio):.2f}x, {max(ratio):.2f}x | {np.median(att):g}, {max(att)} | "
+                   f"{np.median([c['precision'] for _, c in pairs]):.4f} | "
+                   f"{np.median([c['iou'] for _, c in pairs]):.4f} |")
+    pairs = [_pair(everything, SWEEP["case"], SWEEP["mode"], s, meta["default_margin"]) for s in SWEEP["seeds"]]
+    ratio = float(np.median([c["committed"] / u["committed"] for u, c in pairs]))
+    att = float(np.median([c["attempts"] for _, c in pairs]))
+    better = sum(c["precision"] >= u["precision"] for u, c in pairs)
+    target = (f"Issue 35's targets at the default margin {meta['default_margin']:g} on these seeds: at most 2x the "
+              f"uncertified runs (median {ratio:.2f}x: {'met' if ratio <= 2 else 'NOT met'}), at most 10 checks "
+              f"(median {att:g}: {'met' if att <= 10 else 'NOT met'}), precision unchanged or better "
+              f"({better} of {len(pairs)} seeds).")
+    unc = [_pair(everything, SWEEP["case"], SWEEP["mode"], s)[0] for s in SWEEP["seeds"]]
+    out.append(f"| (uncertified) | 1 | - | {np.median([u['precision'] for u in unc]):.4f} | "
+               f"{np.median([u['iou'] for u in unc]):.4f} |")
+    out += ["", target]
+    path = DOCS / "certification.md"
+    path.write_text("\n".join(out) + "\n")
+    return path
+
+
+if __name__ == "__main__":
+    main(study, render)

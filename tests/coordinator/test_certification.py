@@ -1,0 +1,83 @@
+"""Sampled certification (coordinator/certification.py): closing rounds spend no beta,
+checks do; a real campaign ends on a passed check after a bounded number of attempts,
+accounts for the runs certification took, and exports a set a fresh validate certifies
+more often than not."""
+
+import numpy as np
+import pytest
+
+from coordinator.certification import check_quiet, closing_quiet
+from coordinator.sample_size import n_eps, n_eps_attempt
+from farm import api
+from farm import config as config_mod
+from farm.campaign_setup import build_algorithm, build_campaign, spec_of
+from farm.local_executor import LocalExecutor
+
+EPS, BETA = 0.01, 0.1
+LF_IDM = {"name": "lead-follow", "sv_policy": "idm"}
+
+
+def test_closing_rounds_aim_at_eps_over_margin_and_shrink_with_the_band():
+    assert closing_quiet(EPS, BETA, 4.0, 1.0) == n_eps(EPS / 4, BETA)
+    # a band of a tenth of the centres: as much evidence about the whole set's rate, if
+    # only the band can violate, from a tenth of the runs
+    assert closing_quiet(EPS, BETA, 4.0, 0.1) == n_eps(EPS / 0.4, BETA) < closing_quiet(EPS, BETA, 4.0, 1.0)
+    assert closing_quiet(EPS, BETA, 16.0, 0.1) > closing_quiet(EPS, BETA, 4.0, 0.1)
+    assert closing_quiet(EPS, BETA, 1.0, 1e-9) == n_eps(0.5, BETA)  # a tiny band: a few runs still close it
+    assert [check_quiet(EPS, BETA, i) for i in (1, 2, 10)] == [n_eps_attempt(EPS, BETA, i) for i in (1, 2, 10)]
+
+
+def run_in_process(cfg):
+    executor = LocalExecutor(spec_of(cfg))
+    algo = build_algorithm(cfg, executor.simulator)
+    return build_campaign(cfg, algo, executor.simulator, executor).run(), algo, None, None
+
+
+def _config(seed: int, certify: bool = True, **quantify):
+    return config_mod.normalize({
+        "scenario": LF_IDM, "actions": {"mode": "uniform"},
+        "quantify": {"delta0": 4.0, "delta_min": 2.0, "epsilon": EPS, "beta": BETA, "horizon": 30,
+                     "certify": certify, **quantify},
+        "farm": {"executor": "local", "seed": seed, "batch_size": 256}})
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_certified_campaign_ends_on_a_passed_check_in_few_attempts(seed):
+    counters, algo, _, _ = run_in_process(_config(seed))
+    assert counters.converged and algo.certifying and not algo.closing  # it ended on a passed check
+    assert 1 <= counters.attempts <= 10, counters.attempts
+    # the runs certification took: everything after SPE's last round, whose end is the
+    # first round end at the finest delta
+    spe_end = counters.round_ends[algo.round]
+    assert counters.certification_from == spe_end
+    assert counters.runs_certification == counters.committed - spe_end > 0
+    # certification is one round (SPE's rounds and it), ended by a passed check after the
+    # last closing round: each check follows a closing round
+    assert len(counters.round_ends) == algo.round + 2 and counters.round_ends[-1] == counters.committed
+    assert len(counters.closing_ends) == counters.attempts
+    assert counters.committed - counters.closing_ends[-1] >= check_quiet(EPS, BETA, counters.attempts)
+    uncertified, _, _, _ = run_in_process(_config(seed, certify=False))
+    assert uncertified.committed == spe_end  # SPE's rounds are the uncertified campaign's, run for run
+
+
+def test_the_certified_set_passes_a_fresh_validate_more_often_than_not(tmp_path):
+    result = api.quantify(_config(3), out=tmp_path / "q")
+    assert result.summary["runs_certification"] > 0 and result.summary["certification_attempts"] >= 1
+    passed = []
+    for seed in range(5):
+        cert = api.validate({"scenario": LF_IDM, "actions": {"mode": "uniform"},
+                             "validate": {"algorithm": "eps-delta", "epsilon": EPS, "beta": BETA, "horizon": 30,
+                                          "delta": result.half_width,
+                                          "domain_set": str(tmp_path / "q" / "safe_set.parquet")},
+                             "farm": {"executor": "local", "seed": 1000 + seed}})
+        passed.append(cert.certified)
+    assert sum(passed) >= 3, passed
+
+
+def test_a_larger_margin_closes_longer_and_checks_no_more_often():
+    small, _, _, _ = run_in_process(_config(1, certify_margin=1.0))
+    large, _, _, _ = run_in_process(_config(1, certify_margin=64.0))
+    first_closing = [c.closing_ends[0] - c.certification_from for c in (small, large)]
+    assert first_closing[1] > first_closing[0]
+    assert large.attempts <= small.attempts
+    assert np.all([c.converged for c in (small, large)])

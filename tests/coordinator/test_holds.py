@@ -1,0 +1,109 @@
+"""The head commits on past a replacement that is not back (a hold) and goes back when it
+changes the state (coordinator/replacements.py): the runs used (the ledger but for the
+discarded rows, which follow when batches were drawn), the counters and the result are
+those of a campaign that waits for every replacement, and a checkpoint taken while
+replacements are held resumes to the same result."""
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from coordinator.campaign import Campaign, DriverState
+from coordinator.commit_log import CommitLog
+from farm import config as config_mod
+from farm.campaign_setup import build_algorithm, build_campaign, spec_of
+from farm.local_executor import LocalExecutor
+from farm.simulators import build_simulator
+
+
+class LateReplacements(LocalExecutor):
+    """In-process, but a replacement's chunk is 'not back' until ``late`` more chunks were
+    read (a slow fast lane), so the driver holds it and commits on."""
+
+    def __init__(self, spec, late: int):
+        super().__init__(spec)
+        self.late = late
+        self._reads = 0
+        self._sent: dict[int, int] = {}
+
+    def submit(self, first_index, starts, screen=None, actions=None, indices=None):
+        handles = super().submit(first_index, starts, screen, actions, indices)
+        if indices is not None:
+            self._sent.update({h: self._reads for h in handles})
+        return handles
+
+    def ready(self, handle) -> bool:
+        return handle not in self._sent or self._reads - self._sent[handle] >= self.late
+
+    def result(self, handle):
+        self._reads += 1
+        self._sent.pop(handle, None)
+        return super().result(handle)
+
+
+def _config(seed: int):
+    return config_mod.normalize({
+        "scenario": {"name": "lead-follow", "sv_policy": "idm"}, "actions": {"mode": "uniform"},
+        "quantify": {"delta0": 4.0, "delta_min": 1.0, "epsilon": 0.005, "beta": 0.1, "horizon": 30},
+        "farm": {"executor": "local", "batch_size": 64, "pipeline_depth": 3, "seed": seed}})
+
+
+def _campaign(cfg, executor=None, restored=None):
+    spec = spec_of(cfg)
+    simulator = build_simulator(spec)
+    algorithm = build_algorithm(cfg, simulator)
+    if restored is not None:
+        algorithm.load_state(restored[0])
+    executor = executor or LocalExecutor(spec)
+    state = None if restored is None else SimpleNamespace(driver=DriverState.read(*restored[1]), adversary=None)
+    return build_campaign(cfg, algorithm, simulator, executor, restored=state)
+
+
+def _used(campaign: Campaign) -> dict:
+    """The ledger's rows of the runs used, in index order, without the replacement mark."""
+    rows = campaign.log.take()
+    used = rows["kind"] != CommitLog.DISCARDED
+    order = np.argsort(rows["sample_index"][used], kind="stable")
+    return {name: rows[name][used][order] for name in rows if name != "kind"}
+
+
+@pytest.mark.parametrize("seed", [0])
+def test_holds_give_the_committed_sequence_of_a_campaign_that_waits(seed):
+    cfg = _config(seed)
+    waits = _campaign(cfg)
+    waits.run()
+    late = _campaign(cfg, LateReplacements(spec_of(cfg), late=4))
+    late.run()
+    assert late.held.passed > 20 and late.held.rewound > 0  # the holds were taken, and some undone
+    assert waits.held.passed == 0
+    assert late.algorithm.result().result_hash == waits.algorithm.result().result_hash
+    a, b = _used(waits), _used(late)
+    for name in a:
+        np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+    for name in ("committed", "quiet", "changes", "rounds_completed", "attempts", "truncations", "round_ends"):
+        assert getattr(late.counters, name) == getattr(waits.counters, name), name
+
+
+def test_a_checkpoint_taken_while_replacements_are_held_resumes_to_the_same_result():
+    cfg = _config(0)
+    whole = _campaign(cfg)
+    whole.run()
+    seen = []
+
+    def stop_while_held(campaign: Campaign) -> None:
+        if campaign.held and not seen:
+            seen.append((campaign.algorithm.state(), campaign.state(), campaign.counters.committed,
+                         campaign.held.first.counts["committed"]))
+            campaign.stop()
+
+    first = _campaign(cfg, LateReplacements(spec_of(cfg), late=6))
+    first.observers.append(stop_while_held)
+    first.run()
+    assert seen, "no hold at a chunk boundary"
+    algo_state, (arrays, meta), head, held_at = seen[0]
+    assert meta["counters"]["committed"] == held_at < head  # saved as the head passed the first hold
+    resumed = _campaign(cfg, LateReplacements(spec_of(cfg), late=2), restored=(algo_state, (arrays, meta)))
+    resumed.run()
+    assert resumed.algorithm.result().result_hash == whole.algorithm.result().result_hash
+    assert resumed.counters.committed == whole.counters.committed
