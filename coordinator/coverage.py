@@ -119,6 +119,7 @@ class Coverage:
         self.version = 0  # the algorithm version of the last change applied
         self.epoch = 0  # bumped by Reset: vertex ids of older screenings mean nothing
         self.kill_seq = -1  # seq of the last Kill (witness checks needed after it)
+        self.insert_seq = -1  # seq of the last Insert (a newer centre may be a state's witness now)
         self.strict = False  # certification: near a failure does not excuse leaving the covering
         self._log: list[tuple[int, object]] | None = None
         self._forget_history()
@@ -128,6 +129,7 @@ class Coverage:
         if isinstance(change, Insert):
             if len(change.points):
                 self._insert(change.points, change.half_width)
+                self.insert_seq = self.seq + 1
         elif isinstance(change, Kill):
             self.vertices.kill(change.ids)
             self.kill_seq = self.seq + 1
@@ -197,6 +199,8 @@ class Coverage:
             if isinstance(change, Insert):
                 inserts.append(change)
                 v_count += len(change.points)
+                if len(change.points):
+                    self.insert_seq = self.seq + offset
             elif isinstance(change, Kill):
                 kills.append(change.ids)
                 self.kill_seq = self.seq + offset
@@ -263,6 +267,8 @@ class Coverage:
 
     # -- snapshot -------------------------------------------------------------------------
     def state(self) -> dict:
+        if isinstance(self.vertices, FrozenPoints):
+            raise RuntimeError("coverage: the indexes were released (the campaign is done)")
         out = {f"vertices.{k}": v for k, v in self.vertices.state().items()}
         if self.failures is not None:
             out.update({f"failures.{k}": v for k, v in self.failures.state().items()})
@@ -288,6 +294,7 @@ class Coverage:
         cov._load(state)
         _, version, epoch, _, seq, _ = state["coverage"]
         cov.version, cov.epoch, cov.seq = int(version), int(epoch), int(seq)
+        cov.insert_seq = cov.seq  # not kept: screenings older than a restore are never asked
         cov._forget_history()
         return cov
 
@@ -406,9 +413,15 @@ class Rescreen:
     def trusted(self, rows: np.ndarray) -> np.ndarray:
         """(len(rows),) bool: the screening's witnesses of these runs are current and
         complete: not re-screened in full, and quiet when screened (a run whose explore
-        states were covered by later inserts is quiet now, but has no witness for them)."""
+        states were covered by later inserts is quiet now, but has no witness for them),
+        and no centre inserted since: a state's witness is its newest covering centre, so
+        after an insert (boundary refinement splits boxes while it certifies) the answer
+        would depend on when the chunk was screened, that is, on the executor."""
         sc = self.screening
-        return ~self._full[rows] & (sc.event[rows] == QUIET) & ~sc.escaped[rows] & (sc.epoch == self.coverage.epoch)
+        cov = self.coverage
+        if sc.epoch != cov.epoch or cov.insert_seq > sc.seq:
+            return np.zeros(len(rows), dtype=bool)
+        return ~self._full[rows] & (sc.event[rows] == QUIET) & ~sc.escaped[rows]
 
     def witnesses(self, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The alive centres that cover the states of runs ``rows`` (quiet now) at the

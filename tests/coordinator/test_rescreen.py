@@ -73,3 +73,27 @@ def test_rescreen_matches_a_fresh_classification(seed, strict):
             cov.apply(Insert(_lattice(rng, 3) + rng.choice([0.0, 0.1], size=(3, 2))), version)
         pos = row + 1
     assert checked > 3  # the classification was known (and checked) for several events
+
+
+@pytest.mark.parametrize("mixed", [False, True])
+def test_witnesses_after_an_insert_are_those_of_a_fresh_screening(mixed):
+    """A state's witness is its newest covering centre: after an insert (boundary
+    refinement splits boxes while it certifies) the witnesses must not depend on when
+    the chunk was screened, or the certificates, and the runs they cost, depend on the
+    executor (a Ray band campaign committed one run less than in-process)."""
+    rng = np.random.default_rng(7)
+    cov = Coverage(2, DELTA, LOWER, bounds=(LOWER, UPPER), mixed=mixed)
+    cov.apply(Insert(_lattice(rng, 200)), 1)
+    states, offsets, _ = _chunk(rng)
+    outcomes = np.zeros(len(offsets) - 1, dtype=np.int8)
+    rescreen = Rescreen(cov, cov.screen(states, offsets, outcomes), outcomes, lambda: (states, offsets))
+    quiet = np.flatnonzero(cov.screen(states, offsets, outcomes).event == 0)
+    before = rescreen.witnesses(quiet)
+    # new centres on top of covered states: the newest covering centre changes
+    covered = states[offsets[quiet[:20]]]
+    cov.apply(Insert(np.floor(covered / (2 * DELTA)) * 2 * DELTA + DELTA), 2)
+    fresh = cov.screen(states, offsets, outcomes)
+    after = rescreen.witnesses(quiet)
+    expected = Rescreen(cov, fresh, outcomes, lambda: (states, offsets)).witnesses(quiet)
+    assert not np.array_equal(before[1], expected[1])  # the insert did change witnesses
+    assert np.array_equal(after[0], expected[0]) and np.array_equal(after[1], expected[1])
