@@ -193,10 +193,10 @@ class StableSampler:
             if len(searching) == 0:
                 break
             k = min(TRY_BLOCK, MAX_TRIES - first)
-            sub = streams.subset(np.repeat(searching, k))
+            rows = np.repeat(searching, k)
             counters = np.tile(np.arange(first + 1, first + k + 1, dtype=np.uint64), len(searching))
-            u = sub.uniform_at(counters, PURPOSE_START, 0).reshape(-1, k)
-            v = sub.uniform_at(counters, PURPOSE_START, 1).reshape(-1, k)
+            u = streams.uniform_at(counters, PURPOSE_START, 0, rows=rows).reshape(-1, k)
+            v = streams.uniform_at(counters, PURPOSE_START, 1, rows=rows).reshape(-1, k)
             cand = np.minimum((u * self.cap).astype(np.int64), self.cap - 1)
             ok = law.accept(cand.ravel(), v.ravel()).reshape(-1, k)
             slots[searching, first : first + k] = cand

@@ -116,14 +116,18 @@ class RunStreams:
             np.multiply(z, _UNIT, out=out[:, lane])  # uint64 -> double: exact below 2**53
         return out
 
-    def uniform_at(self, counters: np.ndarray, purpose: int, lane: int = 0) -> np.ndarray:
+    def uniform_at(self, counters: np.ndarray, purpose: int, lane: int = 0, rows: np.ndarray | None = None) -> np.ndarray:
         """(B,) U[0, 1) doubles: draw ``counters[r]`` (one counter per run) of lane
         ``lane`` of each run's ``purpose`` sub-stream; equals ``uniform(c, purpose,
         lane + 1)[r, lane]`` for ``c = counters[r]``. For policies whose runs are at
-        different counters of their own schedule (bang-bang switching)."""
+        different counters of their own schedule (bang-bang switching). ``rows``: the
+        runs asked, one per counter (repeats allowed), as ``subset(rows).uniform_at``
+        but without deriving their sub-streams again."""
         if not 0 <= lane < LANES:
             raise ValueError(f"lane must be in [0, {LANES})")
         base = self._base(purpose)
+        if rows is not None:
+            base = base[rows]
         counters = np.asarray(counters, dtype=np.uint64)
         with np.errstate(over="ignore"):  # uint64 arithmetic wraps, as SplitMix64 wants
             z = base + (counters * np.uint64(LANES) + np.uint64(lane + 1)) * _G

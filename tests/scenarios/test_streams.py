@@ -44,3 +44,14 @@ def test_draws_follow_the_documented_formula():
         for lane in range(3):
             z = mix64(base + np.uint64(7 * LANES + lane + 1) * _G)
             np.testing.assert_array_equal(u[:, lane], (z >> np.uint64(11)).astype(np.float64) / 2.0**53)
+
+
+def test_uniform_at_on_rows_is_the_subsets_draw():
+    """``rows`` (repeats allowed) asks the same numbers as a subset of those rows."""
+    streams = RunStreams.of(5, np.arange(100, 140))
+    streams.uniform(1, 7)  # the sub-streams derived before the subset, as the sampler does
+    rows = np.repeat(np.array([3, 0, 39, 3]), 4)
+    counters = np.tile(np.arange(1, 5, dtype=np.uint64), 4)
+    for lane in (0, 1):
+        expected = streams.subset(rows).uniform_at(counters, 7, lane)
+        assert np.array_equal(streams.uniform_at(counters, 7, lane, rows=rows), expected)
