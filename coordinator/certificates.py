@@ -21,38 +21,17 @@ from __future__ import annotations
 
 import numpy as np
 
-
-class _Buffer:
-    """A growable 1-D array (amortized doubling)."""
-
-    def __init__(self, dtype, initial=()):
-        data = np.asarray(initial, dtype=dtype)
-        self.data = np.empty(max(16, 2 * len(data)), dtype=dtype)
-        self.data[: len(data)] = data
-        self.size = len(data)
-
-    def extend(self, values: np.ndarray) -> None:
-        need = self.size + len(values)
-        if need > len(self.data):
-            grown = np.empty(max(need, 2 * len(self.data)), dtype=self.data.dtype)
-            grown[: self.size] = self.data[: self.size]
-            self.data = grown
-        self.data[self.size : need] = values
-        self.size = need
-
-    @property
-    def view(self) -> np.ndarray:
-        return self.data[: self.size]
+from coordinator.buffers import Appendable
 
 
 class Certificates:
     def __init__(self):
         # vertex ids as int32 (``add`` refuses ids >= 2^31): ~83 M witnesses at delta_min
         # 0.125, 0.33 GB less than int64
-        self._vertex = _Buffer(np.int32)  # (E,) the centre each entry certifies
-        self._offsets = _Buffer(np.int64, [0])  # (E + 1,) its witnesses: witness[off[e]:off[e+1]]
-        self._witness = _Buffer(np.int32)  # (W,)
-        self._valid = _Buffer(bool)  # (E,) every witness alive since the entry was made
+        self._vertex = Appendable(np.int32)  # (E,) the centre each entry certifies
+        self._offsets = Appendable(np.int64, [0])  # (E + 1,) its witnesses: witness[off[e]:off[e+1]]
+        self._witness = Appendable(np.int32)  # (W,)
+        self._valid = Appendable(bool)  # (E,) every witness alive since the entry was made
         self._count = np.zeros(0, dtype=np.int64)  # vertex -> valid entries certifying it
         self._reverse: _SortedRuns | None = _SortedRuns()  # witness -> entries naming it
 
@@ -156,10 +135,10 @@ class Certificates:
     def from_state(cls, state: dict) -> "Certificates":
         out = cls()
         if "cert.vertex" in state and len(state["cert.vertex"]):
-            out._vertex = _Buffer(np.int32, state["cert.vertex"])
-            out._offsets = _Buffer(np.int64, state["cert.offsets"])
-            out._witness = _Buffer(np.int32, state["cert.witness"])
-            out._valid = _Buffer(bool, state["cert.valid"].astype(bool))
+            out._vertex = Appendable(np.int32, state["cert.vertex"])
+            out._offsets = Appendable(np.int64, state["cert.offsets"])
+            out._witness = Appendable(np.int32, state["cert.witness"])
+            out._valid = Appendable(bool, state["cert.valid"].astype(bool))
             out._reverse = None  # built at the first prune
             valid_vertices = out._vertex.view[out._valid.view]
             out._count = np.bincount(valid_vertices, minlength=int(out._vertex.view.max()) + 1).astype(np.int64)

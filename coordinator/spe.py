@@ -28,6 +28,7 @@ from functools import partial
 import numpy as np
 
 from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered
+from coordinator.buffers import Appendable
 from coordinator.certification import CHECK, CLOSING
 from coordinator.certificates import Certificates
 from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell, Resize, Strict
@@ -42,25 +43,6 @@ from coordinator.sampler import PrioritySampler
 from coordinator.stable_sampler import Draws, Law, StableSampler, UniformLaw, WeightedLaw
 from scenarios.base import Scenario
 from scenarios.streams import RunStreams
-
-class Appended:
-    """An int64 array that only grows at its end (amortized doubling)."""
-
-    def __init__(self, values: np.ndarray | None = None):
-        values = np.zeros(0, dtype=np.int64) if values is None else np.asarray(values, dtype=np.int64)
-        self._buffer, self.count = values.copy(), len(values)
-
-    @property
-    def values(self) -> np.ndarray:
-        return self._buffer[: self.count]
-
-    def extend(self, ids: np.ndarray) -> None:
-        need = self.count + len(ids)
-        if need > len(self._buffer):
-            self._buffer = np.resize(self._buffer, max(need, 2 * len(self._buffer), 64))
-        self._buffer[self.count : need] = ids
-        self.count = need
-
 
 ALPHAS = {"identity": lambda x: x, "square": np.square, "sqrt": np.sqrt}
 REPLAY_CHUNK = 4096  # stored states per greedy pass in experience replay
@@ -116,7 +98,7 @@ class SPE(Algorithm):
         self.replay = ReplayBuffer(settings.replay_capacity if settings.replay else 0, deterministic, scenario.n)
         self.certifying = False
         self.phase = CHECK  # while certifying a sampled system: CLOSING or CHECK
-        self.hole_ids = Appended()  # centres pruned in the last round or since: holes in the set
+        self.hole_ids = Appendable(np.int64)  # centres pruned in the last round or since: holes in the set
         self.enumeration = Enumeration()  # deterministic certification: the passes over the centres
         self.certificates = Certificates()  # deterministic certification: centres checked
 
@@ -202,8 +184,8 @@ class SPE(Algorithm):
         count = self.vertices.count
         ids = self.vertices.alive_ids()
         near = self._near_boundary(ids)
-        if self.hole_ids.count:
-            holes = self.vertices.points[self.hole_ids.values]
+        if self.hole_ids.size:
+            holes = self.vertices.points[self.hole_ids.view]
             near |= self._holes.update(self.vertices.points, count, holes, len(holes))[ids] <= \
                 self.scenario.step_bound() + 2 * self.delta
         mask = np.zeros(count, dtype=bool)
@@ -515,7 +497,7 @@ class SPE(Algorithm):
         out["scalars"] = np.array([self.delta, self.round, self.version], dtype=float)
         out["certification"] = np.array([self.certifying, self.phase == CLOSING], dtype=np.int64)
         out["certification.drawn"] = np.flatnonzero(self.enumeration.drawn)
-        out["holes.ids"] = self.hole_ids.values.copy()
+        out["holes.ids"] = self.hole_ids.view.copy()
         out.update(self.certificates.state())
         out.update(self.replay.state())
         out.update(self._stable.state())
@@ -534,7 +516,7 @@ class SPE(Algorithm):
         drawn = np.zeros(self.vertices.count, dtype=bool)
         drawn[state["certification.drawn"]] = True
         self.enumeration = Enumeration(drawn)
-        self.hole_ids = Appended(state.get("holes.ids", np.zeros(0, dtype=np.int64)))
+        self.hole_ids = Appendable(np.int64, state.get("holes.ids", ()))
         self.certificates = Certificates.from_state(state)
         self.replay.load_state(state)
         self._fresh_samplers()

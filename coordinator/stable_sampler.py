@@ -214,9 +214,9 @@ class StableSampler:
             u = streams.subset(searching).uniform_at(np.full(len(searching), MAX_TRIES + 1, dtype=np.uint64),
                                                      PURPOSE_START, 0)
             ids[searching] = law.direct(u)
-        examined = slots[:, :TRACKED].copy()
+        examined = slots[:, :TRACKED]  # the batch's own arrays: views, no copies
         examined[np.arange(TRACKED)[None, :] >= tries[:, None]] = -1
-        return Draws(ids, np.full(b, version, dtype=np.int64), examined, untracked, vs=vs[:, :TRACKED].copy())
+        return Draws(ids, np.full(b, version, dtype=np.int64), examined, untracked, vs=vs[:, :TRACKED])
 
     def moved(self, draws: Draws, law: Law | None = None, version: int | None = None) -> np.ndarray:
         """(B,) bool: draws that a change since they were drawn may have moved (draw them

@@ -130,15 +130,25 @@ class ActorPool:
         urgent call may go to a fast lane (first, on a tie), another call only where no
         worker is up: a replacement then never waits behind the chunks queued on a worker."""
         while True:
-            self._revive()
-            up = [i for i, s in enumerate(self.slots) if not s.down]
-            if not urgent:
-                up = [i for i in up if not self.slots[i].lane] or up
-            if up:
-                self._all_down_since = None
-                return min(up, key=lambda i: (self.slots[i].runs_queued, not self.slots[i].lane))
+            actor = self._best(urgent)
+            if actor is not None:
+                return actor
             self._no_worker_left()
             self._pause(interruptible)
+
+    def _best(self, urgent: bool, room: bool = False) -> int | None:
+        """``pick``'s choice now, among the actors with room for another call if ``room``
+        (``depth``); None if there is none."""
+        self._revive()
+        up = [i for i, s in enumerate(self.slots) if not s.down]
+        if not urgent:
+            up = [i for i in up if not self.slots[i].lane] or up
+        if room and self.depth:
+            up = [i for i in up if len(self.slots[i].queue) < self.depth]
+        if not up:
+            return None
+        self._all_down_since = None
+        return min(up, key=lambda i: (self.slots[i].runs_queued, not self.slots[i].lane))
 
     def sent(self, call: Call, actor: int) -> None:
         """``call`` was just sent to ``actor`` (its ``ref`` set)."""
@@ -155,25 +165,12 @@ class ActorPool:
             call.launch(self.pick(interruptible, call.urgent))
             return
         later = self._later_urgent if call.urgent else self._later
-        actor = None if later else self._room(call.urgent)
+        actor = None if later else self._best(call.urgent, room=True)
         if actor is None:
             later.append(call)
             self.held_back += 1
         else:
             call.launch(actor)
-
-    def _room(self, urgent: bool) -> int | None:
-        """The up actor with room for another call (``pick``'s choice among them), or None."""
-        self._revive()
-        up = [i for i, s in enumerate(self.slots) if not s.down]
-        if not urgent:
-            up = [i for i in up if not self.slots[i].lane] or up
-        if self.depth:
-            up = [i for i in up if len(self.slots[i].queue) < self.depth]
-        if not up:
-            return None
-        self._all_down_since = None
-        return min(up, key=lambda i: (self.slots[i].runs_queued, not self.slots[i].lane))
 
     def dispatch(self) -> None:
         """Send the waiting calls (urgent first) to the actors that have room."""
@@ -182,7 +179,7 @@ class ActorPool:
                 if later[0].dropped:  # cancelled before it was sent: it never runs
                     later.popleft()
                     continue
-                actor = self._room(urgent)
+                actor = self._best(urgent, room=True)
                 if actor is None:
                     break
                 later.popleft().launch(actor)
