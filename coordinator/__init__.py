@@ -12,8 +12,11 @@
   and as mirrors on the workers; the spatial index under it (``spatial.py``); the
   lattice of delta-coverings (``lattice.py``); the exploration graph (``graph.py``);
   experience replay (``experience_replay.py``); prioritized sampling (``sampler.py``,
-  ``priorities.py``); certification's bookkeeping (``certificates.py``,
-  ``enumeration.py``).
+  ``priorities.py``); certification (``certification.py``: closing rounds and checks)
+  and its bookkeeping (``certificates.py``, ``enumeration.py``); coupled counting's
+  stable draws (``stable_sampler.py``) and replacements (``replacements.py``); boxes of
+  mixed sizes (``levels.py``, ``level_grid.py``, ``refinement.py``); a growable array
+  (``buffers.py``).
 - Validation of a claimed domain (``validation.py``, ``domain.py``), sample sizes
   (``sample_size.py``: Lemmas 1 and 2), the guarantee in words (``guarantee.py``),
   volumes (``volume.py``), reference sets and comparison (``reference.py``), the
