@@ -56,7 +56,8 @@ def run(workers: int, run_time: float, seed: int) -> dict:
             "committed": c.committed, "replaced": c.runs_replaced, "simulated": c.runs_simulated,
             "virtual_elapsed_s": round(executor.clock, 2), "utilisation": round(executor.utilisation, 4),
             "coordinator_cpu_s": round(executor.coordinator_s, 2), "chunks": executor.chunks,
-            "waited_s": round(executor.waited_s, 2), "lanes": executor.lanes, "held": campaign.held.passed,
+            "waited_s": round(executor.waited_s, 2), "waited_replacements_s": round(executor.waited_replacements_s, 2),
+            "lanes": executor.lanes, "held": campaign.held.passed,
             "rewound": campaign.held.rewound, "wall_s": round(time.perf_counter() - t0, 1)}
 
 
@@ -140,9 +141,10 @@ def render() -> Path:
             out.append(f"- {r['run_time']:g} s runs, {r['workers']:,} workers, seed {r['seed']}: "
                        f"{r['virtual_elapsed_s']:,.1f} s to the result against {one['virtual_elapsed_s'] / r['workers']:,.1f} s "
                        f"with every worker busy; the coordinator's CPU {r['coordinator_cpu_s']:.1f} s and "
-                       f"{r['chunks']:,} chunk calls at 1 ms ({r['chunks'] / 1000:.1f} s) are on the clock; the rest is "
-                       "the head waiting for runs (round ends refill the pipeline; a replacement at the head "
-                       "waits for its run).")
+                       f"{r['chunks']:,} chunk calls at 1 ms ({r['chunks'] / 1000:.1f} s) are on the clock; the head "
+                       f"waited {r['waited_s']:,.1f} s for runs, {r['waited_replacements_s']:,.1f} s of it for "
+                       "replacements (a run that changes the set waits for the replacements held before it: they may "
+                       "change it first), the rest for batch runs not back yet (after a round end the pipeline refills).")
     path = DOCS / "virtual.md"
     path.write_text("\n".join(out) + "\n")
     return path

@@ -597,9 +597,10 @@ class Campaign:
                 if pos == bad:  # mispredicted: discarded unseen, replaced
                     c.committed += 1
                     kind[pos] = CommitLog.DISCARDED
+                    # sent with this pass's others (at the next fill, or when the head
+                    # needs one): a call per pass, not per misprediction, since a chunk
+                    # costs the driver and its worker about the same whatever its runs
                     self._replace(chunk.first_index + pos)
-                    if self.settings.lag == 0:
-                        self._send_replacements()
                     pos += 1
                     continue
                 if self.held:  # a change: only once every replacement before it is applied

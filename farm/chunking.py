@@ -18,6 +18,10 @@ run. Its size follows them:
 
 ``a`` and ``b`` are fitted (least squares) to the latest chunks' busy times, the driver's
 time per chunk ``t_call`` (its call and the read of its result) smoothed likewise. The
+floor that follows from them extrapolates the fit at most ``EXTRAPOLATE`` times beyond the
+largest chunk measured: a fit over many one-run replacements and a few large chunks can
+put ``b`` near zero by noise, and a floor of ``~ a / b`` would grow a batch to the whole
+campaign; larger chunks, once measured, fit ``b`` better and let the floor grow on. The
 first chunk of a campaign is a single run (the executor's probe): until chunks of
 another size come back, ``t(1)`` counts as per-run cost. How a batch is cut never changes
 a result: runs are committed in index order and re-screened.
@@ -40,6 +44,7 @@ DRIVER_SHARE = 0.5  # of the driver's time on Ray calls, every worker busy
 CALL_S = 1e-3  # [s] the driver's time per chunk until it is measured
 DECAY = 0.8  # weight of the older chunks in the fitted times, per chunk
 SPREAD = 0.1  # chunk sizes' coefficient of variation below which a and b are not refitted
+EXTRAPOLATE = 4  # the floor's chunks hold at most this many times the largest chunk measured
 LIMIT_FACTOR = 10.0  # a chunk may take this many times its expected time ...
 LIMIT_FLOOR_S = 5.0  # [s] ... plus this (a loaded machine, a garbage collection)
 REPLAY_FLOOR_S = 120.0  # [s] an experience replay's limit at least: its cost per run is not a chunk's
@@ -67,12 +72,14 @@ class ChunkSizer:
         self.chunk_cost_s: float | None = None  # a: a worker's time per chunk
         self.run_cost_s: float | None = None  # b: a worker's time per run
         self._call = self._calls = 0.0  # decayed sums: t_call = call / calls
+        self._largest = 0  # runs of the largest chunk measured
 
     # -- measurements ----------------------------------------------------------------------
     def ran(self, runs: int, busy_s: float) -> None:
         """A worker spent ``busy_s`` seconds on a chunk of ``runs`` runs."""
         if runs <= 0 or busy_s < 0:
             return
+        self._largest = max(self._largest, int(runs))
         f = self._fit
         for i, v in enumerate((1.0, runs, runs * runs, busy_s, runs * busy_s)):
             f[i] = DECAY * f[i] + v
@@ -131,13 +138,14 @@ class ChunkSizer:
         return max(1, math.floor((CHUNK_S - self.chunk_cost_s) / self.run_cost_s))
 
     def _floor(self) -> int:
-        """The smallest chunk the workers' cost per chunk and the driver's calls afford."""
+        """The smallest chunk the workers' cost per chunk and the driver's calls afford
+        (within ``EXTRAPOLATE`` times the largest chunk measured)."""
         if self.run_cost_s is None:
             return 1
         a, b = self.chunk_cost_s, self.run_cost_s
         efficient = math.ceil(a * (1 - OVERHEAD_SHARE) / (OVERHEAD_SHARE * b))
         afford = math.ceil((self.workers * self.call_s / DRIVER_SHARE - a) / b)
-        return max(1, efficient, afford)
+        return max(1, min(max(efficient, afford), EXTRAPOLATE * self._largest))
 
     def chunks(self, runs: int, urgent: bool = False, lanes: int = 0) -> int:
         """The chunks a batch of ``runs`` runs is cut into."""

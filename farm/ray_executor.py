@@ -410,8 +410,7 @@ class RayExecutor(Executor):
             except (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError,
                     ray.exceptions.ObjectLostError) as exc:
                 check_started(exc)
-                if call in self.pool.slots[call.actor].queue:  # else: sent elsewhere already
-                    self.pool.lost(call.actor, why=type(exc).__name__, interruptible=interruptible)
+                self.pool.failed(call, type(exc).__name__, interruptible)
                 continue
             call.call_s += time.perf_counter() - t0
             self.pool.finished(call)

@@ -167,6 +167,7 @@ class ActorPool:
         later = self._later_urgent if call.urgent else self._later
         actor = None if later else self._best(call.urgent, room=True)
         if actor is None:
+            call.ref = None  # not running anywhere: a wait for it waits until it is sent (again)
             later.append(call)
             self.held_back += 1
         else:
@@ -298,6 +299,18 @@ class ActorPool:
         for call in queue:
             if not call.dropped:
                 self.send(call, interruptible)
+
+    def failed(self, call: Call, why: str, interruptible: bool = True) -> None:
+        """Reading ``call``'s result found its actor lost: the actor is lost (unless that
+        is known), and the call is sent again. A poll may have taken the failed call off
+        its actor's queue as done (a failed call is ready too); losing the actor then does
+        not send it again, so it is sent here, charged a try."""
+        ref, slot = call.ref, self.slots[call.actor]
+        if call in slot.queue or not slot.down:
+            self.lost(call.actor, why=why, interruptible=interruptible)
+        if call.ref is ref and not call.dropped:
+            self._charge(call, f"lost its worker ({why})")
+            self.send(call, interruptible)
 
     def _charge(self, call: Call, what: str) -> None:
         call.tries += 1

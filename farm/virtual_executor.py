@@ -51,6 +51,7 @@ class _Batch:
     """A submitted batch: simulated in-process at once, when a worker takes its first chunk."""
 
     local: int  # the in-process executor's handle
+    replacements: bool = False  # the runs of mispredicted indices (submitted with their indices)
     chunk: Chunk | None = None
     waiting: int = 0  # its chunks no worker has taken yet
 
@@ -85,6 +86,7 @@ class VirtualExecutor(Executor):
         self.chunks = 0
         self.coordinator_s = 0.0  # the coordinator's CPU charged to the clock
         self.waited_s = 0.0  # the clock's time spent waiting for a chunk
+        self.waited_replacements_s = 0.0  # of which for a chunk of replacements
         self._free: list[float] = [0.0] * workers  # a heap of the workers' free times
         self._queue: deque[int] = deque()  # handles no worker has taken yet, in order
         self.lanes = fast_lanes(workers) if lanes is None else int(lanes)
@@ -149,7 +151,7 @@ class VirtualExecutor(Executor):
                indices: np.ndarray | None = None) -> list[int]:
         self._enter()
         (local,) = self.local.submit(first_index, starts, screen, actions, indices)
-        batch = _Batch(local)
+        batch = _Batch(local, replacements=indices is not None)
         n, at, handles = len(starts), 0, []
         if n and self.sizer.run_s is None:  # as the Ray executor: a one-run probe, waited for
             handles.append(self._cut(batch, 0, 1, indices))
@@ -202,7 +204,10 @@ class VirtualExecutor(Executor):
             job.measured = True
             self.sizer.ran(job.rows[1] - job.rows[0], job.end - job.start)
             self.sizer.called(self.call_cost)
-            self.waited_s += max(0.0, job.end - self.clock)
+            waited = max(0.0, job.end - self.clock)
+            self.waited_s += waited
+            if job.batch.replacements:
+                self.waited_replacements_s += waited
             self.clock = max(self.clock, job.end)
 
     def ready(self, handle: int) -> bool:

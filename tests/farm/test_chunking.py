@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from farm.chunking import DRIVER_SHARE, LIMIT_FACTOR, LIMIT_FLOOR_S, REPLAY_FLOOR_S, UNMEASURED_LIMIT_S, ChunkSizer
+from farm.chunking import DRIVER_SHARE, EXTRAPOLATE, LIMIT_FACTOR, LIMIT_FLOOR_S, REPLAY_FLOOR_S, UNMEASURED_LIMIT_S, ChunkSizer
 
 
 def measured(workers, chunk_cost, run_cost, call=1e-3, sizes=(1, 40, 60), timeout=0.0):
@@ -69,8 +69,9 @@ def test_many_workers_get_a_share_each_unless_the_workers_or_the_driver_cannot_a
     efficient = math.ceil(0.007 * 0.9 / (0.1 * 0.002))
     assert c == max(afford, efficient) > 16
     assert sizer.busy_at_most(1024, 2) == 32  # still every worker, 2 batches in flight
-    # a fast vectorized back end: the per-chunk cost (7 ms) would dominate a share: whole batches
-    assert measured(2, 0.007, 18e-6).size(1024) == 1024
+    # a fast vectorized back end: the per-chunk cost (7 ms) would dominate a share: whole
+    # batches (once chunks of a share's size were measured: the fit is not extrapolated far)
+    assert measured(2, 0.007, 18e-6, sizes=(1, 40, 512)).size(1024) == 1024
     # 1000 workers of 0.1 s runs: the driver cannot call a thousand 1-run chunks a second
     big = measured(1000, 0.01, 0.1)
     assert big.size(100_000) == math.ceil((1000 * 1e-3 / DRIVER_SHARE - 0.01) / 0.1)
@@ -101,3 +102,21 @@ def test_a_rounds_first_chunks_on_idle_workers_hold_at_most_a_second_of_work():
     assert [len(p) for p in sizer.cut(40_000)] == [steady] * 2000  # busy workers: cut as usual
     assert [len(p) for p in sizer.cut(5, urgent=True, idle=1000)] == [1] * 5  # replacements: one wave
     assert [len(p) for p in sizer.cut(5, urgent=True, lanes=1)] == [5]  # for the fast lane: one call
+
+
+def test_a_noisy_fit_does_not_grow_a_batch_to_the_whole_campaign():
+    # measured on Ray (numpy back end, 2 workers): many one- and two-run replacement chunks
+    # at ~7 ms and a few batch chunks of ~3,000 runs whose times carry noise fitted a cost
+    # per run of 0.15 us instead of ~15 us, and batches of up to 380,000 runs followed
+    sizer = ChunkSizer(2)
+    for k in range(200):
+        sizer.ran(2, 0.007)
+        if k % 20 == 0:
+            sizer.ran(3000, 0.0075)  # a large chunk that happened to run fast
+        sizer.called(5e-4)
+    assert sizer.run_cost_s < 1e-6  # the fit is off ...
+    assert sizer.batch_size(1024) <= 2 * EXTRAPOLATE * 3000  # ... but the batch grows only so far
+    # a larger chunk measured corrects the fit (~15 us a run), and the floor follows it
+    sizer.ran(12_000, 0.19)
+    assert 1e-5 < sizer.run_cost_s < 2e-5
+    assert 2_000 < sizer.batch_size(1024) < 2 * EXTRAPOLATE * 12_000

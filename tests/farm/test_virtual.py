@@ -50,3 +50,20 @@ def test_a_bad_virtual_setting_is_named(tmp_path, field, value):
     with pytest.raises(ConfigError, match=f"farm.virtual.{field}"):
         quantify(lead_follow_toml(executor="virtual", farm_extra=f"[farm.virtual]\n{field} = {value}"),
                  out=tmp_path / "bad", force=True)
+
+
+def test_the_virtual_farm_says_what_the_head_waited_for():
+    # on many workers of slow runs a run that changes the set waits for the replacements
+    # held before it (sequential counting): the clock keeps that share of the waits apart
+    from farm.campaign_setup import build_algorithm, build_campaign, spec_of
+    from farm.config import parse
+    from farm.executors import make_executor
+    from farm.simulators import build_simulator
+
+    cfg = parse(lead_follow_toml(executor="virtual", delta_min=1.0, farm_extra="workers = 300\n[farm.virtual]\nrun_time = 1.0"))
+    simulator = build_simulator(spec_of(cfg))
+    algorithm = build_algorithm(cfg, simulator)
+    executor = make_executor(cfg.farm, spec_of(cfg))
+    counters = build_campaign(cfg, algorithm, simulator, executor).run()
+    assert counters.runs_replaced > 0
+    assert 0 < executor.waited_replacements_s < executor.waited_s < executor.clock
