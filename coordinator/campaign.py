@@ -27,10 +27,11 @@
 - At a round end the driver decays the algorithm's resolution and runs experience
   replay: the algorithm names its stored runs, the executor screens them where they are,
   the algorithm applies what is new.
-- With ``certify``, the last round is followed by certification (the final set checked
-  as validate checks it): closing rounds and checks (coordinator/certification.py), or
-  every final centre once for a deterministic system. A closing round's change restarts
-  its count; a check's change ends the check and a closing round follows.
+- With ``certify``, the last round is certification (the final set checked as validate
+  checks it): closing rounds and checks (coordinator/certification.py), or every final
+  centre once for a deterministic system. A closing round's change restarts its count; a
+  check's change ends the check and a closing round follows. A campaign of one round
+  (delta0 = delta_min) runs it first and certifies after it.
 """
 
 from __future__ import annotations
@@ -735,7 +736,7 @@ class Campaign:
         else:
             c.round_ends.append(c.committed)
             c.rounds_completed += 1
-            if algo.final_round and self.certify and not algo.certifying:
+            if algo.final_round and self.certify and not algo.certifying:  # a one-round campaign's round
                 self._next_mixture()
                 algo.begin_certification()  # a closing round first
                 c.certification_from = c.committed
@@ -774,13 +775,19 @@ class Campaign:
         return self.settings.n_eps
 
     def _certify_at_once(self) -> None:
-        """A deterministic system's last round is its certification: every final centre
-        run once (VAL^delta) is exact, so the N_eps rule's epsilon-almost statement, and
-        the runs spent on it, would add nothing."""
+        """With ``certify``, the last round (at delta_min) is the certification itself.
+        A deterministic system runs every final centre once (VAL^delta): exact, so the
+        N_eps rule's epsilon-almost statement, and the runs spent on it, would add nothing.
+        A sampled system starts with a closing round: it prunes and explores as SPE's last
+        round would, but strictly and over the band where the violations are, so the set
+        is not first settled by the lenient rule and then settled again (the runs that
+        saves: docs/certification.md). Only the checks certify (docs/guarantee.md), so how
+        the set they check came about does not touch the guarantee."""
         algo = self.algorithm
-        if self.certify and algo.deterministic and algo.final_round and not algo.certifying:
+        if self.certify and algo.final_round and not algo.certifying:
             algo.begin_certification()
-            self.counters.attempts = 1
+            if algo.deterministic:
+                self.counters.attempts = 1
             self.counters.certification_from = self.counters.committed
 
     def _drop_in_flight(self) -> None:

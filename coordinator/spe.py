@@ -7,7 +7,7 @@ A run *changes the state* when it fails (line 9: prune reachable(sigma), add sig
 PhiBar) or visits a state sigma' with d(sigma', Phi_delta) > delta and d(sigma', PhiBar)
 > delta (line 15, checked on sigma' as shared/spec/algorithms.md decides).
 
-Certification (after the last round, ``begin_certification``): the final set is checked
+Certification (the last round, at delta_min: ``begin_certification``): the final set is checked
 the way ``validate`` checks a set: a run must neither fail nor leave Phi_delta, near a
 known failure or not. A deterministic system runs every final centre once (VAL^delta);
 otherwise closing rounds (drawn over the band near the failure-side boundary) and checks

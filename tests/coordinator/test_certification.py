@@ -1,7 +1,7 @@
-"""Sampled certification (coordinator/certification.py): closing rounds spend no beta,
-checks do; a real campaign ends on a passed check after a bounded number of attempts,
-accounts for the runs certification took, and exports a set a fresh validate certifies
-more often than not."""
+"""Sampled certification (coordinator/certification.py): the last round is closing rounds
+and checks; closing rounds spend no beta, checks do; a real campaign ends on a passed
+check after a bounded number of attempts, accounts for the runs certification took, and
+exports a set a fresh validate certifies more often than not."""
 
 import numpy as np
 import pytest
@@ -46,18 +46,18 @@ def test_a_certified_campaign_ends_on_a_passed_check_in_few_attempts(seed):
     counters, algo, _, _ = run_in_process(_config(seed))
     assert counters.converged and algo.certifying and not algo.closing  # it ended on a passed check
     assert 1 <= counters.attempts <= 10, counters.attempts
-    # the runs certification took: everything after SPE's last round, whose end is the
-    # first round end at the finest delta
-    spe_end = counters.round_ends[algo.round]
-    assert counters.certification_from == spe_end
-    assert counters.runs_certification == counters.committed - spe_end > 0
-    # certification is one round (SPE's rounds and it), ended by a passed check after the
-    # last closing round: each check follows a closing round
-    assert len(counters.round_ends) == algo.round + 2 and counters.round_ends[-1] == counters.committed
+    # certification is the last round (at delta_min): it took everything after the round
+    # before it, and SPE's rounds before it are the uncertified campaign's, run for run
+    before_last = counters.round_ends[algo.round - 1]
+    assert counters.certification_from == before_last
+    assert counters.runs_certification == counters.committed - before_last > 0
+    # ended by a passed check after the last closing round: each check follows a closing round
+    assert len(counters.round_ends) == algo.round + 1 and counters.round_ends[-1] == counters.committed
     assert len(counters.closing_ends) == counters.attempts
     assert counters.committed - counters.closing_ends[-1] >= check_quiet(EPS, BETA, counters.attempts)
-    uncertified, _, _, _ = run_in_process(_config(seed, certify=False))
-    assert uncertified.committed == spe_end  # SPE's rounds are the uncertified campaign's, run for run
+    uncertified, plain, _, _ = run_in_process(_config(seed, certify=False))
+    assert uncertified.round_ends[: algo.round] == counters.round_ends[: algo.round]
+    assert plain.round == algo.round and len(uncertified.round_ends) == algo.round + 1  # it ran the last round leniently
 
 
 def test_the_certified_set_passes_a_fresh_validate_more_often_than_not(tmp_path):
