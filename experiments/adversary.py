@@ -4,8 +4,8 @@ For each scenario, campaigns with uniform actions over Gamma (what a user withou
 runs), with the adversary search, and, as the yardstick, with the known Gamma*; each
 compared (``scenario-farm compare``) with the reference: the model-based worst case for
 the numpy scenarios, the SUMO back end simulated under Gamma* for Krauss. Certification
-is off in the main rows (as in the issue's figures; uniform Gamma with certification
-does not converge within a 2 M budget on lead-follow), plus one row with it on.
+is off in the main rows (as in the issue's figures; docs/certification.md measures what
+certification costs under each action mode), plus one row with it on.
 
     python experiments/adversary.py            # ~6 min on 2 cores; writes docs/adversary.json
     python experiments/adversary.py --render   # its table into docs/adversary.md
