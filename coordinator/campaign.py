@@ -248,6 +248,10 @@ class Campaign:
         # its order follows the configured batch size, never the workers
         follows = s.lag == 0 and not algo.enumerates
         batch = self.executor.batch_size(s.batch_size) if follows else s.batch_size
+        if follows:  # but no more than the round's quiet runs: runs in flight past a round's end
+            # are dropped, and each is a draw a change can move (docs/benchmarks.md,
+            # "2026-11-26, morning": many workers of short runs)
+            batch = min(batch, max(s.batch_size, self.quiet_needed()))
         head = self.counters.committed
         ahead = sum(1 for p in self.pending if p.end > head)
         while ahead < s.pipeline_depth:

@@ -67,3 +67,32 @@ def test_the_virtual_farm_says_what_the_head_waited_for():
     counters = build_campaign(cfg, algorithm, simulator, executor).run()
     assert counters.runs_replaced > 0
     assert 0 < executor.waited_replacements_s < executor.waited_s < executor.clock
+
+
+def test_many_workers_keep_no_more_in_flight_than_a_rounds_quiet_runs():
+    # 1,000 workers of short runs would each take a chunk of every batch: batches of tens of
+    # thousands of runs, most dropped at the round's end or moved by a change and replaced
+    # (docs/benchmarks.md, "2026-11-26, morning")
+    from farm.campaign_setup import build_algorithm, build_campaign, spec_of
+    from farm.config import parse
+    from farm.executors import make_executor
+    from farm.simulators import build_simulator
+
+    cfg = parse(lead_follow_toml(executor="virtual", delta_min=1.0, farm_extra="workers = 1000\n[farm.virtual]\nrun_time = 0.1"))
+    simulator = build_simulator(spec_of(cfg))
+    algorithm = build_algorithm(cfg, simulator)
+    executor = make_executor(cfg.farm, spec_of(cfg))
+    campaign = build_campaign(cfg, algorithm, simulator, executor)
+    batches, wanted = [], []
+    submit = executor.submit
+
+    def recorded(first_index, starts, screen=None, actions=None, indices=None):
+        if indices is None and not algorithm.enumerates:  # a batch, not replacements
+            batches.append((len(starts), campaign.quiet_needed()))
+            wanted.append(executor.batch_size(cfg.farm.batch_size))
+        return submit(first_index, starts, screen, actions, indices)
+
+    executor.submit = recorded
+    campaign.run()
+    assert all(size <= max(cfg.farm.batch_size, quiet) for size, quiet in batches), batches
+    assert max(wanted) > max(quiet for _, quiet in batches)  # the workers alone would have asked for more
