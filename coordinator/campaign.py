@@ -31,7 +31,7 @@
   checks it): closing rounds and checks (coordinator/certification.py), or every final
   centre once for a deterministic system. A closing round's change restarts its count; a
   check's change ends the check and a closing round follows. A campaign of one round
-  (delta0 = delta_min) runs it first and certifies after it.
+  (delta0 = delta_min) certifies from its first run.
 """
 
 from __future__ import annotations
@@ -247,11 +247,11 @@ class Campaign:
         # workers; an enumeration (every centre once) hands centres out batch by batch, so
         # its order follows the configured batch size, never the workers
         follows = s.lag == 0 and not algo.enumerates
-        batch = self.executor.batch_size(s.batch_size) if follows else s.batch_size
-        if follows:  # but no more than the round's quiet runs: runs in flight past a round's end
-            # are dropped, and each is a draw a change can move (docs/benchmarks.md,
-            # "2026-11-26, morning": many workers of short runs)
-            batch = min(batch, max(s.batch_size, self.quiet_needed()))
+        # (but no more than the round's quiet runs: runs in flight past a round's end are
+        # dropped, and each is a draw a change can move; docs/benchmarks.md, "2026-11-26,
+        # morning": many workers of short runs)
+        batch = (min(self.executor.batch_size(s.batch_size), max(s.batch_size, self.quiet_needed())) if follows
+                 else s.batch_size)
         head = self.counters.committed
         ahead = sum(1 for p in self.pending if p.end > head)
         while ahead < s.pipeline_depth:
@@ -740,10 +740,11 @@ class Campaign:
         else:
             c.round_ends.append(c.committed)
             c.rounds_completed += 1
-            if algo.final_round and self.certify and not algo.certifying:  # a one-round campaign's round
+            # a last round run by SPE's rule: a checkpoint written before certification took
+            # the last round's place, resumed
+            if algo.final_round and self.certify and not algo.certifying:
                 self._next_mixture()
-                algo.begin_certification()  # a closing round first
-                c.certification_from = c.committed
+                self._certify_at_once()
             elif algo.final_round:
                 self.final_distribution = algo.sampling_description()
                 c.converged = True
@@ -786,7 +787,8 @@ class Campaign:
         round would, but strictly and over the band where the violations are, so the set
         is not first settled by the lenient rule and then settled again (the runs that
         saves: docs/certification.md). Only the checks certify (docs/guarantee.md), so how
-        the set they check came about does not touch the guarantee."""
+        the set they check came about does not touch the guarantee. Called as the last
+        round begins (for a campaign of one round: as it starts)."""
         algo = self.algorithm
         if self.certify and algo.final_round and not algo.certifying:
             algo.begin_certification()

@@ -1,7 +1,7 @@
 """The certification of a stochastic campaign's exported set: closing rounds and checks.
 
-Certification is SPE's last round (at delta_min; a campaign of one round runs that round
-first): the set is checked the way ``validate`` checks it (VAL^eps-delta: runs uniform
+Certification is SPE's last round (at delta_min; a campaign of one round certifies from
+its first run): the set is checked the way ``validate`` checks it (VAL^eps-delta: runs uniform
 over the final centres, strict: a run must neither fail nor leave Phi_delta, near a known
 failure or not). SPE's own rounds excuse a run that leaves only toward a known failure,
 and they draw near failures (prioritized sampling), so the set they hand over violates

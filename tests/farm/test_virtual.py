@@ -52,19 +52,26 @@ def test_a_bad_virtual_setting_is_named(tmp_path, field, value):
                  out=tmp_path / "bad", force=True)
 
 
-def test_the_virtual_farm_says_what_the_head_waited_for():
-    # on many workers of slow runs a run that changes the set waits for the replacements
-    # held before it (sequential counting): the clock keeps that share of the waits apart
+def _virtual_campaign(workers: int, run_time: float):
+    """A two-round campaign on ``workers`` virtual workers: (config, algorithm, executor, campaign)."""
     from farm.campaign_setup import build_algorithm, build_campaign, spec_of
     from farm.config import parse
     from farm.executors import make_executor
     from farm.simulators import build_simulator
 
-    cfg = parse(lead_follow_toml(executor="virtual", delta_min=1.0, farm_extra="workers = 300\n[farm.virtual]\nrun_time = 1.0"))
+    cfg = parse(lead_follow_toml(executor="virtual", delta_min=1.0,
+                                 farm_extra=f"workers = {workers}\n[farm.virtual]\nrun_time = {run_time}"))
     simulator = build_simulator(spec_of(cfg))
     algorithm = build_algorithm(cfg, simulator)
     executor = make_executor(cfg.farm, spec_of(cfg))
-    counters = build_campaign(cfg, algorithm, simulator, executor).run()
+    return cfg, algorithm, executor, build_campaign(cfg, algorithm, simulator, executor)
+
+
+def test_the_virtual_farm_says_what_the_head_waited_for():
+    # on many workers of slow runs a run that changes the set waits for the replacements
+    # held before it (sequential counting): the clock keeps that share of the waits apart
+    _, _, executor, campaign = _virtual_campaign(300, 1.0)
+    counters = campaign.run()
     assert counters.runs_replaced > 0
     assert 0 < executor.waited_replacements_s < executor.waited_s < executor.clock
 
@@ -73,16 +80,7 @@ def test_many_workers_keep_no_more_in_flight_than_a_rounds_quiet_runs():
     # 1,000 workers of short runs would each take a chunk of every batch: batches of tens of
     # thousands of runs, most dropped at the round's end or moved by a change and replaced
     # (docs/benchmarks.md, "2026-11-26, morning")
-    from farm.campaign_setup import build_algorithm, build_campaign, spec_of
-    from farm.config import parse
-    from farm.executors import make_executor
-    from farm.simulators import build_simulator
-
-    cfg = parse(lead_follow_toml(executor="virtual", delta_min=1.0, farm_extra="workers = 1000\n[farm.virtual]\nrun_time = 0.1"))
-    simulator = build_simulator(spec_of(cfg))
-    algorithm = build_algorithm(cfg, simulator)
-    executor = make_executor(cfg.farm, spec_of(cfg))
-    campaign = build_campaign(cfg, algorithm, simulator, executor)
+    cfg, algorithm, executor, campaign = _virtual_campaign(1000, 0.1)
     batches, wanted = [], []
     submit = executor.submit
 
