@@ -87,6 +87,24 @@ class WeightedLaw:
         return ok
 
 
+def probabilities(law: Law) -> np.ndarray:
+    """(count,) the probability the law gives each vertex id (a measurement: O(count))."""
+    ids = np.arange(law.count)
+    if isinstance(law, UniformLaw):
+        w = law.candidate(ids).astype(float)
+    else:
+        w = np.asarray(law.weight(ids), dtype=float)
+    return w / w.sum()
+
+
+def total_variation(p: np.ndarray, q: np.ndarray) -> float:
+    """TV(p, q) of two laws over vertex ids (the shorter one padded with zeros: ids added
+    since). No coupling of a draw from p and one from q agrees with probability above
+    1 - TV: a lower bound on the share of draws in flight that any exact sampler moves."""
+    m = max(len(p), len(q))
+    return 0.5 * float(np.abs(np.pad(p, (0, m - len(p))) - np.pad(q, (0, m - len(q)))).sum())
+
+
 @dataclass
 class Draws:
     """A batch of stable draws: per run its vertex id (its start), and what its stream

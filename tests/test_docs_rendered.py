@@ -15,6 +15,7 @@ RENDERED = {  # renderer -> the docs it writes
     "experiments/adversary.py": ["adversary.md"],
     "experiments/reproduce.py": ["reproduction.md"],
     "experiments/window.py": ["window.md"],
+    "experiments/coupling_bound.py": ["coupling_bound.md"],
     "experiments/certification.py": ["certification.md"],
     "benchmarks/bench_virtual.py": ["virtual.md"],
     "benchmarks/bench_scaling.py": ["scaling.md"],

@@ -89,3 +89,32 @@ def test_moved_flags_exactly_the_draws_a_change_moved(kind):
     standing = tracked & ~flagged
     assert (draws.versions[standing & (draws.versions >= 0)] <= 1).all()
     assert not sampler.moved(draws, law, 1)[standing].any()
+
+
+@pytest.mark.parametrize("change", ["kill", "insert", "reweigh"])
+def test_the_coupling_moves_about_the_share_no_exact_sampler_can_keep(change):
+    # TV(old law, new law) bounds from below the share of draws any exact sampler moves;
+    # the stream-keyed sampler should move about that share, not a multiple of it
+    # (experiments/coupling_bound.py measures the same over a whole campaign)
+    from coordinator.stable_sampler import probabilities, total_variation
+
+    rng = np.random.default_rng(3)  # test data only
+    count = 4096
+    alive = rng.random(count) < 0.5
+    w = rng.uniform(0.5, 2.0, count)
+    before = weighted(alive, w) if change == "reweigh" else uniform(alive)
+    alive2, w2 = alive.copy(), w.copy()
+    if change == "kill":
+        alive2[rng.choice(np.flatnonzero(alive), 100, replace=False)] = False
+    elif change == "insert":
+        alive2[rng.choice(np.flatnonzero(~alive), 100, replace=False)] = True
+    else:
+        w2[rng.choice(np.flatnonzero(alive), 100, replace=False)] *= 0.3
+    after = weighted(alive2, w2) if change == "reweigh" else uniform(alive2)
+    sampler = StableSampler()
+    sampler.restart(count, 0)
+    s = streams(40_000)
+    moved = np.mean(sampler.draw(s, before, 0).ids != sampler.draw(s, after, 0).ids)
+    tv = total_variation(probabilities(before), probabilities(after))
+    assert 0.01 < tv < 0.06
+    assert tv - 0.004 <= moved <= 1.25 * tv + 0.004, (moved, tv)
