@@ -15,7 +15,7 @@ lead-follow idm, uniform Gamma, delta 2 -> 1, certified, sequential counting, se
 2,048 / 8,192 / 32,768 runs in flight (issue 32's target: committed + replaced <= 1.3x the
 sequential count at each).
 
-    python experiments/coupling_bound.py            # runs it (~15 min): docs/coupling_bound.json, .md
+    python experiments/coupling_bound.py            # runs it (~4 min): docs/coupling_bound.json, .md
     python experiments/coupling_bound.py --render   # docs/coupling_bound.md from the JSON only
 """
 
