@@ -37,6 +37,7 @@
 from __future__ import annotations
 
 import bisect
+import copy
 import dataclasses
 import time
 from collections import deque
@@ -62,6 +63,8 @@ COUNTING = ("sequential", "deferred")
 VERIFY_BLOCK = 64  # runs checked for exactness at once after a change (then 4x more each time)
 MAX_VERIFY_BLOCK = 1 << 16
 LEAD_PER_WORKER = 4  # replacements launched this many runs per worker ahead of the head
+WHAT_IF = True  # launch the runs a change waiting for holds will call for (never changes a result)
+WHAT_IF_CHANGES = 8  # ... and, for slow runs, those of the changes after it, as far as results are in
 
 
 @dataclass(frozen=True)
@@ -221,6 +224,7 @@ class Campaign:
         self._ahead: dict[int, Replacement] = {}
         self._changes_seen = self.counters.changes
         self._ahead_to = 0  # launched ahead up to this index (when nothing changed since)
+        self.launched_past_holds = 0  # runs launched for a change waiting for holds (a statistic)
         self.held = Held()  # replacements the head committed past before they were back
         self._rewound = False  # a held replacement changed the state: the head went back
         self._stop = False
@@ -325,8 +329,90 @@ class Campaign:
         fresh = algo.draw(self._streams([r.index]))
         if fresh.ids[0] != r.draws.ids[0]:
             return False
+        # (a run launched for a change not applied yet may name a centre that the change
+        # would have inserted under that id: its start must be the centre's too)
+        if not np.array_equal(r.start, algo.vertices.points[fresh.ids[0]]):
+            return False
         r.draws = fresh  # renewed: later checks start from now
         return True
+
+    def _launch_past_holds(self, event: Event) -> None:
+        """The head waits at a change for replacements it passed: launch now the runs the
+        change will call for if they come back quiet (most do), worked out on a copy of
+        the algorithm with the change applied; then, as far as results are in, the same
+        for the changes that follow it there (up to ``WHAT_IF_CHANGES``; a run whose
+        start the copy would move counts as quiet: its replacement is not back). Launched
+        as runs ahead, with draws not known: each is used only if it is what its stream
+        draws when the head needs it, start included (``_still_drawn``), so results never
+        depend on it."""
+        algo = self.algorithm
+        if not WHAT_IF or algo.enumerates or (algo.certifying and not algo.closing):
+            return
+        # not copied: what apply never changes (experience replay stores a commit's effect)
+        shared = {id(v): v for v in (getattr(algo, name, None) for name in ("replay", "scenario", "settings", "lattice"))}
+        what_if = copy.deepcopy(algo, shared)
+        # further ahead only for slow runs: each change worked out costs the driver about
+        # a millisecond and a call per run it launches, and saves up to a run's time
+        # (docs/benchmarks.md, "2026-11-26, later morning")
+        for _ in range(WHAT_IF_CHANGES if self.executor.slow_runs() else 1):
+            what_if.apply(event)
+            self._launch_moved(what_if, event.index + 1)
+            event = self._next_change(what_if, event.index + 1)
+            if event is None:
+                break
+        self._send_replacements()
+
+    def _launch_moved(self, what_if: Algorithm, head: int) -> None:
+        """Launch the runs in flight within the lead of ``head`` whose starts ``what_if`` moves."""
+        end = head + self._lead()
+        for p in self.pending:
+            lo, hi = max(p.done(head), head - p.first_index), min(len(p), end - p.first_index)
+            if not p.handles or lo >= hi:
+                continue
+            rows = np.arange(lo, hi)
+            fresh = what_if.draw(self._streams(p.first_index + rows))
+            for k in np.flatnonzero(fresh.ids != p.draws.ids[rows]):
+                index, start_id = int(p.first_index + rows[k]), fresh.ids[k : k + 1]
+                start = what_if.vertices.points[start_id[0]].copy()
+                known = self._ahead.get(index)
+                if known is not None and known.draws.ids[0] == start_id[0] and np.array_equal(known.start, start):
+                    continue
+                self._ahead[index] = r = Replacement(index, Draws.unknown(start_id.copy()), start, index)
+                self._unsent.append(r)
+                self.launched_past_holds += 1
+
+    def _next_change(self, what_if: Algorithm, index: int) -> Event | None:
+        """The first run from ``index`` on that changes ``what_if``'s state, among the runs
+        back (fetched in order, without waiting) and drawn as ``what_if`` draws them; None
+        when the results in end first (or the batches drawn, or a round's quiet runs)."""
+        last = self.counters.committed + self.quiet_needed()
+        while index < last:
+            p = next((q for q in self.pending if q.first_index <= index < q.end), None)
+            if p is None:
+                return None
+            chunk = p.chunk_at(index)
+            if chunk is None:
+                if p.next_handle >= len(p.handles) or not self.executor.ready(p.handles[p.next_handle]):
+                    return None
+                chunk = self.executor.result(p.handles[p.next_handle])
+                p.next_handle += 1
+                self.counters.runs_simulated += len(chunk)
+                self.counters.steps_simulated += chunk.steps
+                p.fetched(chunk)
+                continue
+            at = index - chunk.first_index
+            rows = np.arange(chunk.first_index - p.first_index + at, chunk.first_index - p.first_index + len(chunk))
+            allowed = np.zeros(len(chunk), dtype=bool)
+            allowed[at:] = what_if.draw(self._streams(p.first_index + rows)).ids == p.draws.ids[rows]
+            rescreen = Rescreen(what_if.coverage, chunk.screening, chunk.outcomes, chunk.visited)
+            row = rescreen.next_event(at, allowed)
+            if row < len(chunk):
+                k = chunk.first_index - p.first_index + row
+                return Event(chunk.first_index + row, p.starts[k], int(p.draws.ids[k]),
+                             bool(chunk.outcomes[row] == FAILURE), rescreen.candidates(row),
+                             *rescreen.classification(row))
+            index = chunk.first_index + len(chunk)
+        return None
 
     def _launch_ahead(self) -> None:
         """Draws in flight near the head that a change moved: launch their replacements
@@ -352,7 +438,8 @@ class Campaign:
             for k in np.flatnonzero(~same):
                 index = int(p.first_index + flagged[k])
                 known = self._ahead.get(index)
-                if known is not None and known.draws.ids[0] == fresh.ids[k]:
+                if (known is not None and known.draws.ids[0] == fresh.ids[k]
+                        and np.array_equal(known.start, algo.vertices.points[fresh.ids[k]])):
                     continue
                 draws = fresh.rows(np.array([k]))
                 self._ahead[index] = r = Replacement(index, draws, algo.vertices.points[draws.ids[0]], index)
@@ -557,6 +644,10 @@ class Campaign:
                            changed[rows], counted[rows])
             return end
 
+        def event_at(row: int) -> Event:
+            return Event(chunk.first_index + row, starts[row], int(ids[row]), bool(chunk.outcomes[row] == FAILURE),
+                         rescreen.candidates(row), *rescreen.classification(row))
+
         while pos < k and not self._law_switched:
             if algo.enumerates:  # every centre once: any quiet run whose witnesses hold counts
                 offset = algo.next_event(rescreen, pos, ids) - pos
@@ -608,14 +699,17 @@ class Campaign:
                     self._replace(chunk.first_index + pos)
                     pos += 1
                     continue
+                change = event_at(pos)
                 if self.held:  # a change: only once every replacement before it is applied
                     logged = log_upto(pos)
-                    if self._settle(wait=True):
+                    if self._settle(wait=False):
                         break
+                    if self.held:
+                        self._launch_past_holds(change)
+                        if self._settle(wait=True):
+                            break
             c.committed += 1
-            self._change(Event(chunk.first_index + pos, starts[pos], int(ids[pos]),
-                               bool(chunk.outcomes[pos] == FAILURE), rescreen.candidates(pos),
-                               *rescreen.classification(pos)), chunk, pos)
+            self._change(event_at(pos) if algo.enumerates else change, chunk, pos)
             changed[pos] = True
             pos += 1
         if self._rewound:  # the rows from the hold on are committed again

@@ -150,6 +150,12 @@ class Executor(ABC):
         change a result (sequential counting)."""
         return requested
 
+    def slow_runs(self) -> bool:
+        """Does a run take long against the driver's work for it (as measured)? The
+        campaign then works further ahead for a change that waits (coordinator/campaign.py
+        ``_launch_past_holds``); it never changes a result."""
+        return False
+
 
 def summarize(batch: RunBatch, screen) -> tuple[dict, tuple[np.ndarray, np.ndarray]]:
     """What a worker sends back for a simulated batch: a small per-run summary (with the

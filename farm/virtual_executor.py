@@ -245,6 +245,9 @@ class VirtualExecutor(Executor):
         self._leave()
         return found
 
+    def slow_runs(self) -> bool:
+        return self.sizer.one_at_a_time(1)  # a run alone is a chunk worth sending one at a time
+
     def batch_size(self, requested: int) -> int:
         return self.sizer.batch_size(requested)
 

@@ -94,3 +94,21 @@ def test_many_workers_keep_no_more_in_flight_than_a_rounds_quiet_runs():
     campaign.run()
     assert all(size <= max(cfg.farm.batch_size, quiet) for size, quiet in batches), batches
     assert max(wanted) > max(quiet for _, quiet in batches)  # the workers alone would have asked for more
+
+
+def test_runs_launched_for_a_change_waiting_for_holds_change_no_result(monkeypatch):
+    # at a change the head waits for the replacements it passed; the runs the change will
+    # call for are launched meanwhile, worked out on a copy of the algorithm: a run is used
+    # only if its stream draws its start when the head needs it, so the committed sequence
+    # is the same with or without them (coordinator/campaign.py ``_launch_past_holds``)
+    import coordinator.campaign as campaign_mod
+
+    _, algorithm, _, campaign = _virtual_campaign(300, 1.0)
+    with_them = campaign.run()
+    assert campaign.launched_past_holds > 0
+    monkeypatch.setattr(campaign_mod, "WHAT_IF", False)
+    _, algorithm_without, _, campaign_without = _virtual_campaign(300, 1.0)
+    without = campaign_without.run()
+    assert campaign_without.launched_past_holds == 0
+    assert algorithm.result().result_hash == algorithm_without.result().result_hash
+    assert (with_them.committed, with_them.changes) == (without.committed, without.changes)
