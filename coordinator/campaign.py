@@ -65,6 +65,8 @@ MAX_VERIFY_BLOCK = 1 << 16
 LEAD_PER_WORKER = 4  # replacements launched this many runs per worker ahead of the head
 WHAT_IF = True  # launch the runs a change waiting for holds will call for (never changes a result)
 WHAT_IF_CHANGES = 8  # ... and, for slow runs, those of the changes after it, as far as results are in
+WHAT_IF_RUN_S = 0.01  # [s] runs at least this long (as measured) for the first
+WHAT_IF_CHAIN_RUN_S = 0.2  # [s] runs at least this long for the changes after it
 
 
 @dataclass(frozen=True)
@@ -345,32 +347,36 @@ class Campaign:
         as runs ahead, with draws not known: each is used only if it is what its stream
         draws when the head needs it, start included (``_still_drawn``), so results never
         depend on it."""
-        algo = self.algorithm
-        if not WHAT_IF or algo.enumerates or (algo.certifying and not algo.closing):
+        algo, run_s = self.algorithm, self.executor.run_seconds()
+        if not WHAT_IF or run_s is None or run_s < WHAT_IF_RUN_S or algo.enumerates or (
+                algo.certifying and not algo.closing):
             return
         # not copied: what apply never changes (experience replay stores a commit's effect)
         shared = {id(v): v for v in (getattr(algo, name, None) for name in ("replay", "scenario", "settings", "lattice"))}
         what_if = copy.deepcopy(algo, shared)
-        # further ahead only for slow runs: each change worked out costs the driver about
-        # a millisecond and a call per run it launches, and saves up to a run's time
-        # (docs/benchmarks.md, "2026-11-26, later morning")
-        for _ in range(WHAT_IF_CHANGES if self.executor.slow_runs() else 1):
+        # each change worked out costs the driver a few milliseconds and a call per run it
+        # launches, and saves up to a run's time (docs/benchmarks.md, "2026-11-26, later
+        # morning"): not at all for fast runs, further ahead for slow ones
+        for _ in range(WHAT_IF_CHANGES if run_s >= WHAT_IF_CHAIN_RUN_S else 1):
             what_if.apply(event)
-            self._launch_moved(what_if, event.index + 1)
-            event = self._next_change(what_if, event.index + 1)
+            drawn = self._launch_moved(what_if, event.index + 1)
+            event = self._next_change(what_if, event.index + 1, drawn)
             if event is None:
                 break
         self._send_replacements()
 
-    def _launch_moved(self, what_if: Algorithm, head: int) -> None:
-        """Launch the runs in flight within the lead of ``head`` whose starts ``what_if`` moves."""
+    def _launch_moved(self, what_if: Algorithm, head: int) -> dict:
+        """Launch the runs in flight within the lead of ``head`` whose starts ``what_if``
+        moves. Returns what ``what_if`` draws there: batch -> (first row, vertex ids)."""
         end = head + self._lead()
+        drawn = {}
         for p in self.pending:
             lo, hi = max(p.done(head), head - p.first_index), min(len(p), end - p.first_index)
             if not p.handles or lo >= hi:
                 continue
             rows = np.arange(lo, hi)
             fresh = what_if.draw(self._streams(p.first_index + rows))
+            drawn[id(p)] = (lo, fresh.ids)
             for k in np.flatnonzero(fresh.ids != p.draws.ids[rows]):
                 index, start_id = int(p.first_index + rows[k]), fresh.ids[k : k + 1]
                 start = what_if.vertices.points[start_id[0]].copy()
@@ -380,15 +386,17 @@ class Campaign:
                 self._ahead[index] = r = Replacement(index, Draws.unknown(start_id.copy()), start, index)
                 self._unsent.append(r)
                 self.launched_past_holds += 1
+        return drawn
 
-    def _next_change(self, what_if: Algorithm, index: int) -> Event | None:
+    def _next_change(self, what_if: Algorithm, index: int, drawn: dict) -> Event | None:
         """The first run from ``index`` on that changes ``what_if``'s state, among the runs
-        back (fetched in order, without waiting) and drawn as ``what_if`` draws them; None
-        when the results in end first (or the batches drawn, or a round's quiet runs)."""
+        back (fetched in order, without waiting) and drawn as ``what_if`` draws them
+        (``drawn``, from ``_launch_moved``); None when the results in end first (or the
+        draws worked out, or a round's quiet runs)."""
         last = self.counters.committed + self.quiet_needed()
         while index < last:
             p = next((q for q in self.pending if q.first_index <= index < q.end), None)
-            if p is None:
+            if p is None or id(p) not in drawn:
                 return None
             chunk = p.chunk_at(index)
             if chunk is None:
@@ -401,9 +409,12 @@ class Campaign:
                 p.fetched(chunk)
                 continue
             at = index - chunk.first_index
-            rows = np.arange(chunk.first_index - p.first_index + at, chunk.first_index - p.first_index + len(chunk))
+            lo, ids = drawn[id(p)]
+            first, last_row = index - p.first_index, chunk.first_index + len(chunk) - p.first_index
+            if first < lo or last_row > lo + len(ids):
+                return None
             allowed = np.zeros(len(chunk), dtype=bool)
-            allowed[at:] = what_if.draw(self._streams(p.first_index + rows)).ids == p.draws.ids[rows]
+            allowed[at:] = ids[first - lo : last_row - lo] == p.draws.ids[first:last_row]
             rescreen = Rescreen(what_if.coverage, chunk.screening, chunk.outcomes, chunk.visited)
             row = rescreen.next_event(at, allowed)
             if row < len(chunk):

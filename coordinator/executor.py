@@ -150,11 +150,12 @@ class Executor(ABC):
         change a result (sequential counting)."""
         return requested
 
-    def slow_runs(self) -> bool:
-        """Does a run take long against the driver's work for it (as measured)? The
-        campaign then works further ahead for a change that waits (coordinator/campaign.py
-        ``_launch_past_holds``); it never changes a result."""
-        return False
+    def run_seconds(self) -> float | None:
+        """A worker's seconds per run as measured so far (None: nothing measured, or runs
+        simulated when their results are asked for). How far ahead the campaign works for
+        a change that waits follows it (coordinator/campaign.py ``_launch_past_holds``);
+        it never changes a result."""
+        return None
 
 
 def summarize(batch: RunBatch, screen) -> tuple[dict, tuple[np.ndarray, np.ndarray]]:

@@ -342,8 +342,8 @@ class RayExecutor(Executor):
         self._next += 1
         return self._next - 1
 
-    def slow_runs(self) -> bool:
-        return self.sizer.one_at_a_time(1)  # a run alone is a chunk worth sending one at a time
+    def run_seconds(self) -> float | None:
+        return self.sizer.run_s
 
     def batch_size(self, requested: int) -> int:
         return self.sizer.batch_size(requested)
