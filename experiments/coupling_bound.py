@@ -31,7 +31,7 @@ import numpy as np
 import coordinator.campaign as campaign_mod
 import coordinator.spe as spe_mod
 from coordinator.stable_sampler import probabilities, total_variation
-from experiment import machine_stamp, main, run_in_process
+from experiment import machine_stamp, main, run_in_process, write_doc
 from window import config
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
@@ -153,9 +153,7 @@ def render() -> Path:
             "  the TV share and no more (tests/coordinator/test_stable_sampler.py): what is left to gain is",
             "  fewer runs in flight per change (the batch that follows the workers already stops at a round's",
             "  quiet-run need, README), not a better sampler."]
-    path = DOCS / "coupling_bound.md"
-    path.write_text("\n".join(out) + "\n")
-    return path
+    return write_doc(DOCS / "coupling_bound.md", out)
 
 
 if __name__ == "__main__":

@@ -18,6 +18,12 @@ def machine_stamp(**extra) -> dict:
             "python": platform.python_version(), "numpy": np.__version__, **extra}
 
 
+def write_doc(path, lines: list[str]):
+    """A rendered doc: ``lines`` joined, one newline at the end. Returns ``path``."""
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
 def main(run: Callable[[list[str]], None], render: Callable[[], object]) -> None:
     """``script.py --render``: the docs from the JSON only; ``script.py [args]``: ``run(args)``."""
     if sys.argv[1:] == ["--render"]:

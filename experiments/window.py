@@ -27,7 +27,7 @@ from coordinator.reference import compare_boxes, grid, reference_safe
 from coordinator.sample_size import n_eps
 from farm import config as config_mod
 
-from experiment import machine_stamp, main, run_in_process
+from experiment import machine_stamp, main, run_in_process, write_doc
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 DEFERRED = [(1024, 2), (2048, 4), (8192, 4)]  # 2,048 / 8,192 / 32,768 in flight
@@ -144,9 +144,7 @@ def render() -> Path:
             "  window follows the workers (resume may change it), and a replacement launched when a change",
             "  moves an in-flight draw near the head is usually back before the head needs it",
             "  (benchmarks/bench_virtual.py measures the time to the result on many workers)."]
-    path = DOCS / "window.md"
-    path.write_text("\n".join(out) + "\n")
-    return path
+    return write_doc(DOCS / "window.md", out)
 
 
 if __name__ == "__main__":
