@@ -91,3 +91,27 @@ def test_long_chunks_wait_with_the_driver_and_replacements_go_first(ray_local):
     assert ray_hash == local_hash and counters.committed == local_counters.committed
     assert pool["held_back"] > 0  # chunks waited in the pool for an actor with room
     assert counters.runs_replaced > 0
+
+
+SLOW_20MS = {**RAW, "farm": {**RAW["farm"], "workers": 8},
+             "scenario": {"name": "lead-follow", "sv_policy": "idm", "backend": "slow_backend:SlowBackend",
+                          "slow_backend:SlowBackend": {"step_cost_s": 7e-4}}}  # a 30-state run: ~20 ms
+
+
+def test_runs_launched_while_a_change_waits_on_ray_give_the_in_process_result(ray_local):
+    """8 actors of ~20 ms runs: the head passes replacements not back and waits for them at
+    changes; meanwhile the runs each change will call for are launched, worked out on a
+    copy of the algorithm (coordinator/campaign.py ``_launch_past_holds``), and their
+    chunks read ahead without waiting. The result is the in-process one."""
+    cfg = config_mod.normalize(SLOW_20MS)
+    sim = build_simulator(spec_of(cfg))
+    algo = build_algorithm(cfg, sim)
+    executor = RayExecutor(spec_of(cfg), 8)
+    try:
+        ray_campaign = build_campaign(cfg, algo, sim, executor)
+        counters = ray_campaign.run()
+    finally:
+        executor.close()
+    local_hash, local_counters, _ = campaign(LocalExecutor)
+    assert ray_campaign.launched_past_holds > 0
+    assert algo.result().result_hash == local_hash and counters.committed == local_counters.committed
