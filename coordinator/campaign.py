@@ -18,7 +18,10 @@
   batch_size x pipeline_depth). A replacement that a later change moves is replaced again.
 - The head does not wait for a due replacement that is not back: it commits on past it
   (a hold, coordinator/replacements.py) as long as nothing changes the state, and goes
-  back if the replacement, once applied, does. Results never depend on it.
+  back if the replacement, once applied, does. Results never depend on it. A change
+  waits for the holds before it; meanwhile the runs it will call for are launched,
+  worked out on a copy of the algorithm (``_launch_past_holds``): used only if still
+  drawn when the head gets there, so results never depend on them either.
 - The streak is the index range after the last change. A round ends when N_eps
   consecutive indices of it are resolved (exact or replaced) and quiet: the head stops
   at its end and waits for the streak's replacements. Batches in flight and replacements
