@@ -381,14 +381,10 @@ class Campaign:
             fresh = what_if.draw(self._streams(p.first_index + rows))
             drawn[id(p)] = (lo, fresh.ids)
             for k in np.flatnonzero(fresh.ids != p.draws.ids[rows]):
-                index, start_id = int(p.first_index + rows[k]), fresh.ids[k : k + 1]
-                start = what_if.vertices.points[start_id[0]].copy()
-                known = self._ahead.get(index)
-                if known is not None and known.draws.ids[0] == start_id[0] and np.array_equal(known.start, start):
-                    continue
-                self._ahead[index] = r = Replacement(index, Draws.unknown(start_id.copy()), start, index)
-                self._unsent.append(r)
-                self.launched_past_holds += 1
+                start_id = fresh.ids[k : k + 1].copy()
+                if self._launch_run(int(p.first_index + rows[k]), Draws.unknown(start_id),
+                                    what_if.vertices.points[start_id[0]].copy()):
+                    self.launched_past_holds += 1
         return drawn
 
     def _next_change(self, what_if: Algorithm, index: int, drawn: dict) -> Event | None:
@@ -405,11 +401,7 @@ class Campaign:
             if chunk is None:
                 if p.next_handle >= len(p.handles) or not self.executor.ready(p.handles[p.next_handle]):
                     return None
-                chunk = self.executor.result(p.handles[p.next_handle])
-                p.next_handle += 1
-                self.counters.runs_simulated += len(chunk)
-                self.counters.steps_simulated += chunk.steps
-                p.fetched(chunk)
+                self._fetch_next(p)
                 continue
             at = index - chunk.first_index
             lo, ids = drawn[id(p)]
@@ -422,9 +414,7 @@ class Campaign:
             row = rescreen.next_event(at, allowed)
             if row < len(chunk):
                 k = chunk.first_index - p.first_index + row
-                return Event(chunk.first_index + row, p.starts[k], int(p.draws.ids[k]),
-                             bool(chunk.outcomes[row] == FAILURE), rescreen.candidates(row),
-                             *rescreen.classification(row))
+                return _event(chunk.first_index + row, chunk, row, p.starts[k], p.draws.ids[k], rescreen)
             index = chunk.first_index + len(chunk)
         return None
 
@@ -450,14 +440,18 @@ class Campaign:
                 continue
             same, fresh = self._redraw(p, flagged)
             for k in np.flatnonzero(~same):
-                index = int(p.first_index + flagged[k])
-                known = self._ahead.get(index)
-                if (known is not None and known.draws.ids[0] == fresh.ids[k]
-                        and np.array_equal(known.start, algo.vertices.points[fresh.ids[k]])):
-                    continue
-                draws = fresh.rows(np.array([k]))
-                self._ahead[index] = r = Replacement(index, draws, algo.vertices.points[draws.ids[0]], index)
-                self._unsent.append(r)
+                self._launch_run(int(p.first_index + flagged[k]), fresh.rows(np.array([k])),
+                                 algo.vertices.points[fresh.ids[k]])
+
+    def _launch_run(self, index: int, draws: Draws, start: np.ndarray) -> bool:
+        """Launch a run ahead for index ``index`` from ``start`` (its draw ``draws``),
+        unless one from that start is launched already. True if launched."""
+        known = self._ahead.get(index)
+        if known is not None and known.draws.ids[0] == draws.ids[0] and np.array_equal(known.start, start):
+            return False
+        self._ahead[index] = r = Replacement(index, draws, start, index)
+        self._unsent.append(r)
+        return True
 
     def _lead(self) -> int:
         """How far ahead of the head replacements are launched: a few rounds of every
@@ -600,8 +594,7 @@ class Campaign:
         escaped = int(chunk.screening.escaped[row]) if counted else 0
         c.runs_replaced += 1
         if changes:
-            self._change(Event(r.index, r.start, int(start_id[0]), bool(chunk.outcomes[row] == FAILURE),
-                               rescreen.candidates(row), *rescreen.classification(row)), chunk, row)
+            self._change(_event(r.index, chunk, row, r.start, start_id[0], rescreen), chunk, row)
         elif counted:
             c.quiet += 1
             c.escaped_in_streak += escaped
@@ -659,8 +652,7 @@ class Campaign:
             return end
 
         def event_at(row: int) -> Event:
-            return Event(chunk.first_index + row, starts[row], int(ids[row]), bool(chunk.outcomes[row] == FAILURE),
-                         rescreen.candidates(row), *rescreen.classification(row))
+            return _event(chunk.first_index + row, chunk, row, starts[row], ids[row], rescreen)
 
         while pos < k and not self._law_switched:
             if algo.enumerates:  # every centre once: any quiet run whose witnesses hold counts
@@ -787,14 +779,19 @@ class Campaign:
             return None
         chunk = p.chunk_at(head)
         while chunk is None:
-            chunk = self.executor.result(p.handles[p.next_handle])
-            p.next_handle += 1
-            self.counters.runs_simulated += len(chunk)
-            self.counters.steps_simulated += chunk.steps
-            p.fetched(chunk)
+            chunk = self._fetch_next(p)
             if not chunk.first_index <= head < chunk.first_index + len(chunk):
                 chunk = None
         return p, chunk
+
+    def _fetch_next(self, p: Pending) -> Chunk:
+        """Fetch batch ``p``'s next chunk (waiting for it), in index order."""
+        chunk = self.executor.result(p.handles[p.next_handle])
+        p.next_handle += 1
+        self.counters.runs_simulated += len(chunk)
+        self.counters.steps_simulated += chunk.steps
+        p.fetched(chunk)
+        return chunk
 
     def _release(self) -> None:
         """Drop the batches whose every run is committed for good (the head cannot go back
@@ -948,6 +945,13 @@ class Campaign:
         meta = {"counters": asdict(counters), "final_distribution": self.final_distribution}
         return arrays, meta
 
+
+
+def _event(index: int, chunk: Chunk, row: int, start: np.ndarray, start_id, rescreen: Rescreen) -> Event:
+    """Run ``row`` of ``chunk`` (sample index ``index``, from ``start``, vertex ``start_id``)
+    as the change it makes at ``rescreen``'s coverage."""
+    return Event(index, start, int(start_id), bool(chunk.outcomes[row] == FAILURE),
+                 rescreen.candidates(row), *rescreen.classification(row))
 
 @dataclass
 class DriverState:
