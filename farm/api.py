@@ -188,6 +188,25 @@ def quantify(config, out=None, *, resume: bool = False, force: bool = False, pro
     return QuantifyResult.load(out)
 
 
+def plan(config, out=None, *, workers=(1, 32, 256), force: bool = False, run_time: float | None = None,
+         call_cost: float | None = None, jitter: float | None = None, progress: bool = False, **overrides) -> dict:
+    """Plan a cluster: run ``config`` on the virtual farm (the real coordinator on a
+    simulated clock) at each count of ``workers``, in directory ``out`` (default: a new
+    temporary directory; ``force`` replaces a plan directory there), each count a normal
+    quantify campaign in ``out/workers-<W>``. ``run_time``, ``call_cost`` and ``jitter``
+    override ``[farm.virtual]``. Returns the plan (``plan.json``): per count the simulated
+    time to the result, the speed-up over the fewest workers, the workers' utilisation,
+    the runs and the result hash; and ``recommended_workers``, the fewest within 10 % of
+    the fastest. ``plan.png`` draws the time against the workers."""
+    from farm.planning import plan as run_plan
+    from farm.progress import Progress
+
+    cfg = load_config(config, **overrides)
+    out = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="scenario-farm-")) / "plan"
+    return run_plan(cfg, out, workers, force=force, run_time=run_time, call_cost=call_cost, jitter=jitter,
+                    progress=Progress(enabled=progress))
+
+
 def open_campaign(directory) -> QuantifyResult:
     """The result of a finished campaign directory."""
     return QuantifyResult.load(directory)

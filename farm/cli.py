@@ -80,6 +80,19 @@ def cmd_quantify(args) -> int:
     return EXIT_OK
 
 
+def cmd_plan(args) -> int:
+    from farm import api
+    from farm.planning import table
+
+    result = api.plan(args.config, out=args.out, workers=args.workers, force=args.force, run_time=args.run_time,
+                      call_cost=args.call_cost, jitter=args.jitter, progress=_mode(args) != "quiet",
+                      **({"farm__seed": args.seed} if args.seed is not None else {}))
+    print(table(result))
+    print(f"written: {Path(args.out) / 'plan.json'}, {Path(args.out) / 'plan.png'}, a campaign per count in "
+          f"{Path(args.out) / 'workers-<W>'}")
+    return EXIT_OK
+
+
 def cmd_resume(args) -> int:
     from farm import quantification
     from farm.progress import Progress
@@ -239,6 +252,19 @@ def build_parser() -> argparse.ArgumentParser:
     _add_farm_flags(p)
     _add_output_flags(p)
     p.set_defaults(func=cmd_quantify)
+
+    p = sub.add_parser("plan", help="time to the result at several worker counts, on the virtual farm")
+    p.add_argument("config")
+    p.add_argument("--out", required=True, help="plan directory: plan.json, plan.png and a campaign per count")
+    p.add_argument("--workers", type=int, nargs="+", default=[1, 32, 256], help="worker counts (default 1 32 256)")
+    p.add_argument("--run-time", type=float, help="seconds of a full-horizon run of your simulator "
+                                                  "(farm.virtual.run_time)")
+    p.add_argument("--call-cost", type=float, help="seconds a chunk's call costs (farm.virtual.call_cost)")
+    p.add_argument("--jitter", type=float, help="lognormal sigma of a run's time (farm.virtual.jitter)")
+    p.add_argument("--seed", type=int, help="campaign seed (overrides farm.seed)")
+    p.add_argument("--force", action="store_true", help="replace the plan in --out (only a plan directory)")
+    _add_output_flags(p)
+    p.set_defaults(func=cmd_plan)
 
     p = sub.add_parser("resume", help="continue a stopped or killed campaign")
     p.add_argument("dir")
