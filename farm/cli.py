@@ -90,7 +90,7 @@ def cmd_plan(args) -> int:
     print(table(result))
     print(f"written: {Path(args.out) / 'plan.json'}, {Path(args.out) / 'plan.png'}, a campaign per count in "
           f"{Path(args.out) / 'workers-<W>'}")
-    return EXIT_OK
+    return EXIT_OK if result["same_result"] else exits.BUG  # the worker count never changes a result
 
 
 def cmd_resume(args) -> int:
