@@ -29,6 +29,7 @@ The shared conformance suite every algorithm passes is ``coordinator/testing.py`
 
 from __future__ import annotations
 
+import copy
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
@@ -78,6 +79,10 @@ class Algorithm(ABC):
     coverage: Coverage
     version: int = 0
     round: int = 0
+    # what ``apply`` never changes, shared by a ``copy`` (experience replay stores only
+    # the effects of final commits: coordinator/campaign.py)
+    SHARED: tuple[str, ...] = ("replay", "scenario", "settings", "lattice")
+    restorable: bool = False  # ``restore`` is supported (``_forget_draws`` is implemented)
 
     @property
     def delta(self) -> float:
@@ -163,6 +168,35 @@ class Algorithm(ABC):
         centres that cover their states now being ``witnesses[offsets[i]:offsets[i + 1]]``,
         certify their centres. Returns the position of the run after which every alive
         centre is certified, or -1."""
+
+    # -- copies -----------------------------------------------------------------------------
+    def copy(self) -> "Algorithm":
+        """A copy that ``apply`` can change without touching this one (it shares ``SHARED``)."""
+        return copy.deepcopy(self, self._shared_memo())
+
+    def restore(self, snapshot: "Algorithm") -> None:
+        """Become ``snapshot`` (a ``copy`` of this algorithm taken earlier) again, in place:
+        whoever holds this object holds the restored state. The version and the coverage's
+        epoch move past both states': draws the changes since the copy may have moved are
+        drawn again, and runs screened since are screened again, before they count."""
+        version, epoch, left = self.version, self.coverage.epoch, dict(self.__dict__)
+        memo = self._shared_memo()
+        memo[id(snapshot)] = self  # the snapshot's references to itself are to this object now
+        state = copy.deepcopy(snapshot.__dict__, memo)
+        self.__dict__.clear()
+        self.__dict__.update(state)
+        since = self.version
+        self.version = max(self.version, version) + 1
+        self.coverage.fork(epoch)
+        self._forget_draws(left, since)
+
+    def _forget_draws(self, left: dict, since: int) -> None:
+        """After ``restore``: draws made on the state left (``left``: its attributes), which
+        went on from version ``since``, may have moved where its changes touched them."""
+        raise NotImplementedError(f"{self.name}: restore is not supported")
+
+    def _shared_memo(self) -> dict:
+        return {id(v): v for v in (getattr(self, name, None) for name in self.SHARED) if v is not None}
 
     # -- the end ----------------------------------------------------------------------------
     def stop_committing(self) -> None:

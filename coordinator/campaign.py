@@ -18,10 +18,12 @@
   batch_size x pipeline_depth). A replacement that a later change moves is replaced again.
 - The head does not wait for a due replacement that is not back: it commits on past it
   (a hold, coordinator/replacements.py) as long as nothing changes the state, and goes
-  back if the replacement, once applied, does. Results never depend on it. A change
-  waits for the holds before it; meanwhile the runs it will call for are launched,
-  worked out on a copy of the algorithm (``_launch_past_holds``): used only if still
-  drawn when the head gets there, so results never depend on them either.
+  back if the replacement, once applied, does. Results never depend on it. With slow
+  runs a change does not wait for the holds before it: it is applied, a copy of the state
+  before it kept, and undone if a hold, judged at that state, changes it
+  (coordinator/speculation.py). Where it does wait, the runs it will call for are
+  launched meanwhile, worked out on a copy of the algorithm (``_launch_past_holds``):
+  used only if still drawn when the head gets there, so results never depend on them.
 - The streak is the index range after the last change. A round ends when N_eps
   consecutive indices of it are resolved (exact or replaced) and quiet: the head stops
   at its end and waits for the streak's replacements. Batches in flight and replacements
@@ -40,7 +42,6 @@
 from __future__ import annotations
 
 import bisect
-import copy
 import dataclasses
 import time
 from collections import deque
@@ -57,6 +58,7 @@ from coordinator.coverage import Rescreen
 from coordinator.executor import Chunk, Executor
 from coordinator.replacements import Held, Replacement, ReplacementGroup
 from coordinator.sample_size import n_eps
+from coordinator.speculation import Speculations
 from coordinator.stable_sampler import Draws
 from scenarios.base import FAILURE, OUTCOME_NAMES, TRUNCATED
 from scenarios.errors import ConfigError
@@ -231,6 +233,7 @@ class Campaign:
         self._ahead_to = 0  # launched ahead up to this index (when nothing changed since)
         self.launched_past_holds = 0  # runs launched for a change waiting for holds (a statistic)
         self.held = Held()  # replacements the head committed past before they were back
+        self.speculations = Speculations()  # changes applied past holds, and the state before each
         self._rewound = False  # a held replacement changed the state: the head went back
         self._stop = False
         self._law_switched = False  # a check failed: the runs in flight were drawn by its law
@@ -301,7 +304,11 @@ class Campaign:
         the fresh draws become their current ones (later checks start from now)."""
         fresh = self.algorithm.draw(self._streams(p.first_index + rows))
         p.draws.track(rows, fresh)
-        return fresh.ids == p.draws.ids[rows], fresh
+        # the start too: after the algorithm went back to a copy (coordinator/speculation.py)
+        # an id may name another centre than the one the run was launched from
+        same = (fresh.ids == p.draws.ids[rows]) & (self.algorithm.vertices.points[fresh.ids] == p.starts[rows]).all(axis=1)
+        p.draws.now[rows[~same & (fresh.ids == p.draws.ids[rows])]] = -1  # not its start, though the same id
+        return same, fresh
 
     def _replace(self, index: int) -> None:
         """Launch the replacement of run ``index`` from its stream's current draw, due
@@ -354,9 +361,7 @@ class Campaign:
         if not WHAT_IF or run_s is None or run_s < WHAT_IF_RUN_S or algo.enumerates or (
                 algo.certifying and not algo.closing):
             return
-        # not copied: what apply never changes (experience replay stores a commit's effect)
-        shared = {id(v): v for v in (getattr(algo, name, None) for name in ("replay", "scenario", "settings", "lattice"))}
-        what_if = copy.deepcopy(algo, shared)
+        what_if = algo.copy()
         # each change worked out costs the driver a few milliseconds and a call per run it
         # launches, and saves up to a run's time (docs/benchmarks.md, "2026-11-26, later
         # morning"): not at all for fast runs, further ahead for slow ones
@@ -585,24 +590,44 @@ class Campaign:
         """Replacement ``r``'s run (``chunk``, ``row``) as the run of its index; ``held``:
         it is the first hold (the head went past it). True if it changed the state."""
         algo, c = self.algorithm, self.counters
-        rescreen = self._rescreen(chunk)
+        # a hold is judged at the state as the head passed it (changes applied past it since
+        # are undone if it changes the state: coordinator/speculation.py)
+        past = self.speculations.first if held and self.speculations else None
+        if past is None:
+            judged = self._rescreen(chunk)
+        else:
+            judged = Rescreen(past.algorithm.coverage, chunk.screening, chunk.outcomes, chunk.visited)
         start_id = r.draws.ids[:1]
-        changes = rescreen.next_event(row) == row
+        changes = judged.next_event(row) == row
         if held and changes:
+            if past is not None:
+                self._undo_speculations()
+                judged = self._rescreen(chunk)  # the state it was judged at, restored: decided there again
+                judged.next_event(row)
             self._rewind_to_first_hold()
-        counted = not changes and r.index >= c.streak_start
+        counted = not changes and r.index >= (past.streak_start if past is not None else c.streak_start)
         escaped = int(chunk.screening.escaped[row]) if counted else 0
         c.runs_replaced += 1
         if changes:
-            self._change(_event(r.index, chunk, row, r.start, start_id[0], rescreen), chunk, row)
-        elif counted:
+            self._change(_event(r.index, chunk, row, r.start, start_id[0], judged), chunk, row)
+        elif counted and past is None:  # (past a change, the streak it counts in has ended)
             c.quiet += 1
             c.escaped_in_streak += escaped
         self._log_rows(chunk, np.array([row]), r.index, r.start[None, :], start_id, CommitLog.REPLACEMENT,
                        np.array([changes]), np.array([counted]), now=True)
         if held and not changes:
-            self.held.applied_quiet({"runs_replaced": 1, "quiet": int(counted), "escaped_in_streak": escaped})
+            self.held.applied_quiet({"runs_replaced": 1, "quiet": int(counted), "escaped_in_streak": escaped},
+                                    streak_until=None if past is None else past.index)
+            self.speculations.settle(self.held)
         return changes
+
+    def _undo_speculations(self) -> None:
+        """The first hold changes the state, and changes were applied past it: the
+        algorithm and the counters go back to how they stood before the first of them,
+        and so do the recordings (the head goes back to the hold next)."""
+        first = self.speculations.undo(self.algorithm, self.counters)
+        self.recordings = [r for r in self.recordings if r["sample_index"] < first.index]
+        self._changes_seen = -1  # every draw in flight is looked at again
 
     def _change(self, event: Event, chunk: Chunk, row: int) -> None:
         """Apply a run that changes the state; the streak starts again at the head."""
@@ -706,11 +731,13 @@ class Campaign:
                     pos += 1
                     continue
                 change = event_at(pos)
-                if self.held:  # a change: only once every replacement before it is applied
+                if self.held:  # a change: only once every replacement before it is applied ...
                     logged = log_upto(pos)
                     if self._settle(wait=False):
                         break
-                    if self.held:
+                    if self.held and self.speculations.allowed(algo, self.executor.run_seconds(), self.settings.lag):
+                        self.speculations.take(change.index, algo, c)  # ... or applied now, undone if one changes it
+                    elif self.held:
                         self._launch_past_holds(change)
                         if self._settle(wait=True):
                             break
@@ -914,10 +941,27 @@ class Campaign:
                 self.executor.cancel(handle)
         self.replacements.clear()
         self.held.clear()
+        self.speculations.clear()
         self._unsent = []
         self._ahead.clear()
 
     # -- persistence --------------------------------------------------------------------
+    def committed_algorithm(self) -> Algorithm:
+        """The algorithm as ``state()`` has the driver: as the head passed the first hold
+        (a copy, while changes are applied past it)."""
+        return self.speculations.committed(self.algorithm)
+
+    def take_recordings(self) -> list[dict]:
+        """The recordings of runs committed for good since the last take (those past a
+        change applied past holds stay until it is settled)."""
+        if not self.speculations:
+            taken, self.recordings = self.recordings, []
+            return taken
+        until = self.speculations.first.index
+        taken = [r for r in self.recordings if r["sample_index"] < until]
+        self.recordings = [r for r in self.recordings if r["sample_index"] >= until]
+        return taken
+
     def state(self) -> tuple[dict[str, np.ndarray], dict]:
         """The driver's state: arrays (the draws not yet committed and the replacements
         not yet applied, so that a resumed campaign re-simulates exactly them) and
@@ -926,7 +970,7 @@ class Campaign:
         counters, replacements = self.counters, list(self.replacements)
         if self.held:
             hold = self.held.first
-            counters = dataclasses.replace(self.counters, **hold.counts)
+            counters = dataclasses.replace(self.counters, **hold.counts, **self.speculations.committed_counts())
             replacements = [hold.replacement, *hold.queue]
         head = counters.committed
         open_ = [p for p in self.pending if p.end > head]

@@ -34,6 +34,7 @@ check it) a state near a failure is no excuse: every uncovered state is an event
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -121,8 +122,22 @@ class Coverage:
         self.kill_seq = -1  # seq of the last Kill (witness checks needed after it)
         self.insert_seq = -1  # seq of the last Insert (a newer centre may be a state's witness now)
         self.strict = False  # certification: near a failure does not excuse leaving the covering
+        self._ancestors: dict[int, int] = {}  # epoch -> the last seq of it this coverage holds (``fork``)
         self._log: list[tuple[int, object]] | None = None
         self._forget_history()
+
+    def fork(self, epoch: int) -> None:
+        """This coverage is a copy taken earlier and restored (the algorithm went back to
+        it, coordinator/speculation.py) after changes up to ``epoch``: its change numbers
+        after the copy were used since for other changes. A new epoch tells screenings made
+        since apart; those made at its state or before (``descends``) still hold."""
+        self._ancestors = {**self._ancestors, self.epoch: self.seq}
+        self.epoch = max(self.epoch, epoch) + 1
+
+    def descends(self, epoch: int, seq: int) -> bool:
+        """Is (``epoch``, ``seq``) a state of this coverage's own history (a screening made
+        there is as good as one of this epoch at that seq)?"""
+        return epoch == self.epoch or self._ancestors.get(epoch, -1) >= seq
 
     # -- changes ---------------------------------------------------------------------------
     def apply(self, change, version: int) -> None:
@@ -147,6 +162,7 @@ class Coverage:
         elif isinstance(change, Reset):
             self._load(change.state)
             self.epoch += 1
+            self._ancestors = {}
         else:
             raise TypeError(f"not a coverage change: {change!r}")
         self.seq += 1
@@ -295,6 +311,7 @@ class Coverage:
         _, version, epoch, _, seq, _ = state["coverage"]
         cov.version, cov.epoch, cov.seq = int(version), int(epoch), int(seq)
         cov.insert_seq = cov.seq  # not kept: screenings older than a restore are never asked
+        cov._ancestors = {}
         cov._forget_history()
         return cov
 
@@ -365,6 +382,8 @@ class Rescreen:
     asked again until the coverage changes (the head asks from many places in a chunk)."""
 
     def __init__(self, coverage: Coverage, screening: Screening, outcomes: np.ndarray, visited):
+        if screening.epoch != coverage.epoch and coverage.descends(screening.epoch, screening.seq):
+            screening = dataclasses.replace(screening, epoch=coverage.epoch)  # screened before a fork
         self.coverage, self.screening, self.outcomes = coverage, screening, outcomes
         self.visited = visited  # () -> (states, offsets): the chunk's visited states, fetched on demand
         self._full = np.zeros(len(screening), dtype=bool)  # rows to re-screen from all their states
@@ -385,8 +404,11 @@ class Rescreen:
             if allowed is not None:
                 changes &= allowed[lo:]
             return lo + int(np.argmax(changes)) if changes.any() else k
-        if sc.epoch != cov.epoch:
-            self._full[lo:] = True  # vertex ids of another covering: witnesses mean nothing
+        if sc.epoch != cov.epoch or sc.seq > cov.seq:
+            # vertex ids of another covering: witnesses mean nothing; or screened at changes
+            # this coverage has not had (a hold judged at the state the head passed it,
+            # coordinator/speculation.py): its new states are not this coverage's
+            self._full[lo:] = True
         elif cov.kill_seq > max(sc.seq, self._checked_kills):
             self._mark_dead_witnesses(lo)  # only a Kill can uncover a state
         now = (cov.epoch, cov.seq)

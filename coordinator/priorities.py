@@ -36,7 +36,6 @@ class FailureDistances:
         n = len(self.lower)
         self.per_axis = BUCKETS_PER_AXIS.get(n, 4)
         self._buffer = np.empty(0)  # distances of vertex ids, with room to grow
-        self.dist = self._buffer[:0]
         self.seen_vertices = 0
         self.lowered: list[np.ndarray] = []  # ids whose distance fell, until taken (``take_lowered``)
         self.seen_failures = 0
@@ -52,7 +51,6 @@ class FailureDistances:
             return np.full(vertex_count, np.inf)
         if self.seen_failures == 0:  # nothing known yet: every vertex is new
             self.seen_vertices = self._sorted = 0
-            self.dist = self._buffer[:0]
             if self.track_lowered:  # every distance fell from infinity
                 self.lowered.append(np.arange(vertex_count))
         if failure_count > self.seen_failures and self.seen_vertices:
@@ -62,14 +60,20 @@ class FailureDistances:
             d_new = self._nearest(points[self.seen_vertices : vertex_count], failures[:failure_count])
             if vertex_count > len(self._buffer):  # doubling: a copy per append cost O(vertices)
                 grown = np.empty(max(vertex_count, 2 * len(self._buffer)))
-                grown[: self.seen_vertices] = self.dist[: self.seen_vertices]
+                grown[: self.seen_vertices] = self.dist
                 self._buffer = grown
             self._buffer[self.seen_vertices : vertex_count] = d_new
-            self.dist = self._buffer[:vertex_count]
         self.seen_vertices, self.seen_failures = vertex_count, failure_count
         if vertex_count - self._sorted > max(RESORT_SHARE * vertex_count, 4096):
             self._sort(points)
         return self.dist
+
+    @property
+    def dist(self) -> np.ndarray:
+        """The known distances, vertex ids [0, seen_vertices): a view of the buffer made
+        when asked (an attribute holding the view would part from the buffer in a copy,
+        ``copy.deepcopy`` copying views apart, and lose what ``_lower`` writes)."""
+        return self._buffer[: self.seen_vertices]
 
     @staticmethod
     def _nearest(vertices: np.ndarray, failures: np.ndarray) -> np.ndarray:

@@ -38,6 +38,7 @@ from coordinator.stable_sampler import Draws
 
 # the counters a hold records, and restores if its replacement changes the state
 HELD_COUNTS = ("committed", "quiet", "escaped_in_streak", "runs_discarded", "runs_replaced")
+STREAK_COUNTS = ("quiet", "escaped_in_streak")  # of the streak: a change starts them again
 
 
 class ReplacementGroup:
@@ -113,14 +114,18 @@ class Held:
         else:
             apply()
 
-    def applied_quiet(self, gained: dict) -> None:
+    def applied_quiet(self, gained: dict, streak_until: int | None = None) -> None:
         """The first hold's replacement was applied and left the state as it was: the later
         holds' records gain what it added (``gained``: counter -> amount), and the effects
-        up to the next hold take place."""
+        up to the next hold take place. ``streak_until``: a change at that index was
+        applied past the hold (coordinator/speculation.py): holds due from there on are of
+        a later streak, whose counts it does not add to."""
         self.holds.popleft()
         for later in self.holds:
+            same_streak = streak_until is None or later.replacement.due < streak_until
             for name, amount in gained.items():
-                later.counts[name] += amount
+                if same_streak or name not in STREAK_COUNTS:
+                    later.counts[name] += amount
         upto = self.holds[0].effects if self.holds else len(self.effects)
         ready, self.effects = self.effects[:upto], self.effects[upto:]
         for later in self.holds:

@@ -74,6 +74,7 @@ class SPE(Algorithm):
     name = "spe"
     decays = True
     certifies = True
+    restorable = True
     # certificates' entries too: the bulk of a certified campaign's state
     append_only = ("vertices.points", "failures.points", "graph.parent", "replay.index", "replay.take",
                    "replay.parent", "replay.start", "cert.vertex", "cert.offsets", "cert.witness", "holes.ids")
@@ -305,6 +306,9 @@ class SPE(Algorithm):
             chosen = self.enumeration.next(self.vertices, self.certificates, len(streams))
             return Draws.fixed_at(chosen, self.version)
         return self._stable.draw(streams, self._law(), self.version)
+
+    def _forget_draws(self, left: dict, since: int) -> None:
+        self._stable.forked(left["_stable"], since, self.version, self.vertices.count)
 
     def moved(self, draws: Draws) -> np.ndarray:
         if draws.fixed:

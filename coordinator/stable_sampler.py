@@ -167,6 +167,7 @@ class StableSampler:
         self.stamp = np.zeros(0, dtype=np.int64)  # per slot: last version that may have moved it
         self.everything = 0  # last version that may have moved every draw
         self.last = 0  # last version that may have moved any draw
+        self.reborn = (np.iinfo(np.int64).max, -1)  # (first id, version) of ``forked``: ids from there were drawn again
 
     # -- what changed ----------------------------------------------------------------------
     def touch(self, ids: np.ndarray, version: int) -> None:
@@ -182,11 +183,25 @@ class StableSampler:
         self.everything = version
         self.last = max(self.last, version)
 
+    def forked(self, left: "StableSampler", since: int, version: int, count: int) -> None:
+        """This sampler's state was restored from a copy taken at version ``since``, with
+        ``count`` vertex ids; ``left``, the sampler of the state left, went on from there:
+        the slots its changes touched may accept otherwise here (stamped ``version``), all
+        of them if it changed the law as a whole. A draw made on either state moves only if
+        it examined one, or if it drew an id from ``count`` on: such an id names another
+        centre here than there, though its slot may be accepted on both."""
+        self.touch(np.flatnonzero(left.stamp > since), version)
+        if left.everything > since:
+            self.touch_all(version)
+        self.last = max(self.last, version)
+        self.reborn = (min(self.reborn[0], count), version)
+
     def restart(self, base: int, version: int) -> None:
         """A new round (or a new law for good, e.g. certification) with ``base`` vertex
         ids: the cap starts at twice that, room for the ids the round adds."""
         self.base = max(int(base), 1)
         self.cap = 0
+        self.reborn = (np.iinfo(np.int64).max, -1)
         self.fit(base, version)
 
     def fit(self, count: int, version: int) -> None:
@@ -247,6 +262,8 @@ class StableSampler:
             return np.zeros(len(draws), dtype=bool)
         whole = draws.versions < self.everything
         out = whole | (draws.untracked & (draws.versions < self.last))
+        if self.reborn[1] >= 0:
+            out |= (draws.versions < self.reborn[1]) & (draws.now >= self.reborn[0])
         if len(draws):
             slots = draws.slots
             self._grow(max(int(slots.max()) + 1, 1))  # all -1 (drawn before a restore): one slot

@@ -34,11 +34,12 @@ class Restored:
 
 def save(facet: "FacetCampaign") -> None:
     release_freed_memory()  # before the state's arrays are gathered and written
-    campaign, algorithm = facet.campaign, facet.algorithm
+    campaign = facet.campaign
+    algorithm = campaign.committed_algorithm()  # the state the driver's is (coordinator/speculation.py)
     facet.ledger.append(campaign.log.take())
-    if campaign.recordings:
-        _write_recording(facet, campaign.recordings)
-        campaign.recordings = []
+    recordings = campaign.take_recordings()
+    if recordings:
+        _write_recording(facet, recordings)
     arrays = {f"algo.{k}": v for k, v in algorithm.state().items()}
     driver_arrays, driver_meta = campaign.state()
     arrays.update(driver_arrays)

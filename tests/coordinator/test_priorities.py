@@ -48,3 +48,21 @@ def test_take_lowered_names_exactly_the_ids_whose_distance_fell():
         assert len(fell) > 0
         assert np.array_equal(np.unique(fd.take_lowered()), fell)
     assert len(fd.take_lowered()) == 0
+
+
+def test_a_copy_keeps_lowering_its_own_distances():
+    # a copy of the algorithm (coordinator/speculation.py) is restored and goes on: its
+    # distances must go on falling in its own buffer (a view held apart from its buffer
+    # would part from it in a deep copy and lose what a new failure lowers)
+    import copy
+
+    rng = np.random.default_rng(7)
+    points = rng.uniform(0, 10, (500, 3))
+    failures = rng.uniform(0, 10, (5, 3))
+    fd = FailureDistances(np.zeros(3), np.full(3, 10.0))
+    fd.update(points, 300, failures, 3)
+    fd.update(points, 310, failures, 3)  # the buffer grows by doubling: room for the next ones
+    twin = copy.deepcopy(fd)
+    got = twin.update(points, 400, failures, 5)  # a failure lowers, then vertices are appended
+    got = twin.update(points, 500, failures, 5)
+    assert np.array_equal(got, brute(points, failures))

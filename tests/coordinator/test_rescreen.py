@@ -97,3 +97,37 @@ def test_witnesses_after_an_insert_are_those_of_a_fresh_screening(mixed):
     expected = Rescreen(cov, fresh, outcomes, lambda: (states, offsets)).witnesses(quiet)
     assert not np.array_equal(before[1], expected[1])  # the insert did change witnesses
     assert np.array_equal(after[0], expected[0]) and np.array_equal(after[1], expected[1])
+
+
+def test_a_screening_is_judged_at_the_state_it_had_across_a_fork():
+    # the algorithm went back to a copy of its coverage and went on (a fork,
+    # coordinator/speculation.py): a chunk screened before the copy still holds; one
+    # screened on the state left behind, or at changes the copy has not had (a hold
+    # judged at the state the head passed it), is screened again from its states
+    import copy
+
+    rng = np.random.default_rng(11)
+    cov = Coverage(2, DELTA, LOWER, bounds=(LOWER, UPPER))
+    cov.apply(Insert(_lattice(rng, 150)), 1)
+    states, offsets, outcomes = _chunk(rng)
+    before = cov.screen(states, offsets, outcomes)
+    copied = copy.deepcopy(cov)
+    for version in (2, 3):  # the state left behind goes on
+        cov.apply(Insert(_lattice(rng, 6) + 0.1), version)
+        cov.apply(Kill(rng.choice(cov.vertices.alive_ids(), 8, replace=False)), version)
+    left_behind = cov.screen(states, offsets, outcomes)
+    judged = Rescreen(copied, left_behind, outcomes, lambda: (states, offsets))  # newer than the copy
+    restored = copy.deepcopy(copied)
+    restored.fork(cov.epoch)
+    restored.apply(Insert(_lattice(rng, 4) + 0.2), 4)  # the restored state goes on otherwise
+    for coverage, screening in ((copied, left_behind), (restored, before), (restored, left_behind)):
+        rescreen = Rescreen(coverage, screening, outcomes, lambda: (states, offsets))
+        pos = 0
+        while pos < len(outcomes):
+            row = rescreen.next_event(pos)
+            expected = next((r for r in range(pos, len(outcomes)) if _brute(coverage, states, offsets, outcomes, r)),
+                            len(outcomes))
+            assert row == expected
+            pos = row + 1
+    assert restored.descends(before.epoch, before.seq) and not restored.descends(left_behind.epoch, left_behind.seq)
+    assert judged.next_event(0) == next(r for r in range(len(outcomes)) if _brute(copied, states, offsets, outcomes, r))

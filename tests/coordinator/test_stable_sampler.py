@@ -118,3 +118,34 @@ def test_the_coupling_moves_about_the_share_no_exact_sampler_can_keep(change):
     tv = total_variation(probabilities(before), probabilities(after))
     assert 0.01 < tv < 0.06
     assert tv - 0.004 <= moved <= 1.25 * tv + 0.004, (moved, tv)
+
+
+def test_after_a_fork_a_draw_moves_where_the_state_left_behind_differed():
+    # the state went back to a copy (coordinator/speculation.py): draws made on the state
+    # left behind stand only if no slot they examined differs between the two, and a draw
+    # of an id born there is drawn again (the id names another centre here)
+    import copy
+
+    count = COUNT
+    alive = np.ones(count, dtype=bool)
+    sampler = StableSampler()
+    sampler.restart(count, 0)
+    copied = copy.deepcopy(sampler)  # the copy, at version 0
+    # the state left behind: 20 ids die, 5 are born (version 1), then draws are made there
+    rng = np.random.default_rng(3)  # test data only
+    killed = rng.choice(count, 20, replace=False)
+    left_alive = np.concatenate([alive, np.ones(5, dtype=bool)])
+    left_alive[killed] = False
+    sampler.touch(np.concatenate([killed, np.arange(count, count + 5)]), 1)
+    sampler.fit(count + 5, 1)
+    s = streams(20_000)
+    made_there = sampler.draw(s, uniform(left_alive), 1)
+    # back to the copy: nothing died, nothing was born
+    copied.forked(sampler, 0, 2, count)
+    here = copied.draw(s, uniform(alive), 2)
+    flagged = copied.moved(made_there, uniform(alive), 2)
+    differs = here.ids != made_there.ids
+    assert differs.any() and not (differs & ~flagged).any()  # every draw that differs is flagged
+    born = made_there.ids >= count
+    assert born.any() and flagged[born].all()  # an id born on the other side is never taken as is
+    assert flagged.mean() < 0.5  # not every draw: only those that examined a slot that differs

@@ -5,6 +5,8 @@ and the workers' utilisation."""
 
 import json
 
+import numpy as np
+
 import pytest
 
 from farm import quantify
@@ -102,7 +104,9 @@ def test_runs_launched_for_a_change_waiting_for_holds_change_no_result(monkeypat
     # only if its stream draws its start when the head needs it, so the committed sequence
     # is the same with or without them (coordinator/campaign.py ``_launch_past_holds``)
     import coordinator.campaign as campaign_mod
+    import coordinator.speculation as speculation_mod
 
+    monkeypatch.setattr(speculation_mod, "ENABLED", False)  # the changes wait for their holds
     _, algorithm, _, campaign = _virtual_campaign(300, 1.0)
     with_them = campaign.run()
     assert campaign.launched_past_holds > 0
@@ -112,3 +116,88 @@ def test_runs_launched_for_a_change_waiting_for_holds_change_no_result(monkeypat
     assert campaign_without.launched_past_holds == 0
     assert algorithm.result().result_hash == algorithm_without.result().result_hash
     assert (with_them.committed, with_them.changes) == (without.committed, without.changes)
+
+
+def _used_rows(log) -> dict:
+    """The ledger's rows of the runs used (the committed sequence), column by column."""
+    rows = log.take()
+    used = rows["kind"] != log.DISCARDED
+    return {name: column[used] for name, column in rows.items()}
+
+
+def test_changes_applied_past_holds_change_no_result(monkeypatch):
+    # with slow runs a change does not wait for the holds before it: it is applied on a
+    # copy's promise, and undone if a hold, judged at the state the head passed it,
+    # changes the state (coordinator/speculation.py). The committed sequence, ledger row
+    # by row, is the one of changes that wait
+    import coordinator.speculation as speculation_mod
+
+    _, algorithm, executor, campaign = _virtual_campaign(300, 1.0)
+    ahead = campaign.run()
+    assert campaign.speculations.applied > 0 and campaign.speculations.restored > 0  # both ways taken
+    monkeypatch.setattr(speculation_mod, "ENABLED", False)
+    _, algorithm_waiting, executor_waiting, waiting = _virtual_campaign(300, 1.0)
+    waited = waiting.run()
+    assert waiting.speculations.applied == 0
+    assert algorithm.result().result_hash == algorithm_waiting.result().result_hash
+    assert (ahead.committed, ahead.changes, ahead.quiet) == (waited.committed, waited.changes, waited.quiet)
+    mine, theirs = _used_rows(campaign.log), _used_rows(waiting.log)
+    for name in mine.keys() - {"kind"}:  # (a run or its replacement: that depends on the timing)
+        assert np.array_equal(mine[name], theirs[name]), name
+    assert executor.clock < executor_waiting.clock  # the point of it
+
+
+def test_a_campaign_stopped_while_changes_are_applied_past_holds_resumes_to_the_same_result(tmp_path, monkeypatch):
+    # a checkpoint taken while changes are applied past holds keeps the state as the head
+    # passed the first hold (the copy before the first such change): resumed, the campaign
+    # reaches the result of one never stopped
+    from farm import checkpoint
+    from farm.config import parse
+    from farm.facet_campaign import FacetCampaign, Stopped
+    from farm.quantification import run
+
+    cfg = parse(lead_follow_toml(executor="virtual", delta_min=1.0,
+                                 farm_extra="workers = 300\n[farm.virtual]\nrun_time = 1.0"))
+    whole = run(cfg, tmp_path / "whole")
+    observer = FacetCampaign._observer
+    stopped_past_holds = []
+
+    def stop_past_holds(self, progress, status):
+        observe = observer(self, progress, status)
+
+        def then_stop(campaign):
+            observe(campaign)
+            if campaign.speculations and not stopped_past_holds:
+                stopped_past_holds.append(campaign.counters.committed)
+                checkpoint.save(self)  # a checkpoint now, and the one the stop takes
+                campaign.stop()
+
+        return then_stop
+
+    save = checkpoint.save
+    saved_past_holds = []
+
+    def save_and_say(facet):
+        saved_past_holds.append(bool(facet.campaign.speculations))
+        save(facet)
+
+    monkeypatch.setattr(FacetCampaign, "_observer", stop_past_holds)
+    monkeypatch.setattr(checkpoint, "save", save_and_say)
+    with pytest.raises(Stopped):
+        run(cfg, tmp_path / "stopped")
+    assert stopped_past_holds and saved_past_holds[-1]  # the checkpoint kept is one taken past holds
+    monkeypatch.setattr(checkpoint, "save", save)
+    monkeypatch.setattr(FacetCampaign, "_observer", observer)
+    resumed = run(cfg, tmp_path / "stopped", resume=True)
+    for key in ("result_hash", "runs_committed", "boxes", "rounds"):
+        assert resumed[key] == whole[key], key
+    # and the ledger: the committed sequence, run by run (which changed the state, which counted)
+    import pyarrow.dataset as ds
+
+    from farm.storage import read_ledger
+
+    columns = ["sample_index", "v0", "v1", "p10", "outcome", "changed", "counted"]
+    used = [read_ledger(tmp_path / name, columns, filter=~ds.field("discarded")).sort_by("sample_index")
+            for name in ("stopped", "whole")]  # (not the runs discarded unseen: their timing is the executor's)
+    for name in columns:
+        assert used[0].column(name).to_pylist() == used[1].column(name).to_pylist(), name
