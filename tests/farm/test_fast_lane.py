@@ -115,3 +115,24 @@ def test_runs_launched_while_a_change_waits_on_ray_give_the_in_process_result(ra
     local_hash, local_counters, _ = campaign(LocalExecutor)
     assert ray_campaign.launched_past_holds > 0
     assert algo.result().result_hash == local_hash and counters.committed == local_counters.committed
+
+
+def test_changes_applied_past_holds_on_ray_give_the_in_process_result(ray_local, monkeypatch):
+    """The same 8 actors, with changes applied past the holds before them (for runs of
+    20 ms here; by default from 0.2 s, coordinator/speculation.py): a change undone sends
+    the actors the restored coverage whole, and the result is the in-process one."""
+    import coordinator.speculation as speculation_mod
+
+    monkeypatch.setattr(speculation_mod, "RUN_S", 0.005)
+    cfg = config_mod.normalize(SLOW_20MS)
+    sim = build_simulator(spec_of(cfg))
+    algo = build_algorithm(cfg, sim)
+    executor = RayExecutor(spec_of(cfg), 8)
+    try:
+        ray_campaign = build_campaign(cfg, algo, sim, executor)
+        counters = ray_campaign.run()
+    finally:
+        executor.close()
+    local_hash, local_counters, _ = campaign(LocalExecutor)
+    assert ray_campaign.speculations.applied > 0
+    assert algo.result().result_hash == local_hash and counters.committed == local_counters.committed
