@@ -143,8 +143,10 @@ def render() -> Path:
                        f"with every worker busy; the coordinator's CPU {r['coordinator_cpu_s']:.1f} s and "
                        f"{r['chunks']:,} chunk calls at 1 ms ({r['chunks'] / 1000:.1f} s) are on the clock; the head "
                        f"waited {r['waited_s']:,.1f} s for runs, {r['waited_replacements_s']:,.1f} s of it for "
-                       "replacements (a run that changes the set waits for the replacements held before it: they may "
-                       "change it first), the rest for batch runs not back yet (after a round end the pipeline refills).")
+                       "replacements (they may change the set: a round's end waits for all of them, a change for those "
+                       "before it, for runs of 0.2 s or more only once 4 changes are applied past holds, "
+                       "coordinator/speculation.py), the rest for batch runs not back yet (after a round end the "
+                       "pipeline refills).")
     path = DOCS / "virtual.md"
     path.write_text("\n".join(out) + "\n")
     return path

@@ -98,11 +98,9 @@ SLOW_20MS = {**RAW, "farm": {**RAW["farm"], "workers": 8},
                           "slow_backend:SlowBackend": {"step_cost_s": 7e-4}}}  # a 30-state run: ~20 ms
 
 
-def test_runs_launched_while_a_change_waits_on_ray_give_the_in_process_result(ray_local):
-    """8 actors of ~20 ms runs: the head passes replacements not back and waits for them at
-    changes; meanwhile the runs each change will call for are launched, worked out on a
-    copy of the algorithm (coordinator/campaign.py ``_launch_past_holds``), and their
-    chunks read ahead without waiting. The result is the in-process one."""
+def _on_eight_slow_actors():
+    """The campaign of ``SLOW_20MS`` on 8 Ray actors: (its driver, counters, result hash),
+    and the in-process run's (result hash, counters)."""
     cfg = config_mod.normalize(SLOW_20MS)
     sim = build_simulator(spec_of(cfg))
     algo = build_algorithm(cfg, sim)
@@ -113,8 +111,17 @@ def test_runs_launched_while_a_change_waits_on_ray_give_the_in_process_result(ra
     finally:
         executor.close()
     local_hash, local_counters, _ = campaign(LocalExecutor)
+    return (ray_campaign, counters, algo.result().result_hash), (local_hash, local_counters)
+
+
+def test_runs_launched_while_a_change_waits_on_ray_give_the_in_process_result(ray_local):
+    """8 actors of ~20 ms runs: the head passes replacements not back and waits for them at
+    changes; meanwhile the runs each change will call for are launched, worked out on a
+    copy of the algorithm (coordinator/campaign.py ``_launch_past_holds``), and their
+    chunks read ahead without waiting. The result is the in-process one."""
+    (ray_campaign, counters, ray_hash), (local_hash, local_counters) = _on_eight_slow_actors()
     assert ray_campaign.launched_past_holds > 0
-    assert algo.result().result_hash == local_hash and counters.committed == local_counters.committed
+    assert ray_hash == local_hash and counters.committed == local_counters.committed
 
 
 def test_changes_applied_past_holds_on_ray_give_the_in_process_result(ray_local, monkeypatch):
@@ -124,15 +131,6 @@ def test_changes_applied_past_holds_on_ray_give_the_in_process_result(ray_local,
     import coordinator.speculation as speculation_mod
 
     monkeypatch.setattr(speculation_mod, "RUN_S", 0.005)
-    cfg = config_mod.normalize(SLOW_20MS)
-    sim = build_simulator(spec_of(cfg))
-    algo = build_algorithm(cfg, sim)
-    executor = RayExecutor(spec_of(cfg), 8)
-    try:
-        ray_campaign = build_campaign(cfg, algo, sim, executor)
-        counters = ray_campaign.run()
-    finally:
-        executor.close()
-    local_hash, local_counters, _ = campaign(LocalExecutor)
+    (ray_campaign, counters, ray_hash), (local_hash, local_counters) = _on_eight_slow_actors()
     assert ray_campaign.speculations.applied > 0
-    assert algo.result().result_hash == local_hash and counters.committed == local_counters.committed
+    assert ray_hash == local_hash and counters.committed == local_counters.committed
