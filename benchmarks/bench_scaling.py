@@ -87,7 +87,8 @@ def run_campaign(cfg) -> dict:
             "machine_busy_s": round(machine, 2), "hash": algo.result().result_hash}
 
 
-def virtual_seconds(workers: int, batch: int | None, depth: int | None, run_ms: float, call_ms: float) -> tuple[float, str]:
+def virtual_seconds(workers: int, batch: int | None, depth: int | None, run_ms: float,
+                    call_ms: float) -> tuple[float, str]:
     """The virtual farm's time to the result for the campaign on ``workers`` (farm/virtual_executor.py:
     the same coordinator, each worker on a core of its own), a full-horizon run of ``run_ms``
     and a call of ``call_ms``, as measured on Ray here; and its result hash (the Ray run's)."""
@@ -96,7 +97,8 @@ def virtual_seconds(workers: int, batch: int | None, depth: int | None, run_ms: 
     from farm.simulators import build_simulator
 
     # the numpy back end: the modelled clock stands in for the sleep (the dynamics are the same)
-    cfg = campaign_config(workers, batch, depth, "numpy", virtual={"run_time": run_ms / 1e3, "call_cost": call_ms / 1e3})
+    cfg = campaign_config(workers, batch, depth, "numpy",
+                          virtual={"run_time": run_ms / 1e3, "call_cost": call_ms / 1e3})
     spec = spec_of(cfg)
     simulator = build_simulator(spec)
     algo = build_algorithm(cfg, simulator)
@@ -132,8 +134,8 @@ def line(r: dict, base: dict) -> str:
             f"({r['committed']:,} committed, {r['simulated']:,} simulated, {r['rate']:,.0f} runs/s; workers idle "
             f"{r['idle']:.2f}; {r['chunks']:,} chunks of {r['mean_chunk']:.0f} runs; run {r['run_ms']:.2f} ms, call "
             f"{r['call_ms']:.2f} ms; driver {r['cpu_s']:.1f} CPU-s ({r['driver_cpu_per_chunk_ms']:.2f} ms a "
-            f"chunk), workers {r['workers_cpu_s'] / r['wall_s']:.2f} cores, machine {r['machine_busy_s'] / r['wall_s']:.2f} "
-            f"cores busy; load {r['load_before']:.1f} -> "
+            f"chunk), workers {r['workers_cpu_s'] / r['wall_s']:.2f} cores, machine "
+            f"{r['machine_busy_s'] / r['wall_s']:.2f} cores busy; load {r['load_before']:.1f} -> "
             f"{r['load_after']:.1f}; actors up in {r['startup_s']:.1f} s)")
 
 

@@ -306,8 +306,9 @@ class Campaign:
         p.draws.track(rows, fresh)
         # the start too: after the algorithm went back to a copy (coordinator/speculation.py)
         # an id may name another centre than the one the run was launched from
-        same = (fresh.ids == p.draws.ids[rows]) & (self.algorithm.vertices.points[fresh.ids] == p.starts[rows]).all(axis=1)
-        p.draws.now[rows[~same & (fresh.ids == p.draws.ids[rows])]] = -1  # not its start, though the same id
+        same_id = fresh.ids == p.draws.ids[rows]
+        same = same_id & (self.algorithm.vertices.points[fresh.ids] == p.starts[rows]).all(axis=1)
+        p.draws.now[rows[same_id & ~same]] = -1  # its stream draws another start under that id
         return same, fresh
 
     def _replace(self, index: int) -> None:

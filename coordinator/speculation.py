@@ -2,16 +2,15 @@
 
 Under sequential counting a run that changes the state waits for the replacements the
 head passed before it (holds, coordinator/replacements.py): one of them may change the
-state first. With slow runs these waits chain: a change moves a draw a few indices on, its
-replacement is a whole run, and the next change waits for it (docs/benchmarks.md measures
-what that costs on many workers). Instead the driver
-keeps a copy of the algorithm from before the change and applies the change at once. A
-hold that comes back is judged at the state its index had: the copy's, since nothing
-changed between the hold and the change. Only if it changes the state does the algorithm
-go back to the copy (``Algorithm.restore``) and the head to the hold, as it goes back for
-a hold that changes the state anyway. Most holds come back quiet, so most changes wait
-for nothing. Results never
-depend on it: the committed sequence is the one-run-at-a-time campaign's.
+state first. With slow runs these waits chain: a change moves a draw a few indices on,
+its replacement is a whole run, and the next change waits for it (docs/benchmarks.md
+measures what that costs on many workers). Instead the driver keeps a copy of the
+algorithm from before the change and applies the change at once. A hold that comes back
+is judged at the state its index had: the copy's, since nothing changed between the hold
+and the change. Only if it changes the state does the algorithm go back to the copy
+(``Algorithm.restore``) and the head to the hold, as it goes back for a hold that changes
+the state anyway. Most holds come back quiet, so most changes wait for nothing. Results
+never depend on it: the committed sequence is the one-run-at-a-time campaign's.
 
 A change applied so is a ``Speculation``: its index, the copy, and the counters the holds
 do not keep (coordinator/replacements.py ``HELD_COUNTS`` has the others). They are kept in
@@ -30,7 +29,9 @@ from coordinator.replacements import Held
 
 ENABLED = True  # (a switch for measuring what it gives)
 RUN_S = 0.2  # [s] runs at least this long (as measured): a copy costs the driver milliseconds
-MAX_OUTSTANDING = 4  # changes applied past holds at once (a copy of the algorithm each; more cost the driver more than they save: docs/benchmarks.md)
+# changes applied past holds at once, a copy of the algorithm each: more cost the driver
+# more than they save (docs/benchmarks.md)
+MAX_OUTSTANDING = 4
 MAX_VERTICES = 500_000  # no copies of larger states (a copy holds the whole state)
 
 

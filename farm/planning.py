@@ -104,8 +104,8 @@ def table(result: dict) -> str:
     base, rows = result["speed_up_over"], result["rows"]
     lines.append(f"speed-up over {base} worker{'s' if base > 1 else ''}; the fewest workers within {NEAR_BEST:g}x "
                  f"of the fastest: {result['recommended_workers']:,}"
-                 + (" (the time still falls there: ask for more)" if result["recommended_workers"] == rows[-1]["workers"]
-                    and len(rows) > 1 else ""))
+                 + (" (the time still falls there: ask for more)"
+                    if result["recommended_workers"] == rows[-1]["workers"] and len(rows) > 1 else ""))
     lines.append("one result at every count: " + ("yes" if result["same_result"] else
                                                     "NO (an error of scenario-farm: please report it)"))
     return "\n".join(lines)
