@@ -237,6 +237,16 @@ class Algorithm(ABC):
     append_only: tuple[str, ...] = ()
     state_epoch: int = 0
 
+    def content(self) -> dict[str, np.ndarray]:
+        """``state()`` but for the counters that only order draws and screenings: the
+        version ("scalars"[2]) and the coverage's (``Coverage.ORDERING``). Two campaigns
+        that committed the same runs have the same content whatever their executors; the
+        counters run further where changes applied past holds were undone (``restore``)."""
+        out = dict(self.state())
+        out["scalars"] = np.delete(out["scalars"], 2)
+        out["coverage"] = np.delete(out["coverage"], Coverage.ORDERING)
+        return out
+
 
 class NoCertification:
     """For an algorithm that does not certify (``certifies = False``): the driver never

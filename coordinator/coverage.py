@@ -107,6 +107,8 @@ class Screening:
 class Coverage:
     """Alive centres and failure points at half-width ``delta`` (see module docstring)."""
 
+    ORDERING = [1, 2]  # of ``state()["coverage"]``: the version and the epoch (they order changes)
+
     def __init__(self, n: int, delta: float, origin, bounds=None, failures: bool = True, mixed: bool = False):
         """``mixed``: boxes keep their own half-widths (boundary refinement): a round
         end resizes only some of them, and a state is covered by a box at its own size."""

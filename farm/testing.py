@@ -166,7 +166,7 @@ def check_same_campaign(make_executor: MakeExecutor, spec: SimSpec, settings: Ca
     w, g = want.counters, got.counters
     assert (g.committed, g.round_ends, g.changes, g.attempts) == (w.committed, w.round_ends, w.changes, w.attempts), \
         f"{name}: the campaign committed other runs than in-process ({g.committed} vs {w.committed})"
-    a, b = got.algorithm.state(), want.algorithm.state()
+    a, b = got.algorithm.content(), want.algorithm.content()
     assert a.keys() == b.keys() and all(np.array_equal(a[k], b[k]) for k in a), \
         f"{name}: the campaign ended in another state than in-process"
     return got
