@@ -24,7 +24,6 @@ from collections import deque
 from dataclasses import dataclass
 
 from coordinator.algorithm import Algorithm
-from coordinator.coverage import Coverage
 from coordinator.replacements import Held
 
 ENABLED = True  # (a switch for measuring what it gives)
@@ -79,10 +78,6 @@ class Speculations:
         """Drop the speculations no hold is left before."""
         while self._items and (not held or held.first.replacement.due > self._items[0].index):
             self._items.popleft()
-
-    def coverage(self, algorithm: Algorithm) -> Coverage:
-        """What the first hold is judged at: the state as the head passed it."""
-        return self._items[0].algorithm.coverage if self._items else algorithm.coverage
 
     def committed(self, algorithm: Algorithm) -> Algorithm:
         """The algorithm as the head passed the first hold (what a checkpoint keeps)."""

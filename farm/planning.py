@@ -12,7 +12,6 @@ fewest workers within ``NEAR_BEST`` of the fastest time.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 from farm import config as config_mod
@@ -143,8 +142,3 @@ def _draw(path: Path, result: dict) -> Path:
     ax.legend()
     fig.tight_layout()
     return _save(fig, path)
-
-
-def read(out: Path) -> dict:
-    """A plan written by ``plan``."""
-    return json.loads((Path(out) / PLAN_FILE).read_text())
