@@ -72,6 +72,13 @@ WHAT_IF = True  # launch the runs a change waiting for holds will call for (neve
 WHAT_IF_CHANGES = 8  # ... and, for slow runs, those of the changes after it, as far as results are in
 WHAT_IF_RUN_S = 0.01  # [s] runs at least this long (as measured) for the first
 WHAT_IF_CHAIN_RUN_S = 0.2  # [s] runs at least this long for the changes after it
+# A deterministic system's certification (every centre once) hands the centres out batch
+# by batch, each the next ones not yet drawn at the state the batch is drawn at, so its
+# order follows the batches: under sequential counting they are these, whatever
+# farm.batch_size and pipeline_depth say, so that those change no result there either
+# (the defaults: a campaign at the default window keeps its result)
+ENUMERATION_BATCH = 1024
+ENUMERATION_DEPTH = 2
 
 
 @dataclass(frozen=True)
@@ -255,18 +262,18 @@ class Campaign:
         """Keep ``pipeline_depth`` batches drawn and submitted ahead of the head (fewer
         when the budget ends); batches the head has passed but may go back into do not count."""
         s, algo = self.settings, self.algorithm
-        # sequential counting: the batch size changes no sampled run, so it follows the
-        # workers; an enumeration (every centre once) hands centres out batch by batch, so
-        # its order follows the configured batch size, never the workers
-        follows = s.lag == 0 and not algo.enumerates
-        # (but no more than the round's quiet runs: runs in flight past a round's end are
-        # dropped, and each is a draw a change can move; docs/benchmarks.md, "2026-11-26,
-        # morning": many workers of short runs)
-        batch = (min(self.executor.batch_size(s.batch_size), max(s.batch_size, self.quiet_needed())) if follows
-                 else s.batch_size)
+        batch, depth = s.batch_size, s.pipeline_depth
+        if s.lag == 0 and algo.enumerates:  # fixed batches (ENUMERATION_BATCH), never the workers
+            batch, depth = ENUMERATION_BATCH, ENUMERATION_DEPTH
+        elif s.lag == 0:
+            # sequential counting: the batch size changes no sampled run, so it follows the
+            # workers (but no more than the round's quiet runs: runs in flight past a round's
+            # end are dropped, and each is a draw a change can move; docs/benchmarks.md,
+            # "2026-11-26, morning": many workers of short runs)
+            batch = min(self.executor.batch_size(s.batch_size), max(s.batch_size, self.quiet_needed()))
         head = self.counters.committed
         ahead = sum(1 for p in self.pending if p.end > head)
-        while ahead < s.pipeline_depth:
+        while ahead < depth:
             first = self._next_draw_index()
             size = min(batch, s.budget - first)
             if size <= 0:
