@@ -127,3 +127,50 @@ def test_stopped_mid_certification_then_resumed_gives_the_uninterrupted_result(t
     assert summary["runs_certification"] == want["runs_certification"] > 0
     assert summary["certification_attempts"] == want["certification_attempts"] >= 1
     np.testing.assert_array_equal(ledger_indices(tmp_path / "out"), indices)
+
+
+class _StopInCertification:
+    """A progress that stops the campaign once certification has committed ``after`` runs."""
+
+    enabled = True
+
+    def __init__(self, after: int):
+        self.after, self.start, self.stopped = after, None, None
+
+    def update(self, label, campaign):
+        algo = campaign.algorithm
+        if algo.certifying and self.start is None:
+            self.start = campaign.counters.committed
+        if self.stopped is None and self.start is not None and campaign.counters.committed > self.start + self.after:
+            self.stopped = (algo.phase, campaign.counters.committed)
+            campaign.stop()
+
+    def line(self, text):
+        pass
+
+    def close(self):
+        pass
+
+
+def test_a_deterministic_certification_stopped_then_resumed_with_another_window_gives_the_same_result(tmp_path):
+    """Gamma*: certification runs every centre once, handed out batch by batch; with
+    sequential counting farm.batch_size and pipeline_depth may change on resume and
+    change no result (coordinator/campaign.py ENUMERATION_BATCH)."""
+    from farm import config as config_mod
+    from farm.quantification import Stopped, run
+
+    toml = lead_follow_toml(delta_min=1.0, epsilon=0.002, horizon=40, farm_extra="pipeline_depth = 2\nseed = 5\n")
+    toml = toml.replace('mode = "uniform"', 'mode = "adversarial"')
+    cfg = config_mod.parse(toml, "c.toml")
+    whole = run(cfg, tmp_path / "whole")
+    stop = _StopInCertification(1000)
+    with pytest.raises(Stopped):
+        run(cfg, tmp_path / "out", progress=stop)
+    assert stop.stopped is not None and stop.stopped[0] == "check", stop.stopped
+    other = config_mod.parse(toml.replace("batch_size = 256", "batch_size = 64").replace("pipeline_depth = 2",
+                                                                                        "pipeline_depth = 3"), "c.toml")
+    summary = run(other, tmp_path / "out", resume=True)
+    assert summary["result_hash"] == whole["result_hash"]
+    assert summary["runs_committed"] == whole["runs_committed"]
+    assert summary["runs_certification"] == whole["runs_certification"] > 1000
+    np.testing.assert_array_equal(ledger_indices(tmp_path / "out"), ledger_indices(tmp_path / "whole"))
