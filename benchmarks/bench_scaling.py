@@ -121,7 +121,8 @@ def run_campaign(cfg) -> dict:
             "run_ms": round(1e3 * ex.sizer.run_s, 3), "call_ms": round(1e3 * ex.sizer.call_s, 3),
             "cpu_s": round(cpu, 2), "main_cpu_s": round(main_cpu, 2), "worker_busy_s": round(float(busy.sum()), 2),
             "driver_cpu_per_chunk_ms": round(1e3 * cpu / max(chunks, 1), 2),
-            "calls_cpu_per_chunk_ms": round(1e3 * calls.seconds / max(chunks, 1), 3), "workers_cpu_s": round(workers_cpu, 2),
+            "calls_cpu_per_chunk_ms": round(1e3 * calls.seconds / max(chunks, 1), 3),
+            "workers_cpu_s": round(workers_cpu, 2),
             "startup_s": round(startup, 1), "load_before": round(load0, 2), "load_after": round(os.getloadavg()[0], 2),
             "machine_busy_s": round(machine, 2), "hash": algo.result().result_hash}
 
@@ -173,7 +174,8 @@ def line(r: dict, base: dict) -> str:
             f"({r['committed']:,} committed, {r['simulated']:,} simulated, {r['rate']:,.0f} runs/s; workers idle "
             f"{r['idle']:.2f}; {r['chunks']:,} chunks of {r['mean_chunk']:.0f} runs; run {r['run_ms']:.2f} ms, call "
             f"{r['call_ms']:.2f} ms; driver {r['cpu_s']:.1f} CPU-s ({r['driver_cpu_per_chunk_ms']:.2f} ms a "
-            f"chunk, {r['calls_cpu_per_chunk_ms']:.2f} ms of its main thread in the calls), workers {r['workers_cpu_s'] / r['wall_s']:.2f} cores, machine "
+            f"chunk, {r['calls_cpu_per_chunk_ms']:.2f} ms of its main thread in the calls), workers "
+            f"{r['workers_cpu_s'] / r['wall_s']:.2f} cores, machine "
             f"{r['machine_busy_s'] / r['wall_s']:.2f} cores busy; load {r['load_before']:.1f} -> "
             f"{r['load_after']:.1f}; actors up in {r['startup_s']:.1f} s)")
 
@@ -206,7 +208,8 @@ def render() -> Path:
         out.append(f"| {r['workers']} | {r['wall_s']:.1f} s | {base['wall_s'] / r['wall_s']:.1f}x | "
                    f"{r['committed']:,} / {r['simulated']:,} | {r['idle']:.2f} | {r['chunks']:,} ({r['mean_chunk']:.0f}) "
                    f"| {r['run_ms']:.2f} / {r['call_ms']:.2f} ms | {r['cpu_s']:.1f} s "
-                   f"({r['driver_cpu_per_chunk_ms']:.2f} ms) | {_calls_cell(r)} | {r['workers_cpu_s'] / r['wall_s']:.2f} cores | "
+                   f"({r['driver_cpu_per_chunk_ms']:.2f} ms) | {r['calls_cpu_per_chunk_ms']:.2f} ms | "
+                   f"{r['workers_cpu_s'] / r['wall_s']:.2f} cores | "
                    f"{r['machine_busy_s'] / r['wall_s']:.2f} cores | {r['machine_busy_s'] / cores:.1f} s | "
                    f"{r['virtual_s']:.1f} s ({base['wall_s'] / r['virtual_s']:.1f}x) | "
                    f"{r['load_before']:.1f} -> {r['load_after']:.1f} |")
@@ -217,10 +220,6 @@ def render() -> Path:
     path = DOCS / "scaling.md"
     path.write_text("\n".join(out).rstrip() + "\n")
     return path
-
-
-def _calls_cell(r: dict) -> str:
-    return "" if "calls_cpu_per_chunk_ms" not in r else f"{r['calls_cpu_per_chunk_ms']:.2f} ms"
 
 
 def _floor_note(rows: list[dict], cores: int) -> list[str]:

@@ -72,11 +72,10 @@ WHAT_IF = True  # launch the runs a change waiting for holds will call for (neve
 WHAT_IF_CHANGES = 8  # ... and, for slow runs, those of the changes after it, as far as results are in
 WHAT_IF_RUN_S = 0.01  # [s] runs at least this long (as measured) for the first
 WHAT_IF_CHAIN_RUN_S = 0.2  # [s] runs at least this long for the changes after it
-# A deterministic system's certification (every centre once) hands the centres out batch
-# by batch, each the next ones not yet drawn at the state the batch is drawn at, so its
-# order follows the batches: under sequential counting they are these, whatever
-# farm.batch_size and pipeline_depth say, so that those change no result there either
-# (the defaults: a campaign at the default window keeps its result)
+# A deterministic system's certification (every centre once) draws, batch by batch, the
+# next centres not drawn yet at the state the batch is drawn at: the order follows the
+# batches. Under sequential counting they are these (the default window), whatever
+# farm.batch_size and pipeline_depth say, so that those change no result there either.
 ENUMERATION_BATCH = 1024
 ENUMERATION_DEPTH = 2
 
