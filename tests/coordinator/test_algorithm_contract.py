@@ -19,7 +19,7 @@ def test_a_done_algorithm_keeps_its_state_until_released_and_its_answers_after(a
     cfg = config_mod.normalize({
         "scenario": {"name": "lead-follow", "sv_policy": "idm"}, "actions": {"mode": mode},
         "quantify": {"algorithm": algorithm, "delta0": 4.0, "delta_min": 2.0, "epsilon": 0.01, "beta": 0.1,
-                     "horizon": 30, "budget": 1_500},  # vs may draw box after box: done by the budget
+                     "horizon": 30, "budget": 3_000},  # vs may draw box after box: done by the budget
         "farm": {"executor": "local", "batch_size": 256, "seed": 1}})
     sim = build_simulator(spec_of(cfg))
     algo = build_algorithm(cfg, sim)
