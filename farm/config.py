@@ -198,8 +198,8 @@ class FarmConfig(Section):
     batch_size: Annotated[int, Field(ge=1, le=10_000_000, description="runs per drawn batch")] = 1024
     pipeline_depth: Annotated[int, Field(ge=1, le=64, description="batches drawn ahead")] = 2
     counting: Annotated[Literal["sequential", "deferred"], Field(description=(
-        "coupled counting: a mispredicted run's replacement is waited for at the head (sequential: the "
-        "one-run-at-a-time campaign's result at any batch_size and pipeline_depth) or applied "
+        "coupled counting: a mispredicted run's replacement is waited for at the head (sequential: one "
+        "result at any batch_size and pipeline_depth) or applied "
         "batch_size x pipeline_depth indices later (deferred: no waiting)"))] = "sequential"
     seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = 0
     checkpoint_every: Annotated[float, Field(ge=0.0, le=1e9, **_fixed("seconds (below 1: 1, with a warning)"))] = 30.0
