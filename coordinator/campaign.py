@@ -259,7 +259,9 @@ class Campaign:
 
     def _fill(self) -> None:
         """Keep ``pipeline_depth`` batches drawn and submitted ahead of the head (fewer
-        when the budget ends); batches the head has passed but may go back into do not count."""
+        when the budget ends; ``ENUMERATION_DEPTH`` of ``ENUMERATION_BATCH`` while a
+        deterministic certification enumerates); batches the head has passed but may go
+        back into do not count."""
         s, algo = self.settings, self.algorithm
         batch, depth = s.batch_size, s.pipeline_depth
         if s.lag == 0 and algo.enumerates:  # fixed batches (ENUMERATION_BATCH), never the workers

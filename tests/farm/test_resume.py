@@ -85,20 +85,20 @@ def test_damaged_campaign_files_give_a_clear_error_and_touch_nothing(tmp_path, d
     assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == snapshot
 
 
-class _StopIn:
-    """A progress that stops the campaign at its first commit in a given certification phase
-    (``closing``, or ``check``: a check after at least one failed one when there is one)."""
+class _Stopper:
+    """A progress that stops the campaign at the first update where ``due`` says so, and
+    keeps (phase, attempts, committed) of that moment in ``stopped``."""
 
     enabled = True
+    stopped = None
 
-    def __init__(self, phase: str):
-        self.phase, self.stopped = phase, None
+    def due(self, campaign) -> bool:
+        raise NotImplementedError
 
     def update(self, label, campaign):
-        algo = campaign.algorithm
-        if self.stopped is None and algo.certifying and algo.closing == (self.phase == "closing") \
-                and campaign.counters.quiet > 0:
-            self.stopped = (algo.phase, campaign.counters.attempts, campaign.counters.committed)
+        if self.stopped is None and self.due(campaign):
+            c = campaign.counters
+            self.stopped = (campaign.algorithm.phase, c.attempts, c.committed)
             campaign.stop()
 
     def line(self, text):
@@ -106,6 +106,18 @@ class _StopIn:
 
     def close(self):
         pass
+
+
+class _StopIn(_Stopper):
+    """At its first commit in a given certification phase (``closing``, or ``check``: a
+    check after at least one failed one when there is one)."""
+
+    def __init__(self, phase: str):
+        self.phase = phase
+
+    def due(self, campaign) -> bool:
+        algo = campaign.algorithm
+        return algo.certifying and algo.closing == (self.phase == "closing") and campaign.counters.quiet > 0
 
 
 @pytest.mark.parametrize("phase", ["closing", "check"])
@@ -129,27 +141,16 @@ def test_stopped_mid_certification_then_resumed_gives_the_uninterrupted_result(t
     np.testing.assert_array_equal(ledger_indices(tmp_path / "out"), indices)
 
 
-class _StopInCertification:
-    """A progress that stops the campaign once certification has committed ``after`` runs."""
-
-    enabled = True
+class _StopInCertification(_Stopper):
+    """Once certification has committed ``after`` runs."""
 
     def __init__(self, after: int):
-        self.after, self.start, self.stopped = after, None, None
+        self.after, self.start = after, None
 
-    def update(self, label, campaign):
-        algo = campaign.algorithm
-        if algo.certifying and self.start is None:
+    def due(self, campaign) -> bool:
+        if campaign.algorithm.certifying and self.start is None:
             self.start = campaign.counters.committed
-        if self.stopped is None and self.start is not None and campaign.counters.committed > self.start + self.after:
-            self.stopped = (algo.phase, campaign.counters.committed)
-            campaign.stop()
-
-    def line(self, text):
-        pass
-
-    def close(self):
-        pass
+        return self.start is not None and campaign.counters.committed > self.start + self.after
 
 
 def test_a_deterministic_certification_stopped_then_resumed_with_another_window_gives_the_same_result(tmp_path):
