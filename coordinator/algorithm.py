@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import copy
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -163,11 +164,12 @@ class Algorithm(ABC):
         raise NotImplementedError(f"{type(self).__name__} has no closing rounds")
 
     @abstractmethod
-    def certify_runs(self, start_ids: np.ndarray, offsets: np.ndarray, witnesses: np.ndarray) -> int:
-        """Enumerating certification: quiet runs from centres ``start_ids``, the alive
-        centres that cover their states now being ``witnesses[offsets[i]:offsets[i + 1]]``,
-        certify their centres. Returns the position of the run after which every alive
-        centre is certified, or -1."""
+    def certify_runs(self, start_ids: np.ndarray, witnesses: Callable[[np.ndarray], tuple]) -> int:
+        """Enumerating certification: quiet runs from centres ``start_ids`` certify their
+        centres. ``witnesses(rows)`` gives, for the runs at positions ``rows``, the alive
+        centres that cover their states now, in CSR form (offsets, ids); ask it only for
+        the runs that can certify (it screens runs again: most of a certification's cost).
+        Returns the position of the run after which every alive centre is certified, or -1."""
 
     # -- copies -----------------------------------------------------------------------------
     def copy(self) -> "Algorithm":
@@ -257,7 +259,7 @@ class NoCertification:
     def begin_certification(self) -> None:
         raise NotImplementedError(f"{type(self).__name__} does not certify")
 
-    def certify_runs(self, start_ids, offsets, witnesses) -> int:
+    def certify_runs(self, start_ids, witnesses) -> int:
         raise NotImplementedError(f"{type(self).__name__} does not certify")
 
 

@@ -692,7 +692,7 @@ class Campaign:
             if algo.enumerates:  # every centre once: any quiet run whose witnesses hold counts
                 offset = algo.next_event(rescreen, pos, ids) - pos
                 quiet = np.arange(pos, pos + offset)
-                done = algo.certify_runs(ids[quiet], *rescreen.witnesses(quiet))
+                done = algo.certify_runs(ids[quiet], lambda rows: rescreen.witnesses(quiet[rows]))
                 if done >= 0:
                     offset, ended = done + 1, True
                 counted[pos : pos + offset] = algo.vertices.alive[ids[pos : pos + offset]]

@@ -33,7 +33,7 @@ import itertools
 
 import numpy as np
 
-from coordinator.spatial import LINK, TOLERANCE, PointIndex
+from coordinator.spatial import LINK, SMALL_MATMUL, TOLERANCE, PointIndex
 
 MAX_LEVELS = 8  # the bits of ``reach`` (uint8)
 SLAB = 1 << 20  # finest cells recomputed per pass: temporaries stay ~50 MB
@@ -41,7 +41,10 @@ EDGE = 1e-6  # cells (in cell units) that a point's reach touches are widened by
 
 
 def _dot(cells: np.ndarray, strides: np.ndarray) -> np.ndarray:
-    """(k, n) int64 cells -> (k,) flat indexes, per axis (numpy has no fast integer matmul)."""
+    """(k, n) int64 cells -> (k,) flat indexes: a few as one product, many per axis (numpy
+    has no fast integer matmul)."""
+    if len(cells) <= SMALL_MATMUL:
+        return cells @ strides
     flat = cells[:, 0] * strides[0]
     for axis in range(1, cells.shape[1]):
         flat += cells[:, axis] * strides[axis]
@@ -72,6 +75,7 @@ class NestedGrid:
         self.witness = np.full(size, -1, dtype=LINK)
         self.reach = np.zeros(size, dtype=np.uint8)
         self.centred = np.zeros(size, dtype=np.uint8)  # bit per level: its cell there has a centre point
+        self._offsets: dict[int, np.ndarray] = {}  # finest cells in a cell of 2^shift per axis
         self._fill()
 
     @classmethod
@@ -130,7 +134,10 @@ class NestedGrid:
         index = self.levels[level][1]
         coords = (flat[:, None] // index._strides) % index._shape - 1  # the margin is -1
         side = 1 << self.shift[level]
-        offsets = np.array(list(itertools.product(range(side), repeat=len(self.interior))), dtype=np.int64)
+        offsets = self._offsets.get(side)
+        if offsets is None:
+            offsets = np.array(list(itertools.product(range(side), repeat=len(self.interior))), dtype=np.int64)
+            self._offsets[side] = offsets
         step = max(1, SLAB // len(offsets))
         for at in range(0, len(coords), step):
             cells = (coords[at : at + step, None, :] * side + offsets[None]).reshape(-1, len(self.interior))

@@ -51,6 +51,7 @@ class LeveledIndex(AlivePoints):
         # levels are not nested; rebuilt at the first query after a level is added
         self._grid: NestedGrid | None = None
         self._grid_stale = True
+        self._ordered: list[int] = []  # ``_order``'s answer for as many levels
 
     # -- levels ----------------------------------------------------------------------------
     def _level_of(self, half_width: float) -> int:
@@ -72,7 +73,9 @@ class LeveledIndex(AlivePoints):
 
     def _order(self) -> list[int]:
         """Levels asked by ``cover``: coarsest first (ties cannot occur: one level per width)."""
-        return sorted(range(len(self._levels)), key=lambda i: -self._levels[i][0])
+        if len(self._ordered) != len(self._levels):
+            self._ordered = sorted(range(len(self._levels)), key=lambda i: -self._levels[i][0])
+        return self._ordered
 
     def levels(self) -> list[float]:
         return sorted(hw for hw, _ in self._levels)
@@ -121,7 +124,12 @@ class LeveledIndex(AlivePoints):
         self.points[ids] = pts
         self.alive[ids] = True
         self.count += k
-        widths = np.broadcast_to(np.asarray(self.cell / 2 if half_width is None else half_width, float), (k,))
+        if k == 0:
+            return ids
+        if half_width is None or np.ndim(half_width) == 0:
+            self._place(ids, float(self.cell / 2 if half_width is None else half_width))
+            return ids
+        widths = np.broadcast_to(np.asarray(half_width, float), (k,))
         for hw in np.unique(widths):  # sorted: the same levels in the same order on every mirror
             self._place(ids[widths == hw], float(hw))
         return ids

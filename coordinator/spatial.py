@@ -31,6 +31,8 @@ TOLERANCE = 1e-9  # closed boxes, decided as exact arithmetic would on grid boun
 DENSE_LIMIT = 1 << 25  # cells; 32 Mi int32 counters = 128 MiB at most
 SMALL_PUSH = 8  # points pushed one by one: ~12 array operations cost more below this
 MISS_BLOCK = 1 << 15  # queries whose touched cells are enumerated at once (2^n cells each)
+SMALL_MATMUL = 1024  # cells up to which a (k, n) integer product beats n 1-D operations
+REACH_TABLE = 729  # offsets (3^6) up to which which-offsets-an-extent-reaches is a table
 # point ids and dense cell numbers in the chains and the dense grid: both < 2^31 (a dense
 # grid has at most DENSE_LIMIT cells; ``insert`` refuses the 2^31st point). Half of int64:
 # ~0.1 GB at delta_min 0.125 (1.8 M points, 7 M dense cells, in the centres' and the
@@ -100,6 +102,7 @@ class PointIndex(AlivePoints):
         self._dense = None
         self._centre_cell = np.full(capacity, -1, dtype=LINK)  # flat dense cell if at a centre
         self._off_next = np.full(capacity, -1, dtype=LINK)  # off-centre chains (dense)
+        self._offset_tables: dict[int, tuple] = {}
         self._build_dense()
 
     # -- dense fast path --------------------------------------------------------------------
@@ -113,6 +116,7 @@ class PointIndex(AlivePoints):
         if np.any(shape <= 2) or np.prod(shape.astype(float)) > DENSE_LIMIT:
             return
         self._shape = shape
+        self._last_cell = shape - 1
         self._strides = np.cumprod(np.concatenate([shape[1:], [1]])[::-1])[::-1].astype(np.int64)
         self._dense = np.zeros(int(np.prod(shape)), dtype=np.int32)
         # the id of one alive centre point per cell (-1: none), so that a hit names its
@@ -131,8 +135,14 @@ class PointIndex(AlivePoints):
         self._push(off, flat[off], self._off_head, self._off_next)
 
     def _flat(self, cells: np.ndarray) -> np.ndarray:
-        """Flat dense index of integer cells (clipped into the margin when outside).
-        Per axis with 1-D operations: numpy has no fast integer matmul."""
+        """Flat dense index of integer cells (clipped into the margin when outside). A
+        few cells as one (k, n) product (most calls: fewer array operations); many per
+        axis with 1-D operations (numpy has no fast integer matmul)."""
+        if len(cells) <= SMALL_MATMUL:
+            part = cells + 1
+            np.maximum(part, 0, out=part)
+            np.minimum(part, self._last_cell, out=part)
+            return part @ self._strides
         flat = self._axis_flat(cells[:, 0], 0)
         for axis in range(1, self.n):
             flat += self._axis_flat(cells[:, axis], axis)
@@ -410,26 +420,50 @@ class PointIndex(AlivePoints):
                 self._check_cells(q, lo[rows], hi[rows], rows, span, r, found)
 
     def _check_cells(self, q, lo, hi, rows, span, r, found) -> None:
-        """Cells lo + o (o < span, lo + o <= hi per axis) of queries ``rows``."""
-        k = len(rows)
-        flat = np.zeros((k, 1), dtype=np.int64)
-        valid = np.ones((k, 1), dtype=bool)
-        for axis in range(self.n):
-            cells = lo[:, axis, None] + np.arange(span)  # (k, span)
-            ok = cells <= hi[:, axis, None]
-            parts = self._axis_flat(cells.ravel(), axis).reshape(k, span)
-            flat = (flat[:, :, None] + parts[:, None, :]).reshape(k, -1)
-            valid = (valid[:, :, None] & ok[:, None, :]).reshape(k, -1)
-        row = np.repeat(rows, flat.shape[1])[valid.ravel()]
-        flat = flat.ravel()[valid.ravel()]
+        """Cells lo + o (o < span, lo + o <= hi per axis) of queries ``rows``, each row's
+        cells in ``itertools.product`` order of o (a later witness overwrites an earlier)."""
+        offsets, reaches, radix = self._offsets(span)
+        # which offsets each row's extent hi - lo (0..span-1 per axis) reaches, by a table
+        if reaches is not None:
+            row_of, cell_of = np.nonzero(reaches[(hi - lo) @ radix])
+        else:
+            row_of, cell_of = np.nonzero((offsets[None] <= (hi - lo)[:, None, :]).all(axis=2))
+        row = rows[row_of]
+        flat = self._flat(lo[row_of] + offsets[cell_of])
         centre = self._centre_point[flat]
         named = np.flatnonzero(centre >= 0)
-        near = np.ones(len(named), dtype=bool)
-        for axis in range(self.n):
-            near &= np.abs(self.points[centre[named], axis] - q[row[named], axis]) <= r
-        found[row[named[near]]] = centre[named[near]]
+        if len(named):
+            points, queries = centre[named], row[named]
+            near = self._within(points, q, queries, r)
+            found[queries[near]] = points[near]
         chained = np.flatnonzero((self._others[flat] > 0) & (found[row] < 0))
-        self._walk(q, row[chained], self._off_head[flat[chained]], r, found, self._off_next)
+        if len(chained):
+            self._walk(q, row[chained], self._off_head[flat[chained]], r, found, self._off_next)
+
+    def _offsets(self, span: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The offsets 0..span-1 per axis, (span^n, n) int64 in ``itertools.product``
+        order; (span^n, span^n) bool: offset o lies within extent e (o <= e per axis), by
+        e's number, or None past REACH_TABLE offsets; (n,) int64: an extent's number
+        (e @ radix, e in the offsets' order)."""
+        tables = self._offset_tables.get(span)
+        if tables is None:
+            offsets = np.array(list(itertools.product(range(span), repeat=self.n)), dtype=np.int64)
+            radix = span ** np.arange(self.n - 1, -1, -1, dtype=np.int64)
+            reaches = None
+            if len(offsets) <= REACH_TABLE:
+                reaches = (offsets[None, :, :] <= offsets[:, None, :]).all(axis=2)
+            tables = self._offset_tables[span] = (offsets, reaches, radix)
+        return tables
+
+    def _within(self, ids, q, sel, r) -> np.ndarray:
+        """(k,) bool: point ``ids[i]`` lies within l-inf ``r`` of query ``q[sel[i]]``. A few
+        as (k, n) arrays (fewer array operations); many per axis (reducing over n is slow)."""
+        if len(ids) <= SMALL_MATMUL // 4:
+            return (np.abs(self.points[ids] - q[sel]) <= r).all(axis=1)
+        near = np.abs(self.points[ids, 0] - q[sel, 0]) <= r
+        for axis in range(1, self.n):
+            near &= np.abs(self.points[ids, axis] - q[sel, axis]) <= r
+        return near
 
     def _scan(self, q, cells, sel, r, found) -> None:
         """Walk the hash chains of ``cells`` (row i: the cell for query ``sel[i]``), setting ``found``."""
@@ -439,17 +473,15 @@ class PointIndex(AlivePoints):
     def _walk(self, q, sel, cur, r, found, links) -> None:
         """Walk chains from points ``cur`` (row i for query ``sel[i]``) along ``links``,
         setting ``found`` (the point's id) where an alive point lies within ``r``."""
+        live = cur >= 0
+        sel, cur = sel[live], cur[live]
         while len(sel):
-            live = cur >= 0
-            sel, cur = sel[live], cur[live]
-            if len(sel) == 0:
-                break
-            near = self.alive[cur]
-            for axis in range(self.n):  # 1-D per axis: reducing (k, n) over n is slow
-                near &= np.abs(self.points[cur, axis] - q[sel, axis]) <= r
-            found[sel[near]] = cur[near]
-            keep = found[sel] < 0  # a query found through another cell stops walking too
-            sel, cur = sel[keep], links[cur[keep]]
+            near = self.alive[cur] & self._within(cur, q, sel, r)
+            if near.any():
+                found[sel[near]] = cur[near]
+            cur = links[cur]
+            keep = (cur >= 0) & (found[sel] < 0)  # a query found through another cell stops walking too
+            sel, cur = sel[keep], cur[keep]
 
     # -- persistence (plain arrays, no pickle) -------------------------------------------
     def state(self) -> dict:

@@ -315,21 +315,16 @@ class SPE(Algorithm):
             return np.zeros(len(draws), dtype=bool)
         return self._stable.moved(draws, self._law(), self.version)  # the law first: it stamps what changed
 
-    def certify_runs(self, start_ids: np.ndarray, offsets: np.ndarray, witnesses: np.ndarray) -> int:
-        """Deterministic certification: quiet runs from centres ``start_ids`` (their
-        witnesses now: ``witnesses[offsets[i]:offsets[i + 1]]``) certify their centres.
-        Returns the position of the run after which every alive centre is certified, or -1."""
-        keep = self.vertices.alive[start_ids]
-        if not keep.any():
+    def certify_runs(self, start_ids: np.ndarray, witnesses) -> int:
+        """Deterministic certification: quiet runs from alive centres among ``start_ids``
+        certify them (``Algorithm.certify_runs``); a run from a pruned centre certifies
+        nothing, and its witnesses are not asked for. Returns the position of the run
+        after which every alive centre is certified, or -1."""
+        sel = np.flatnonzero(self.vertices.alive[start_ids])
+        if len(sel) == 0:
             return -1
-        sel = np.flatnonzero(keep)
-        counts = offsets[sel + 1] - offsets[sel]
-        run = np.repeat(np.arange(len(sel)), counts)
-        within = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
-        kept = witnesses[offsets[sel][run] + within]
-        kept_offsets = np.zeros(len(sel) + 1, dtype=np.int64)
-        np.cumsum(counts, out=kept_offsets[1:])
-        reached = self.enumeration.record(self.vertices, self.certificates, start_ids[sel], kept_offsets, kept)
+        offsets, ids = witnesses(sel)
+        reached = self.enumeration.record(self.vertices, self.certificates, start_ids[sel], offsets, ids)
         return int(sel[reached]) if reached >= 0 else -1  # the run that certified the last centre
 
     def begin_certification(self) -> None:
