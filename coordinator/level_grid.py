@@ -33,7 +33,7 @@ import itertools
 
 import numpy as np
 
-from coordinator.spatial import LINK, SMALL_MATMUL, TOLERANCE, PointIndex
+from coordinator.spatial import LINK, SMALL_MATMUL, TOLERANCE, PointIndex, box_cells
 
 MAX_LEVELS = 8  # the bits of ``reach`` (uint8)
 SLAB = 1 << 20  # finest cells recomputed per pass: temporaries stay ~50 MB
@@ -214,18 +214,11 @@ class NestedGrid:
         each query (in ``home``) lies near: a centre point covers its cell within the
         tolerance, so only those can cover the query from a cell other than its own
         (0xFF when such a cell is outside the interior: every level is asked)."""
-        k, n = home.shape
         lo, hi = home - near_lo, home + near_hi
-        flat = np.zeros((k, 1), dtype=np.int64)
-        valid = np.ones((k, 1), dtype=bool)
         beyond = ((lo < 0) | (hi >= self.interior)).any(axis=1)
-        for axis in range(n):
-            cells = lo[:, axis, None] + np.arange(2)
-            ok = cells <= hi[:, axis, None]
-            parts = (np.minimum(np.maximum(cells, -1), self.interior[axis]) + 1) * self.strides[axis]
-            flat = (flat[:, :, None] + parts[:, None, :]).reshape(k, -1)
-            valid = (valid[:, :, None] & ok[:, None, :]).reshape(k, -1)
-        bits = np.where(valid, self.centred[flat], np.uint8(0))
-        out = np.bitwise_or.reduce(bits, axis=1)
+        row_of, cells = box_cells(lo, hi, 2)
+        bits = self.centred[_dot(np.minimum(np.maximum(cells, -1), self.interior) + 1, self.strides)]
+        # each row's cells are consecutive, its own (lo) first
+        out = np.bitwise_or.reduceat(bits, np.flatnonzero(np.r_[True, row_of[1:] != row_of[:-1]]))
         out[beyond] = 0xFF
         return out

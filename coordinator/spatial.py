@@ -20,6 +20,7 @@ are chained per dense cell. The hash chains serve indices without a dense grid.
 
 from __future__ import annotations
 
+import functools
 import itertools
 
 import numpy as np
@@ -38,6 +39,35 @@ REACH_TABLE = 729  # offsets (3^6) up to which which-offsets-an-extent-reaches i
 # ~0.1 GB at delta_min 0.125 (1.8 M points, 7 M dense cells, in the centres' and the
 # failures' index alike). Queries still answer int64 ids.
 LINK = np.int32
+
+
+def box_cells(lo: np.ndarray, hi: np.ndarray, span: int) -> tuple[np.ndarray, np.ndarray]:
+    """The integer cells lo + o of each row (0 <= o < span and lo + o <= hi per axis;
+    hi - lo < span): (m,) the row of each, (m, n) the cells, row by row, each row's in
+    ``itertools.product`` order of o. Every row has at least its cell lo."""
+    offsets, reaches, radix = _offset_tables(span, lo.shape[1])
+    if reaches is not None:  # which offsets each row's extent reaches, by the extent's number
+        row_of, cell_of = np.nonzero(reaches[(hi - lo) @ radix])
+    else:
+        row_of, cell_of = np.nonzero((offsets[None] <= (hi - lo)[:, None, :]).all(axis=2))
+    return row_of, lo[row_of] + offsets[cell_of]
+
+
+@functools.lru_cache(maxsize=64)
+def _offset_tables(span: int, n: int) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """The offsets 0..span-1 per axis, (span^n, n) int64 in ``itertools.product`` order;
+    (span^n, span^n) bool: offset o lies within extent e (o <= e per axis), by e's number
+    (None past REACH_TABLE offsets); (n,) int64: an extent's number (e @ radix, e in the
+    offsets' order)."""
+    offsets = np.array(list(itertools.product(range(span), repeat=n)), dtype=np.int64).reshape(-1, n)
+    radix = span ** np.arange(n - 1, -1, -1, dtype=np.int64)
+    reaches = None
+    if len(offsets) <= REACH_TABLE:
+        reaches = (offsets[None, :, :] <= offsets[:, None, :]).all(axis=2)
+    for table in (offsets, radix, reaches):
+        if table is not None:
+            table.flags.writeable = False  # shared by every index
+    return offsets, reaches, radix
 
 
 class AlivePoints:
@@ -102,7 +132,6 @@ class PointIndex(AlivePoints):
         self._dense = None
         self._centre_cell = np.full(capacity, -1, dtype=LINK)  # flat dense cell if at a centre
         self._off_next = np.full(capacity, -1, dtype=LINK)  # off-centre chains (dense)
-        self._offset_tables: dict[int, tuple] = {}
         self._build_dense()
 
     # -- dense fast path --------------------------------------------------------------------
@@ -422,14 +451,9 @@ class PointIndex(AlivePoints):
     def _check_cells(self, q, lo, hi, rows, span, r, found) -> None:
         """Cells lo + o (o < span, lo + o <= hi per axis) of queries ``rows``, each row's
         cells in ``itertools.product`` order of o (a later witness overwrites an earlier)."""
-        offsets, reaches, radix = self._offsets(span)
-        # which offsets each row's extent hi - lo (0..span-1 per axis) reaches, by a table
-        if reaches is not None:
-            row_of, cell_of = np.nonzero(reaches[(hi - lo) @ radix])
-        else:
-            row_of, cell_of = np.nonzero((offsets[None] <= (hi - lo)[:, None, :]).all(axis=2))
+        row_of, cells = box_cells(lo, hi, span)
         row = rows[row_of]
-        flat = self._flat(lo[row_of] + offsets[cell_of])
+        flat = self._flat(cells)
         centre = self._centre_point[flat]
         named = np.flatnonzero(centre >= 0)
         if len(named):
@@ -439,21 +463,6 @@ class PointIndex(AlivePoints):
         chained = np.flatnonzero((self._others[flat] > 0) & (found[row] < 0))
         if len(chained):
             self._walk(q, row[chained], self._off_head[flat[chained]], r, found, self._off_next)
-
-    def _offsets(self, span: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The offsets 0..span-1 per axis, (span^n, n) int64 in ``itertools.product``
-        order; (span^n, span^n) bool: offset o lies within extent e (o <= e per axis), by
-        e's number, or None past REACH_TABLE offsets; (n,) int64: an extent's number
-        (e @ radix, e in the offsets' order)."""
-        tables = self._offset_tables.get(span)
-        if tables is None:
-            offsets = np.array(list(itertools.product(range(span), repeat=self.n)), dtype=np.int64)
-            radix = span ** np.arange(self.n - 1, -1, -1, dtype=np.int64)
-            reaches = None
-            if len(offsets) <= REACH_TABLE:
-                reaches = (offsets[None, :, :] <= offsets[:, None, :]).all(axis=2)
-            tables = self._offset_tables[span] = (offsets, reaches, radix)
-        return tables
 
     def _within(self, ids, q, sel, r) -> np.ndarray:
         """(k,) bool: point ``ids[i]`` lies within l-inf ``r`` of query ``q[sel[i]]``. A few
