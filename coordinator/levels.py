@@ -201,7 +201,9 @@ class LeveledIndex(AlivePoints):
             rows = todo if levels is None else todo[(levels[todo] & (1 << level)) != 0]
             if len(rows) == 0:
                 continue
-            local = index.cover(q[rows], hw)
+            # no level has a centre point at these rows' home cells (the grid, or the
+            # first step above, found none): only the cells around are searched
+            local = index.cover_away(q[rows], hw)
             hit = local >= 0
             found[rows[hit]] = self._global(level)[local[hit]]
             todo = todo[found[todo] < 0]

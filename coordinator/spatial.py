@@ -354,11 +354,12 @@ class PointIndex(AlivePoints):
             # touches (in blocks: 2^n cells per query)
             found = self._centre_point[self._flat(home)].astype(np.int64)
             misses = np.flatnonzero(found < 0)
-            for at in range(0, len(misses), MISS_BLOCK):
-                rows = misses[at : at + MISS_BLOCK]
-                sub = np.full(len(rows), -1, dtype=np.int64)
-                self._cover_cells(q[rows], rel[rows], r, sub)
-                found[rows] = sub
+            if len(misses) == len(q):
+                self._cover_away(q, rel, r, found)
+            elif len(misses):
+                sub = np.full(len(misses), -1, dtype=np.int64)
+                self._cover_away(q[misses], rel[misses], r, sub)
+                found[misses] = sub
             return found
         elif self._dense is not None and radius > self.cell / 2:
             found = self._centre_point[self._flat(home)].astype(np.int64)
@@ -401,6 +402,31 @@ class PointIndex(AlivePoints):
             if len(rows):
                 self._scan(q, home_t[rows] + off, todo[rows], r, found)
         return found
+
+    def cover_away(self, queries: np.ndarray, radius: float) -> np.ndarray:
+        """``cover`` of queries known to have no centre point at their home cell (a
+        leveled index's grid says so): the search of the cells around, without asking
+        the home cell again. Any query, where the index has no dense grid or ``radius``
+        is not cell/2."""
+        q = np.atleast_2d(np.asarray(queries, dtype=float))
+        if self._dense is None or abs(radius - self.cell / 2) > 1e-12:
+            return self.cover(q, radius)
+        found = np.full(len(q), -1, dtype=np.int64)
+        if self.count and len(q):
+            rel = q - self.origin
+            rel *= 1.0 / self.cell
+            self._cover_away(q, rel, radius + TOLERANCE, found)
+        return found
+
+    def _cover_away(self, q, rel, r, found) -> None:
+        """``_cover_cells`` in blocks of MISS_BLOCK queries (their temporaries: 3^n cells each)."""
+        if len(q) <= MISS_BLOCK:
+            self._cover_cells(q, rel, r, found)
+            return
+        for at in range(0, len(q), MISS_BLOCK):
+            sub = np.full(min(MISS_BLOCK, len(q) - at), -1, dtype=np.int64)
+            self._cover_cells(q[at : at + MISS_BLOCK], rel[at : at + MISS_BLOCK], r, sub)
+            found[at : at + MISS_BLOCK] = sub
 
     def home_cover(self, queries: np.ndarray) -> np.ndarray | None:
         """(B, n) -> (B,) int64: the centre point naming each query's home cell (it covers
