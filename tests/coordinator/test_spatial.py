@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from coordinator.spatial import PointIndex
+from coordinator.spatial import REACH_TABLE, PointIndex, box_cells
 
 
 @pytest.mark.parametrize("n", [2, 3, 5])
@@ -186,3 +186,45 @@ def test_deferred_chains_walk_as_chains_kept_at_once(seed):
             alive = dense.points[: dense.count][dense.alive[: dense.count]]
             truth = (np.abs(queries[:, None, :] - alive[None, :, :]).max(axis=2) <= large + 1e-9).any(axis=1)
             np.testing.assert_array_equal(dense.any_within(queries, large), truth)
+
+
+@pytest.mark.parametrize("n, span", [(2, 2), (3, 3), (5, 3), (7, 3)])
+def test_box_cells_are_each_rows_cells_in_product_order(n, span):
+    """The cells lo..hi of each row, row by row, each row's in itertools.product order of
+    the offsets (the witness a search names depends on it), by the table and, past
+    REACH_TABLE offsets (7 axes), by comparison."""
+    import itertools
+
+    rng = np.random.default_rng(n)
+    lo = rng.integers(-3, 5, (40, n))
+    hi = lo + rng.integers(0, span, (40, n))
+    row_of, cells = box_cells(lo, hi, span)
+    want_rows, want_cells = [], []
+    for i in range(len(lo)):
+        for o in itertools.product(range(span), repeat=n):
+            if all(lo[i, a] + o[a] <= hi[i, a] for a in range(n)):
+                want_rows.append(i)
+                want_cells.append(lo[i] + np.array(o))
+    assert (span**n > REACH_TABLE) == (n == 7)
+    np.testing.assert_array_equal(row_of, want_rows)
+    np.testing.assert_array_equal(cells, np.array(want_cells))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_cover_away_names_the_witness_cover_names_where_the_home_cell_has_none(seed):
+    """Queries whose home cell holds no centre point (and, for the index without a dense
+    grid, any query): ``cover_away`` names the same witness as ``cover``, one query or many."""
+    rng = np.random.default_rng(seed)
+    lo, hi = np.zeros(3), np.full(3, 6.0)
+    cells = rng.integers(0, 6, (120, 3))
+    pts = np.concatenate([lo + cells + 0.5, rng.uniform(-0.5, 6.5, (150, 3))])
+    for bounds in ((lo, hi), None):
+        index = PointIndex(3, 1.0, lo, bounds=bounds)
+        index.insert(pts)
+        index.kill(rng.choice(len(pts), 60, replace=False))
+        q = np.concatenate([rng.uniform(-1, 7, (4000, 3)), pts[:100] + rng.choice([0.0, 0.5, -0.5, 1e-10], (100, 3))])
+        if bounds is not None:
+            q = q[index.home_cover(q) < 0]
+        assert len(q) > 1000
+        np.testing.assert_array_equal(index.cover_away(q, 0.5), index.cover(q, 0.5))
+        np.testing.assert_array_equal(index.cover_away(q[:1], 0.5), index.cover(q[:1], 0.5))
