@@ -470,7 +470,10 @@ class PointIndex(AlivePoints):
         lo = np.floor(rel - reach).astype(np.int64)
         hi = np.floor(rel + reach).astype(np.int64)
         centred = (hi - lo >= 2).any(axis=1)
-        for rows, span in ((np.flatnonzero(~centred), 2), (np.flatnonzero(centred), 3)):
+        if not centred.any():  # most calls: no query within the tolerance of a cell centre
+            self._check_cells(q, lo, hi, np.arange(len(q)), 2, r, found)
+            return
+        for rows, span in (((~centred).nonzero()[0], 2), (centred.nonzero()[0], 3)):
             if len(rows):
                 self._check_cells(q, lo[rows], hi[rows], rows, span, r, found)
 
@@ -481,12 +484,12 @@ class PointIndex(AlivePoints):
         row = rows[row_of]
         flat = self._flat(cells)
         centre = self._centre_point[flat]
-        named = np.flatnonzero(centre >= 0)
+        named = (centre >= 0).nonzero()[0]
         if len(named):
             points, queries = centre[named], row[named]
             near = self._within(points, q, queries, r)
             found[queries[near]] = points[near]
-        chained = np.flatnonzero((self._others[flat] > 0) & (found[row] < 0))
+        chained = ((self._others[flat] > 0) & (found[row] < 0)).nonzero()[0]
         if len(chained):
             self._walk(q, row[chained], self._off_head[flat[chained]], r, found, self._off_next)
 
