@@ -33,6 +33,7 @@ DENSE_LIMIT = 1 << 25  # cells; 32 Mi int32 counters = 128 MiB at most
 SMALL_PUSH = 8  # points pushed one by one: ~12 array operations cost more below this
 MISS_BLOCK = 1 << 15  # queries whose touched cells are enumerated at once (2^n cells each)
 SMALL_MATMUL = 1024  # cells up to which a (k, n) integer product beats n 1-D operations
+SMALL_ROWS = 256  # point-query pairs up to which (k, n) comparisons beat n 1-D ones
 REACH_TABLE = 729  # offsets (3^6) up to which which-offsets-an-extent-reaches is a table
 # point ids and dense cell numbers in the chains and the dense grid: both < 2^31 (a dense
 # grid has at most DENSE_LIMIT cells; ``insert`` refuses the 2^31st point). Half of int64:
@@ -496,7 +497,7 @@ class PointIndex(AlivePoints):
     def _within(self, ids, q, sel, r) -> np.ndarray:
         """(k,) bool: point ``ids[i]`` lies within l-inf ``r`` of query ``q[sel[i]]``. A few
         as (k, n) arrays (fewer array operations); many per axis (reducing over n is slow)."""
-        if len(ids) <= SMALL_MATMUL // 4:
+        if len(ids) <= SMALL_ROWS:
             return (np.abs(self.points[ids] - q[sel]) <= r).all(axis=1)
         near = np.abs(self.points[ids, 0] - q[sel, 0]) <= r
         for axis in range(1, self.n):
