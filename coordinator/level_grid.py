@@ -33,22 +33,11 @@ import itertools
 
 import numpy as np
 
-from coordinator.spatial import LINK, SMALL_MATMUL, TOLERANCE, PointIndex, box_cells
+from coordinator.spatial import LINK, TOLERANCE, PointIndex, box_cells, flat_index
 
 MAX_LEVELS = 8  # the bits of ``reach`` (uint8)
 SLAB = 1 << 20  # finest cells recomputed per pass: temporaries stay ~50 MB
 EDGE = 1e-6  # cells (in cell units) that a point's reach touches are widened by this
-
-
-def _dot(cells: np.ndarray, strides: np.ndarray) -> np.ndarray:
-    """(k, n) int64 cells -> (k,) flat indexes: a few as one product, many per axis (numpy
-    has no fast integer matmul)."""
-    if len(cells) <= SMALL_MATMUL:
-        return cells @ strides
-    flat = cells[:, 0] * strides[0]
-    for axis in range(1, cells.shape[1]):
-        flat += cells[:, axis] * strides[axis]
-    return flat
 
 
 class NestedGrid:
@@ -97,7 +86,7 @@ class NestedGrid:
     def _parent_flat(self, level: int, cells: np.ndarray) -> np.ndarray:
         """(k, n) interior finest cells -> flat cells of ``level``'s dense grid holding them."""
         index = self.levels[level][1]
-        return _dot((cells >> self.shift[level]) + 1, index._strides)
+        return flat_index((cells >> self.shift[level]) + 1, index._strides)
 
     def _refresh(self, cells: np.ndarray) -> None:
         """Recompute ``witness`` and ``centred`` of interior finest cells ``cells`` (k, n)."""
@@ -110,7 +99,7 @@ class NestedGrid:
             hit = centre >= 0
             out[hit] = self.globals_[level][centre[hit]]
             bits[hit] |= np.uint8(1 << level)
-        flat = _dot(cells + 1, self.strides)
+        flat = flat_index(cells + 1, self.strides)
         self.witness[flat] = out
         self.centred[flat] = bits
 
@@ -189,7 +178,7 @@ class NestedGrid:
         home = np.floor(rel).astype(np.int64)
         # a query outside the interior lands in the margin, whose cells name no witness
         clipped = np.minimum(np.maximum(home, -1), self.interior)
-        witness = self.witness[_dot(clipped + 1, self.strides)].astype(np.int64)
+        witness = self.witness[flat_index(clipped + 1, self.strides)].astype(np.int64)
         levels = np.zeros(len(q), dtype=np.uint8)
         outside = np.zeros(len(q), dtype=bool)
         miss = np.flatnonzero(witness < 0)  # most queries have a witness: the rest is for the few
@@ -203,7 +192,7 @@ class NestedGrid:
         near_hi = frac >= 1.0 - self.face / self.cell
         inside = np.flatnonzero(~out)
         levels[miss[out]] = 0xFF
-        levels[miss[inside]] = self.reach[_dot(home[inside] + 1, self.strides)]
+        levels[miss[inside]] = self.reach[flat_index(home[inside] + 1, self.strides)]
         near = inside[(near_lo[inside] | near_hi[inside]).any(axis=1)]
         if len(near):
             levels[miss[near]] |= self._across_faces(home[near], near_lo[near], near_hi[near])
@@ -217,7 +206,7 @@ class NestedGrid:
         lo, hi = home - near_lo, home + near_hi
         beyond = ((lo < 0) | (hi >= self.interior)).any(axis=1)
         row_of, cells = box_cells(lo, hi, 2)
-        bits = self.centred[_dot(np.minimum(np.maximum(cells, -1), self.interior) + 1, self.strides)]
+        bits = self.centred[flat_index(np.minimum(np.maximum(cells, -1), self.interior) + 1, self.strides)]
         # each row's cells are consecutive, its own (lo) first
         out = np.bitwise_or.reduceat(bits, np.flatnonzero(np.r_[True, row_of[1:] != row_of[:-1]]))
         out[beyond] = 0xFF

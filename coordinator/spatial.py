@@ -42,6 +42,17 @@ REACH_TABLE = 729  # offsets (3^6) up to which which-offsets-an-extent-reaches i
 LINK = np.int32
 
 
+def flat_index(cells: np.ndarray, strides: np.ndarray) -> np.ndarray:
+    """(k, n) int64 cells (in the grid) -> (k,) flat indexes: a few as one integer product
+    (fewer array operations), many per axis (numpy has no fast integer matmul)."""
+    if len(cells) <= SMALL_MATMUL:
+        return cells @ strides
+    flat = cells[:, 0] * strides[0]
+    for axis in range(1, cells.shape[1]):
+        flat += cells[:, axis] * strides[axis]
+    return flat
+
+
 def box_cells(lo: np.ndarray, hi: np.ndarray, span: int) -> tuple[np.ndarray, np.ndarray]:
     """The integer cells lo + o of each row (0 <= o < span and lo + o <= hi per axis;
     hi - lo < span): (m,) the row of each, (m, n) the cells, row by row, each row's in
@@ -172,7 +183,7 @@ class PointIndex(AlivePoints):
             part = cells + 1
             np.maximum(part, 0, out=part)
             np.minimum(part, self._last_cell, out=part)
-            return part @ self._strides
+            return flat_index(part, self._strides)
         flat = self._axis_flat(cells[:, 0], 0)
         for axis in range(1, self.n):
             flat += self._axis_flat(cells[:, axis], axis)
@@ -420,14 +431,11 @@ class PointIndex(AlivePoints):
         return found
 
     def _cover_away(self, q, rel, r, found) -> None:
-        """``_cover_cells`` in blocks of MISS_BLOCK queries (their temporaries: 3^n cells each)."""
-        if len(q) <= MISS_BLOCK:
-            self._cover_cells(q, rel, r, found)
-            return
+        """``_cover_cells`` in blocks of MISS_BLOCK queries (their temporaries: 3^n cells
+        each), each writing its slice of ``found``."""
         for at in range(0, len(q), MISS_BLOCK):
-            sub = np.full(min(MISS_BLOCK, len(q) - at), -1, dtype=np.int64)
-            self._cover_cells(q[at : at + MISS_BLOCK], rel[at : at + MISS_BLOCK], r, sub)
-            found[at : at + MISS_BLOCK] = sub
+            block = slice(at, at + MISS_BLOCK)
+            self._cover_cells(q[block], rel[block], r, found[block])
 
     def home_cover(self, queries: np.ndarray) -> np.ndarray | None:
         """(B, n) -> (B,) int64: the centre point naming each query's home cell (it covers
