@@ -15,7 +15,9 @@ simulator (shared/spec/scaling.md):
 - a chunk's call costs ``call_cost`` twice: the coordinator's (it sends and reads the
   chunk) and its worker's;
 - the coordinator's own CPU time between executor calls is charged to the clock (its
-  thread time, the in-process simulation excluded): a driver that cannot keep up shows;
+  thread time, the in-process simulation excluded): a driver that cannot keep up shows
+  (``charge_coordinator=False`` with ``call_cost=0``: a free coordinator, what the
+  counting rule itself allows, benchmarks/bench_virtual.py ``--free-coordinator``);
 - a chunk cancelled before a worker took it never runs; experience replay's screening
   is shared by the workers;
 - replacements, as on Ray: while chunks are long (farm/chunking.py ``one_at_a_time``)
@@ -71,15 +73,19 @@ class VirtualExecutor(Executor):
     name = "virtual"
 
     def __init__(self, spec: SimSpec, workers: int, run_time: float, jitter: float = 0.0, call_cost: float = 0.001,
-                 pipeline_depth: int = 2, check_step_bound: bool = False, lanes: int | None = None):
+                 pipeline_depth: int = 2, check_step_bound: bool = False, lanes: int | None = None,
+                 charge_coordinator: bool = True):
         """``lanes``: while chunks are short, replacements go to workers of their own that
         take nothing else, as a wave over them (None: as many as the Ray executor starts,
-        farm/chunking.py ``fast_lanes``; 0: to the next free worker, before any queued chunk)."""
+        farm/chunking.py ``fast_lanes``; 0: to the next free worker, before any queued chunk).
+        ``charge_coordinator``: the coordinator's CPU time is charged to the clock (False:
+        it costs no simulated time)."""
         self.spec = spec
         self.local = LocalExecutor(spec, check_step_bound)
         self.workers = workers
         self.run_time, self.jitter, self.call_cost = float(run_time), float(jitter), float(call_cost)
         self.pipeline_depth = pipeline_depth
+        self.charge_coordinator = charge_coordinator
         self.sizer = ChunkSizer(workers)
         self.clock = 0.0  # simulated seconds since the executor started
         self._runs: list[tuple[float, float]] = []  # (from, to) of each chunk's runs on its worker
@@ -101,8 +107,9 @@ class VirtualExecutor(Executor):
     def _enter(self) -> None:
         """Charge the coordinator's CPU since it last called the executor."""
         now = time.thread_time()
-        self.clock += now - self._mark
-        self.coordinator_s += now - self._mark
+        if self.charge_coordinator:
+            self.clock += now - self._mark
+            self.coordinator_s += now - self._mark
         self._mark = now
 
     def _leave(self) -> None:

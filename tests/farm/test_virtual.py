@@ -78,6 +78,22 @@ def test_the_virtual_farm_says_what_the_head_waited_for():
     assert 0 < executor.waited_replacements_s < executor.waited_s < executor.clock
 
 
+def test_a_free_coordinator_charges_the_clock_nothing_and_changes_no_result():
+    # benchmarks/bench_virtual.py --free-coordinator: what the counting rule allows, the
+    # coordinator's CPU and calls costing no simulated time
+    _, paid_algorithm, paid, paid_campaign = _virtual_campaign(300, 1.0)
+    paid_campaign.run()
+    _, free_algorithm, free, free_campaign = _virtual_campaign(300, 1.0)
+    free.charge_coordinator, free.call_cost = False, 0.0
+    free_campaign.run()
+    assert free_algorithm.result().result_hash == paid_algorithm.result().result_hash
+    assert free.coordinator_s == 0 < paid.coordinator_s
+    # with the coordinator free every simulated second is a wait of the head for runs (but
+    # the workers' screening of stored runs for experience replay, microseconds here)
+    assert free.waited_s == pytest.approx(free.clock, rel=1e-4)
+    assert paid.waited_s < paid.clock
+
+
 def test_many_workers_keep_no_more_in_flight_than_a_rounds_quiet_runs():
     # 1,000 workers of short runs would each take a chunk of every batch: batches of tens of
     # thousands of runs, most dropped at the round's end or moved by a change and replaced
