@@ -164,6 +164,8 @@ def render() -> Path:
     """docs/virtual.md from docs/virtual.json."""
     import numpy as np
 
+    from coordinator import speculation
+
     data = json.loads((DOCS / "virtual.json").read_text())
     rows, meta = data["rows"], data["meta"]
     run_times = sorted({r["run_time"] for r in rows}, reverse=True)
@@ -210,7 +212,8 @@ def render() -> Path:
                        f"{r['chunks']:,} chunk calls at 1 ms ({r['chunks'] / 1000:.1f} s) are on the clock; the head "
                        f"waited {r['waited_s']:,.1f} s for runs, {r['waited_replacements_s']:,.1f} s of it for "
                        "replacements (they may change the set: a round's end waits for all of them, a change for those "
-                       "before it, for runs of 0.2 s or more only once 4 changes are applied past holds, "
+                       f"before it, for runs of {speculation.RUN_S:g} s or more only once "
+                       f"{speculation.MAX_OUTSTANDING} changes are applied past holds, "
                        "coordinator/speculation.py), the rest for batch runs not back yet (after a round end the "
                        "pipeline refills).")
     out += free_table(data)
