@@ -28,7 +28,7 @@ from coordinator.replacements import Held
 
 ENABLED = True  # (a switch for measuring what it gives)
 RUN_S = 0.08  # [s] runs at least this long (as measured): a copy costs the driver milliseconds
-# (shorter runs: as many changes wait as a copy saves; docs/benchmarks.md, "2026-11-26, late")
+# (below it the copies cost about what they save; docs/benchmarks.md, "2026-11-26, late")
 # changes applied past holds at once, a copy of the algorithm each: more cost the driver
 # more than they save (docs/benchmarks.md)
 MAX_OUTSTANDING = 4
