@@ -4,8 +4,9 @@ The virtual farm (farm/virtual_executor.py) runs the real coordinator on a simul
 clock, so each campaign's result is the real one and only its time is modelled. ``plan``
 runs the same config at every worker count asked, each in a campaign directory of its own
 (``workers-<W>/``, a normal quantify directory), and writes what a user compares:
-``plan.json`` (time to the result, speed-up, the workers' utilisation, runs, the result
-hash per worker count) and ``plan.png`` (time to the result against workers, with the
+``plan.json`` (time to the result, speed-up, the workers' utilisation, the shares of the
+time the coordinator waited for runs and spent on its own CPU, runs, the result hash per
+worker count) and ``plan.png`` (time to the result against workers, with the
 ideal line). The count to rent is where more workers stop paying: ``plan`` names the
 fewest workers within ``NEAR_BEST`` of the fastest time.
 """
@@ -69,8 +70,11 @@ def plan(cfg: Config, out: Path, workers, *, force: bool = False, run_time: floa
         for i, (w, wcfg) in enumerate(configs.items()):
             progress.line(f"plan: {w:,} virtual workers ({i + 1} of {len(configs)})")
             summary = run(wcfg, out / f"workers-{w}", progress=progress)
-            rows.append({"workers": w, "virtual_elapsed_s": summary["virtual_elapsed_s"],
-                         "utilisation": summary["utilisation"], "runs_committed": summary["runs_committed"],
+            elapsed = summary["virtual_elapsed_s"]
+            rows.append({"workers": w, "virtual_elapsed_s": elapsed, "utilisation": summary["utilisation"],
+                         "waiting_share": _share(summary["virtual_waiting_s"], elapsed),
+                         "coordinator_share": _share(summary["virtual_coordinator_s"], elapsed),
+                         "runs_committed": summary["runs_committed"],
                          "runs_simulated": summary["runs_simulated"], "result_hash": summary["result_hash"]})
         result = _plan_of(configs[counts[0]], rows)
         write_json(out / PLAN_FILE, result)
@@ -78,6 +82,10 @@ def plan(cfg: Config, out: Path, workers, *, force: bool = False, run_time: floa
         return result
     finally:
         directory.unlock()
+
+
+def _share(seconds: float, elapsed: float) -> float:
+    return round(seconds / elapsed, 4) if elapsed else 0.0
 
 
 def _plan_of(cfg: Config, rows: list[dict]) -> dict:
@@ -96,15 +104,21 @@ def table(result: dict) -> str:
     """The plan as lines of text (what ``scenario-farm plan`` prints)."""
     lines = [f"virtual farm: a full-horizon run {result['run_time']:g} s, a chunk call {result['call_cost']:g} s, "
              f"jitter {result['jitter']:g}",
-             f"{'workers':>8} {'time to result':>16} {'speed-up':>9} {'utilisation':>12} {'runs simulated':>15}"]
+             f"{'workers':>8} {'time to result':>16} {'speed-up':>9} {'utilisation':>12} {'head waiting':>13} "
+             f"{'coordinator':>12} {'runs simulated':>15}"]
     for r in result["rows"]:
         lines.append(f"{r['workers']:>8,} {_duration(r['virtual_elapsed_s']):>16} {r['speed_up']:>8.1f}x "
-                     f"{r['utilisation']:>12.2f} {r['runs_simulated']:>15,}")
+                     f"{r['utilisation']:>12.2f} {r['waiting_share']:>13.0%} {r['coordinator_share']:>12.0%} "
+                     f"{r['runs_simulated']:>15,}")
     base, rows = result["speed_up_over"], result["rows"]
     lines.append(f"speed-up over {base} worker{'s' if base > 1 else ''}; the fewest workers within {NEAR_BEST:g}x "
                  f"of the fastest: {result['recommended_workers']:,}"
                  + (" (the time still falls there: ask for more)"
                     if result["recommended_workers"] == rows[-1]["workers"] and len(rows) > 1 else ""))
+    lines.append("head waiting: the share of the time to the result the coordinator waited for runs; "
+                 "coordinator: its own CPU (the rest: its chunk calls). Waiting with the workers busy (utilisation "
+                 "near 1): more workers help; waiting with workers idle: the campaign's order bounds it (the runs "
+                 "a change or a round's end needs first); a large coordinator share: a faster driver would help")
     lines.append("one result at every count: " + ("yes" if result["same_result"] else
                                                     "NO (an error of scenario-farm: please report it)"))
     return "\n".join(lines)

@@ -21,6 +21,8 @@ FILE = "summary.json"
 # written by every version of this tool; without them a file is no campaign's summary
 REQUIRED = ("scenario", "algorithm", "boxes", "result_hash", "guarantee")
 SIDE_KEYS = ("volume", "volume_hull", "result_hash", "guarantee", "guarantee_formal")
+# a virtual farm's only
+VIRTUAL_KEYS = ("virtual_elapsed_s", "utilisation", "virtual_waiting_s", "virtual_coordinator_s")
 
 
 @dataclass(frozen=True)
@@ -92,17 +94,20 @@ class Summary(JsonFile):
     # committed runs that left Sigma through a truncating facet (counted safe), per facet
     truncations: dict = field(default_factory=dict)
     scenario_farm_version: str = ""
-    # the virtual farm (farm.executor = "virtual"): simulated time to the result, and the
-    # share of the workers' time spent on runs
+    # the virtual farm (farm.executor = "virtual"): simulated time to the result, the
+    # share of the workers' time spent on runs, and of the time to the result the head's
+    # waits for runs and the coordinator's own CPU (the rest: its calls)
     virtual_elapsed_s: float | None = None
     utilisation: float | None = None
+    virtual_waiting_s: float | None = None
+    virtual_coordinator_s: float | None = None
     sides: dict[str, SideSummary] = field(default_factory=dict)
     extra: dict = field(default_factory=dict)
 
     # -- summary.json ----------------------------------------------------------------------------
     def to_json(self) -> dict:
         """summary.json's object: every key, in the file's order."""
-        out = record_to_json(self, leave_out=("sides", "extra"), omit_none=("virtual_elapsed_s", "utilisation"))
+        out = record_to_json(self, leave_out=("sides", "extra"), omit_none=VIRTUAL_KEYS)
         for label, side in self.sides.items():
             out.update({SideSummary.key(name, label): getattr(side, name) for name in SIDE_KEYS})
         out.update(self.extra)
@@ -194,6 +199,8 @@ def _virtual(parts: dict) -> dict:
     clocks = [p.virtual for p in parts.values() if p.virtual is not None]
     if not clocks:
         return {}
-    elapsed = sum(seconds for seconds, _ in clocks)
-    busy = sum(seconds * share for seconds, share in clocks)
-    return {"virtual_elapsed_s": round(elapsed, 3), "utilisation": round(busy / elapsed, 4) if elapsed else 0.0}
+    elapsed = sum(c[0] for c in clocks)
+    busy = sum(c[0] * c[1] for c in clocks)
+    return {"virtual_elapsed_s": round(elapsed, 3), "utilisation": round(busy / elapsed, 4) if elapsed else 0.0,
+            "virtual_waiting_s": round(sum(c[2] for c in clocks), 3),
+            "virtual_coordinator_s": round(sum(c[3] for c in clocks), 3)}

@@ -33,6 +33,11 @@ def test_a_plan_runs_every_count_and_each_is_the_real_campaign(tmp_path):
     assert times[0] > times[1] > times[2]  # more workers of 0.5 s runs: sooner
     assert rows[0]["speed_up"] == 1.0 and rows[2]["speed_up"] == round(times[0] / times[2], 2)
     assert result["recommended_workers"] in (4, 16)
+    # where the time went: one worker of 0.5 s runs is always busy, so the coordinator waits
+    # for its runs nearly all the time; at every count the waits and its CPU are shares of it
+    assert rows[0]["waiting_share"] > 0.9
+    for r in rows:
+        assert 0 < r["coordinator_share"] < 1 and 0 <= r["waiting_share"] + r["coordinator_share"] <= 1
     assert (out / "plan.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 

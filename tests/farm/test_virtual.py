@@ -30,6 +30,9 @@ def test_the_virtual_farm_commits_what_a_real_run_commits(tmp_path, ray_local):
     assert virtual["runs_replaced"] >= local["runs_replaced"]
     assert "virtual_elapsed_s" not in local and "utilisation" not in ray  # only a virtual farm has a clock
     assert 0 < virtual["utilisation"] <= 1
+    # where the simulated time went: the head's waits for runs and the coordinator's own CPU
+    assert 0 < virtual["virtual_waiting_s"] < virtual["virtual_elapsed_s"]
+    assert 0 < virtual["virtual_coordinator_s"] < virtual["virtual_elapsed_s"] - virtual["virtual_waiting_s"]
     # every committed run took its worker some of the 2 s a full run takes: the clock is
     # no shorter than the runs' time spread over all 300 workers
     assert virtual["virtual_elapsed_s"] >= 2.0 * 0.02 * virtual["runs_committed"] / 300
