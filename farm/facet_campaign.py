@@ -42,8 +42,7 @@ class FacetCampaign:
         self.config_hash = config_hash(cfg)
         self.campaign: Campaign | None = None
         self.startup_s = 0.0
-        # the virtual farm's (clock, utilisation, the head's waits for runs, the coordinator's CPU charged)
-        self.virtual: tuple[float, float, float, float] | None = None
+        self.virtual = None  # the virtual farm's VirtualClock (farm/virtual_executor.py)
         self._restored: checkpoint.Restored | None = None
 
     def restore(self) -> None:
@@ -84,7 +83,7 @@ class FacetCampaign:
             finally:
                 executor.close()
             if farm_cfg.executor == "virtual":
-                self.virtual = (executor.clock, executor.utilisation, executor.waited_s, executor.coordinator_s)
+                self.virtual = executor.report()
         done = self.campaign.counters.done
         if done:
             self.algorithm.stop_committing()  # the last checkpoint is then gathered with less held

@@ -199,8 +199,8 @@ def _virtual(parts: dict) -> dict:
     clocks = [p.virtual for p in parts.values() if p.virtual is not None]
     if not clocks:
         return {}
-    elapsed = sum(c[0] for c in clocks)
-    busy = sum(c[0] * c[1] for c in clocks)
+    elapsed = sum(c.elapsed_s for c in clocks)
+    busy = sum(c.elapsed_s * c.utilisation for c in clocks)
     return {"virtual_elapsed_s": round(elapsed, 3), "utilisation": round(busy / elapsed, 4) if elapsed else 0.0,
-            "virtual_waiting_s": round(sum(c[2] for c in clocks), 3),
-            "virtual_coordinator_s": round(sum(c[3] for c in clocks), 3)}
+            "virtual_waiting_s": round(sum(c.waiting_s for c in clocks), 3),
+            "virtual_coordinator_s": round(sum(c.coordinator_s for c in clocks), 3)}

@@ -16,7 +16,7 @@ simulator (shared/spec/scaling.md):
   chunk) and its worker's;
 - the coordinator's own CPU time between executor calls is charged to the clock (its
   thread time, the in-process simulation excluded): a driver that cannot keep up shows
-  (``charge_coordinator=False`` with ``call_cost=0``: a free coordinator, what the
+  (``charge_coordinator = False`` with ``call_cost = 0``: a free coordinator, what the
   counting rule itself allows, benchmarks/bench_virtual.py ``--free-coordinator``);
 - a chunk cancelled before a worker took it never runs; experience replay's screening
   is shared by the workers;
@@ -36,6 +36,7 @@ import heapq
 import time
 from collections import deque
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -46,6 +47,15 @@ from scenarios.simulator import SimSpec
 from scenarios.streams import RunStreams
 
 PURPOSE_TIMING = 7  # the stream purpose of a run's modelled duration (no simulation draws from it)
+
+
+class VirtualClock(NamedTuple):
+    """Where a virtual campaign's simulated time went (summary.json's virtual keys)."""
+
+    elapsed_s: float  # to the result
+    utilisation: float  # the workers' share of it on runs
+    waiting_s: float  # the coordinator waiting for runs
+    coordinator_s: float  # the coordinator's own CPU charged
 
 
 @dataclass
@@ -73,19 +83,16 @@ class VirtualExecutor(Executor):
     name = "virtual"
 
     def __init__(self, spec: SimSpec, workers: int, run_time: float, jitter: float = 0.0, call_cost: float = 0.001,
-                 pipeline_depth: int = 2, check_step_bound: bool = False, lanes: int | None = None,
-                 charge_coordinator: bool = True):
+                 pipeline_depth: int = 2, check_step_bound: bool = False, lanes: int | None = None):
         """``lanes``: while chunks are short, replacements go to workers of their own that
         take nothing else, as a wave over them (None: as many as the Ray executor starts,
-        farm/chunking.py ``fast_lanes``; 0: to the next free worker, before any queued chunk).
-        ``charge_coordinator``: the coordinator's CPU time is charged to the clock (False:
-        it costs no simulated time)."""
+        farm/chunking.py ``fast_lanes``; 0: to the next free worker, before any queued chunk)."""
         self.spec = spec
         self.local = LocalExecutor(spec, check_step_bound)
         self.workers = workers
         self.run_time, self.jitter, self.call_cost = float(run_time), float(jitter), float(call_cost)
         self.pipeline_depth = pipeline_depth
-        self.charge_coordinator = charge_coordinator
+        self.charge_coordinator = True  # the coordinator's CPU is charged to the clock (False: free)
         self.sizer = ChunkSizer(workers)
         self.clock = 0.0  # simulated seconds since the executor started
         self._runs: list[tuple[float, float]] = []  # (from, to) of each chunk's runs on its worker
@@ -262,6 +269,9 @@ class VirtualExecutor(Executor):
         self._jobs.clear()
         self._queue.clear()
         self.local.close()
+
+    def report(self) -> VirtualClock:
+        return VirtualClock(self.clock, self.utilisation, self.waited_s, self.coordinator_s)
 
     @property
     def utilisation(self) -> float:
