@@ -77,11 +77,20 @@ def start_local(num_cpus: int, extra_path: str | None = None) -> None:
 
     # the banner says token auth is on by default; it stays on, the line goes
     logging.getLogger("ray._private.authentication").setLevel(logging.ERROR)
-    path = os.pathsep.join(p for p in (extra_path, os.getcwd(), os.environ.get("PYTHONPATH")) if p)
-    with _loopback_only():
-        ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False, configure_logging=False,
-                 _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1", _system_config=RAY_SYSTEM_CONFIG,
-                 runtime_env={"env_vars": {"PYTHONPATH": path}})
+    kept = os.environ.get("PYTHONPATH")
+    # The workers' path through the environment the raylet is started with (it and every
+    # worker it starts inherit it), not a runtime_env: one made each actor wait for Ray's
+    # runtime-env agent, 1.6 s more per local start here (docs/benchmarks.md).
+    os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (extra_path, os.getcwd(), kept) if p)
+    try:
+        with _loopback_only():
+            ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False, configure_logging=False,
+                     _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1", _system_config=RAY_SYSTEM_CONFIG)
+    finally:  # the driver's own environment as it was (its later subprocesses)
+        if kept is None:
+            os.environ.pop("PYTHONPATH", None)
+        else:
+            os.environ["PYTHONPATH"] = kept
     _start_reaper(ray)
 
 
