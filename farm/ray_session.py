@@ -80,7 +80,7 @@ def start_local(num_cpus: int, extra_path: str | None = None) -> None:
     kept = os.environ.get("PYTHONPATH")
     # The workers' path through the environment the raylet is started with (it and every
     # worker it starts inherit it), not a runtime_env: one made each actor wait for Ray's
-    # runtime-env agent, 1.6 s more per local start here (docs/benchmarks.md).
+    # runtime-env agent (docs/benchmarks.md has what that cost).
     os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (extra_path, os.getcwd(), kept) if p)
     try:
         with _loopback_only():
