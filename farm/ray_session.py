@@ -77,20 +77,9 @@ def start_local(num_cpus: int, extra_path: str | None = None) -> None:
 
     # the banner says token auth is on by default; it stays on, the line goes
     logging.getLogger("ray._private.authentication").setLevel(logging.ERROR)
-    kept = os.environ.get("PYTHONPATH")
-    # The workers' path through the environment the raylet is started with (it and every
-    # worker it starts inherit it), not a runtime_env: one made each actor wait for Ray's
-    # runtime-env agent (docs/benchmarks.md has what that cost).
-    os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (extra_path, os.getcwd(), kept) if p)
-    try:
-        with _loopback_only():
-            ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False, configure_logging=False,
-                     _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1", _system_config=RAY_SYSTEM_CONFIG)
-    finally:  # the driver's own environment as it was (its later subprocesses)
-        if kept is None:
-            os.environ.pop("PYTHONPATH", None)
-        else:
-            os.environ["PYTHONPATH"] = kept
+    with _loopback_only(), _workers_path(extra_path):
+        ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False, configure_logging=False,
+                 _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1", _system_config=RAY_SYSTEM_CONFIG)
     _start_reaper(ray)
 
 
@@ -142,4 +131,26 @@ class _loopback_only:
 
     def __exit__(self, *exc):
         self.constants.ENABLE_RAY_CLUSTER = self.before
+        return False
+
+
+class _workers_path:
+    """The workers' import path (``extra_path``, the working directory, PYTHONPATH) as the
+    PYTHONPATH of the environment the raylet starts with: it and every worker it starts
+    inherit it. Not a runtime_env, which made each actor wait for Ray's runtime-env agent
+    (docs/benchmarks.md has what that cost). The driver's own environment is put back
+    after ``ray.init`` (its later subprocesses)."""
+
+    def __init__(self, extra_path: str | None):
+        self.extra_path = extra_path
+
+    def __enter__(self):
+        self.kept = os.environ.get("PYTHONPATH")
+        os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (self.extra_path, os.getcwd(), self.kept) if p)
+
+    def __exit__(self, *exc):
+        if self.kept is None:
+            os.environ.pop("PYTHONPATH", None)
+        else:
+            os.environ["PYTHONPATH"] = self.kept
         return False
