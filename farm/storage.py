@@ -236,8 +236,11 @@ class Ledger:
         cols = {"sample_index": log["sample_index"], "round": log["round"], "delta": log["delta"]}
         for i, name in enumerate(self.state_names):
             cols[name] = log["start"][:, i]
-        names = np.array([OUTCOME_NAMES[o] for o in range(1, 4)])
-        cols["outcome"] = names[log["outcome"] - 1]
+        # the names taken by code from a 3-entry dictionary: Arrow builds a string column
+        # from a numpy array of Python-sized strings one element at a time
+        names = pa.array([OUTCOME_NAMES[o] for o in range(1, 4)])
+        codes = pa.array(np.asarray(log["outcome"], dtype=np.int8) - 1)
+        cols["outcome"] = pa.DictionaryArray.from_arrays(codes, names).cast(pa.string())
         cols.update(steps=log["steps"], changed=log["changed"], counted=log["counted"],
                     discarded=log["kind"] == CommitLog.DISCARDED, replacement=log["kind"] == CommitLog.REPLACEMENT)
         path = self.dir / f"segment-{self.segments:06d}.parquet"

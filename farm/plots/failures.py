@@ -10,7 +10,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
 from farm.plots.layout import _label, _slices
-from farm.plots.membership import _axis, _member, _points, _samples, _set_member
+from farm.plots.membership import _axis, _member, _samples, _set_member
 from farm.plots.slices import _extent, _paint
 from farm.plots.style import HIDDEN_SAMPLES, RESOLUTION, SAFE_COLOUR, _save
 
@@ -32,8 +32,7 @@ def _projection(scenario, safe_set, x, y):
     lo, hi = scenario.lower[[x, y]], scenario.upper[[x, y]]
     member = _member(flat[:, :2], flat[:, 2], 2, lo, hi)
     xs, ys = _samples(lo[0], hi[0], RESOLUTION), _samples(lo[1], hi[1], RESOLUTION)
-    gx, gy = np.meshgrid(xs, ys, indexing="ij")
-    return xs, ys, member(np.column_stack([gx.ravel(), gy.ravel()])).reshape(gx.shape)
+    return xs, ys, member.grid({0: xs, 1: ys}, {})
 
 
 def _limits(lo, hi, trajectories, axis):
@@ -54,8 +53,7 @@ def _core(scenario, safe_set, x, y, xs, ys, samples: int = HIDDEN_SAMPLES):
     per_axis = max(2, int(round(samples ** (1 / len(hidden)))))
     grids = {x: xs, y: ys, **{a: np.linspace(scenario.lower[a], scenario.upper[a], per_axis) for a in hidden}}
     member = _set_member(scenario, safe_set)
-    safe = member(_points(scenario, grids, {}))
-    return safe.reshape(len(xs), len(ys), -1).all(axis=2)
+    return member.grid(grids, {}).reshape(len(xs), len(ys), -1).all(axis=2)
 
 
 def _draw_runs(ax, trajectories, labels, x, y) -> None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from coordinator.spatial import TOLERANCE, PointIndex
@@ -21,7 +23,23 @@ def _member(centres: np.ndarray, half_widths, n: int, lower=None, upper=None, di
                                    distinct))
     if len(members) == 1:
         return members[0]
-    return lambda pts: np.logical_or.reduce([m(pts) for m in members] + [np.zeros(len(pts), dtype=bool)])
+    return _Union(members, n)
+
+
+class _Union:
+    """Membership in boxes of several sizes (or none): one ``_Membership`` per size."""
+
+    def __init__(self, members: list, n: int):
+        self.members, self.n = members, n
+
+    def __call__(self, pts: np.ndarray) -> np.ndarray:
+        return np.logical_or.reduce([m(pts) for m in self.members] + [np.zeros(len(pts), dtype=bool)])
+
+    def grid(self, grids: dict[int, np.ndarray], fixed: dict[int, float]) -> np.ndarray:
+        """As ``_Membership.grid``, over every size."""
+        centres = np.concatenate([np.zeros((0, self.n))] + [m.centres for m in self.members])
+        radii = np.concatenate([np.zeros(0)] + [np.full(len(m.centres), m.half_width) for m in self.members])
+        return _grid(centres, radii, grids, fixed)
 
 
 def _set_member(scenario, safe_set) -> callable:
@@ -60,6 +78,13 @@ class _Membership:
         index = self._index_of_held
         return index.any_within(pts, self.half_width) if index is not None else np.zeros(len(pts), dtype=bool)
 
+    def grid(self, grids: dict[int, np.ndarray], fixed: dict[int, float]) -> np.ndarray:
+        """Membership at every combination of ``grids`` (axis -> monotone values), the
+        other coordinates at ``fixed`` (axis -> value; one in neither is in no box), as
+        a (len(grids[a]) for a in grids) bool array: what ``self(_points(...))``
+        answers, reshaped, without a query per point."""
+        return _grid(self.centres, np.full(len(self.centres), self.half_width), grids, fixed)
+
     def _index(self, held: tuple) -> PointIndex | None:
         near = np.ones(len(self.centres), dtype=bool)
         for axis, value in held:
@@ -72,6 +97,69 @@ class _Membership:
         index = PointIndex(group.shape[1], 2 * self.half_width, self.lower, capacity=len(group), bounds=self.bounds)
         index.insert(group)
         return index
+
+
+def _grid(centres: np.ndarray, half_widths: np.ndarray, grids: dict[int, np.ndarray],
+          fixed: dict[int, float]) -> np.ndarray:
+    """Membership in the union of boxes ``centres`` +- ``half_widths`` at every point of a
+    grid (see ``_Membership.grid``), painted box by box: on each grid axis a box covers
+    an interval of the samples, so the grid is the union of a (d-dimensional) block per
+    box, summed as +-1 at the blocks' corners and integrated along each axis. A sample
+    is in a box as the point indexes decide it: ``|x - c| <= h + TOLERANCE``, per axis,
+    in the same floating-point operations."""
+    shape = tuple(len(values) for values in grids.values())
+    n = centres.shape[1] if centres.ndim == 2 else 0
+    if set(grids) | set(fixed) != set(range(n)) or 0 in shape:
+        return np.zeros(shape, dtype=bool)  # an unset coordinate is in no box
+    radii = np.asarray(half_widths, dtype=float) + TOLERANCE
+    keep = np.ones(len(centres), dtype=bool)
+    for axis, value in fixed.items():
+        keep &= np.abs(centres[:, axis] - float(value)) <= radii
+    bounds = []
+    for axis, values in grids.items():
+        lo, hi = _covered(np.asarray(values, dtype=float), centres[:, axis], radii)
+        bounds.append((lo, hi))
+        keep &= lo < hi
+    if not keep.any():
+        return np.zeros(shape, dtype=bool)
+    padded = tuple(g + 1 for g in shape)
+    flat, signs = [], []
+    for corner in itertools.product((0, 1), repeat=len(shape)):
+        index = tuple(bounds[k][side][keep] for k, side in enumerate(corner))
+        flat.append(np.ravel_multi_index(index, padded))
+        signs.append(np.full(int(keep.sum()), (-1.0) ** sum(corner)))
+    counts = np.bincount(np.concatenate(flat), np.concatenate(signs), minlength=int(np.prod(padded)))
+    counts = counts.reshape(padded)
+    for k in range(len(shape)):
+        np.cumsum(counts, axis=k, out=counts)
+    return counts[tuple(slice(0, g) for g in shape)] > 0.5
+
+
+def _covered(values: np.ndarray, centres: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per box, the samples ``values`` (monotone) within ``radii`` of its centre on this
+    axis: [lo, hi) indexes into ``values``. ``|x - c|`` rounds monotonically in x, so
+    they are an interval; its ends are found by bisection and settled by the very test
+    (a bisection on ``c -+ r`` can land one sample off where that sum rounds)."""
+    rising = len(values) < 2 or values[-1] >= values[0]
+    ordered = values if rising else values[::-1]
+    if np.any(np.diff(ordered) < 0):
+        raise ValueError("a grid axis's values must be monotone")
+    last = len(ordered) - 1
+
+    def inside(i):
+        return np.abs(ordered[np.clip(i, 0, last)] - centres) <= radii
+
+    lo = np.searchsorted(ordered, centres - radii, side="left")
+    hi = np.searchsorted(ordered, centres + radii, side="right")
+    for _ in range(2):
+        lo = np.where((lo > 0) & inside(lo - 1), lo - 1, lo)
+        lo = np.where((lo < hi) & ~inside(lo), lo + 1, lo)
+        hi = np.where((hi <= last) & inside(hi), hi + 1, hi)
+        hi = np.where((hi > lo) & ~inside(hi - 1), hi - 1, hi)
+    hi = np.maximum(hi, lo)
+    if rising:
+        return lo, hi
+    return len(values) - hi, len(values) - lo
 
 
 def _points(scenario, grids: dict[int, np.ndarray], fixed: dict[int, float]) -> np.ndarray:

@@ -37,10 +37,10 @@ def overlay_figure(scenario, sets, labels):
     fig, axs = _panel_grid(rows)
     for r, row in enumerate(rows):
         for ax, (x, y, held) in zip(axs[r], row):
-            xs, ys, pts = _plane(scenario, x, y, held)
+            xs, ys = _plane(scenario, x, y)
             extent = _extent(scenario, x, y)
             for k, (member, colour) in enumerate(zip(members, colours)):
-                mask = member(pts).reshape(len(xs), len(ys))
+                mask = member.grid({x: xs, y: ys}, held)
                 _paint(ax, mask, extent, colour, alpha=0.12)  # faint: overlaps stay readable
                 _outline(ax, xs, ys, mask, colour, k)
             ax.set_xlim(extent[:2])

@@ -10,15 +10,15 @@ from matplotlib.patches import Patch, Rectangle
 
 from farm.plots.explored import _explored_member
 from farm.plots.layout import _cuts, _label, _panel_title, _slices, _title
-from farm.plots.membership import _points, _samples, _set_member
+from farm.plots.membership import _samples, _set_member
 from farm.plots.style import (NEVER_COLOUR, NEVER_HATCH, NEVER_HATCH_COLOUR, OUTSIDE_COLOUR, PRUNED_COLOUR,
                               RESOLUTION, SAFE_COLOUR)
 
 
-def _plane(scenario, x, y, held, res=RESOLUTION):
+def _plane(scenario, x, y, res=RESOLUTION):
+    """A cut's pixel centres on its two axes."""
     lo, hi = scenario.lower, scenario.upper
-    xs, ys = _samples(lo[x], hi[x], res), _samples(lo[y], hi[y], res)
-    return xs, ys, _points(scenario, {x: xs, y: ys}, held)
+    return _samples(lo[x], hi[x], res), _samples(lo[y], hi[y], res)
 
 
 def _frame(ax, scenario, x, y, held) -> None:
@@ -59,13 +59,13 @@ def _hatch(ax, xs, ys, mask) -> None:
 
 def _draw_slice(ax, scenario, member, x, y, held, explored_member=None) -> int:
     """Paint one cut; -> how many of its grid points were never explored."""
-    xs, ys, pts = _plane(scenario, x, y, held)
-    safe = member(pts).reshape(len(xs), len(ys))
+    xs, ys = _plane(scenario, x, y)
+    safe = member.grid({x: xs, y: ys}, held)
     extent = _extent(scenario, x, y)
     if explored_member is None:
         _paint(ax, safe, extent, SAFE_COLOUR, background=OUTSIDE_COLOUR)
     else:
-        explored = explored_member(pts).reshape(len(xs), len(ys))
+        explored = explored_member.grid({x: xs, y: ys}, held)
         _paint(ax, safe | explored, extent, PRUNED_COLOUR, background=NEVER_COLOUR)
         _paint(ax, safe, extent, SAFE_COLOUR)
         never = ~(safe | explored)

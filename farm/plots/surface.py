@@ -6,7 +6,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from farm.plots.layout import _label, _settings, _title, _views
-from farm.plots.membership import _axis, _held, _points, _samples, _set_member
+from farm.plots.membership import _axis, _held, _samples, _set_member
 from farm.plots.style import SURFACE_DEPTH, SURFACE_GRID, VIEW_AZIMUTH, VIEW_ELEVATION
 
 
@@ -20,7 +20,7 @@ def _boundary(scenario, member, view):
     zs = np.linspace(lo[z], hi[z], SURFACE_DEPTH)  # ends included: a boundary on Sigma's face
     if not view.safe_above:
         zs = zs[::-1]  # the first safe sample along the column is then the largest
-    safe = member(_points(scenario, {x: xs, y: ys, z: zs}, held)).reshape(len(xs), len(ys), len(zs))
+    safe = member.grid({x: xs, y: ys, z: zs}, held)
     first = np.where(safe.any(axis=2), zs[np.argmax(safe, axis=2)], np.nan)
     return xs, ys, first, held
 

@@ -319,3 +319,42 @@ def test_membership_indexing_only_boxes_a_query_can_meet_answers_as_one_full_ind
         assert np.array_equal(member(pts), full.any_within(pts, h))
         if held == {2: 5.0}:  # only the boxes near the held value, and only the last cut's index is kept
             assert member._held == ((2, 5.0),) and 0 < member._index_of_held.count < len(centres) / 5
+
+
+def test_membership_painted_on_a_grid_answers_as_the_point_queries():
+    """The figures paint each box onto the pixel grid instead of querying every pixel:
+    the same decisions, on box faces and tolerances too (grid-aligned sets of mixed sizes,
+    samples on the faces, an axis sampled downwards, a held value on a face)."""
+    rng = np.random.default_rng(5)
+    lower, upper = np.zeros(3), np.full(3, 10.0)
+    cuts = [({0: np.linspace(0, 10, 81), 1: np.linspace(0, 10, 41)}, {2: 5.0}),
+            ({0: np.linspace(0, 10, 41), 1: np.linspace(10, 0, 41), 2: np.linspace(0, 10, 21)}, {}),
+            ({1: (np.arange(60) + 0.5) / 6, 2: np.linspace(0, 10, 41)}, {0: 3.25}),
+            ({0: np.linspace(0, 10, 41), 1: np.linspace(0, 10, 41)}, {2: 5.25 + 1e-9})]
+    for shift in (0.0, 0.1, 1e-10):
+        widths = rng.choice([0.125, 0.25, 0.5, 1.0], 400)
+        centres = np.round(rng.uniform(0, 10, (400, 3)) / (2 * widths[:, None])) * 2 * widths[:, None]
+        centres += widths[:, None] + shift
+        for member in (_member(centres, widths, 3, lower, upper), _member(centres, 0.25, 3, lower, upper)):
+            for grids, held in cuts:
+                pts = _points(type("S", (), {"n": 3})(), grids, held)
+                expected = member(pts).reshape([len(v) for v in grids.values()])
+                assert expected.any() and not expected.all()
+                assert np.array_equal(member.grid(grids, held), expected)
+    assert not _member(centres, widths, 3).grid({0: np.linspace(0, 10, 5)}, {2: 1.0}).any()  # axis 1 unset
+
+
+def test_membership_on_a_grid_decides_samples_an_ulp_from_a_face_as_the_point_queries():
+    """Samples at c +- (h + TOLERANCE) as floats and their neighbours: a bisection on the
+    rounded face lands a sample off for about a quarter of these boxes; the grid settles
+    it by the point test."""
+    from coordinator.spatial import TOLERANCE
+
+    rng = np.random.default_rng(1)
+    centres, h = rng.uniform(0, 10, (2000, 1)), 0.3
+    faces = np.concatenate([centres[:, 0] + (h + TOLERANCE), centres[:, 0] - (h + TOLERANCE)])
+    xs = np.unique(np.concatenate([faces, np.nextafter(faces, np.inf), np.nextafter(faces, -np.inf)]))
+    for k in range(0, 2000, 100):  # a box at a time: every sample's answer is that box's
+        member = _member(centres[k:k + 1], h, 1)
+        assert np.array_equal(member.grid({0: xs}, {}), member(xs[:, None]))
+        assert np.array_equal(member.grid({0: xs[::-1]}, {}), member(xs[::-1, None]))
