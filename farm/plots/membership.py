@@ -112,9 +112,11 @@ def _grid(centres: np.ndarray, half_widths: np.ndarray, grids: dict[int, np.ndar
     if set(grids) | set(fixed) != set(range(n)) or 0 in shape:
         return np.zeros(shape, dtype=bool)  # an unset coordinate is in no box
     radii = np.asarray(half_widths, dtype=float) + TOLERANCE
+    near = np.ones(len(centres), dtype=bool)
+    for axis, value in fixed.items():  # a cut meets only the boxes near its held values
+        near &= np.abs(centres[:, axis] - float(value)) <= radii
+    centres, radii = centres[near], radii[near]
     keep = np.ones(len(centres), dtype=bool)
-    for axis, value in fixed.items():
-        keep &= np.abs(centres[:, axis] - float(value)) <= radii
     bounds = []
     for axis, values in grids.items():
         lo, hi = _covered(np.asarray(values, dtype=float), centres[:, axis], radii)
