@@ -91,9 +91,20 @@ class AdversarialActions(ActionPolicy):
     def __call__(self, scenario, states, t, streams):
         options = scenario.adversarial_actions
         if len(options) == 1:
-            return np.broadcast_to(options[0], (len(states), scenario.m))
+            return self._constant(options, len(states))
         pick = np.minimum((streams.uniform(t, PURPOSE_ACTION, 1)[:, 0] * len(options)).astype(int), len(options) - 1)
         return options[pick]
+
+    def _constant(self, options: np.ndarray, rows: int) -> np.ndarray:
+        """``rows`` copies of the one action in ``options`` (a scenario's Gamma*), read-only:
+        rows of an array kept for that Gamma* (this runs once per step; a fresh broadcast
+        view costs more than the step's arithmetic on small batches)."""
+        kept = self.__dict__.get("_rows")
+        if kept is None or kept[0] is not options or len(kept[1]) < rows:
+            tiled = np.tile(np.asarray(options[0], dtype=float), (max(rows, 1024), 1))
+            tiled.flags.writeable = False
+            kept = self.__dict__["_rows"] = (options, tiled)
+        return kept[1][:rows]
 
 
 @dataclass
