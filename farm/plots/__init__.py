@@ -1,7 +1,8 @@
 """PNG figures of a quantified safe set (matplotlib, headless).
 
 The safe set is a ``coordinator.safe_set.SafeSet`` (a union of l-inf boxes); it is
-rasterized with the spatial index (exact membership at each grid point). What is drawn
+rasterized box by box onto each figure's grid of pixel centres (``membership.Boxes``: the
+membership the spatial index decides, at every grid point). What is drawn
 comes from the scenario's hints (``scenarios.base.View`` / ``Slices``):
 
 - ``safe_set_3d.png``: per view, the boundary surface of the safe set (smallest safe z,

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from farm.plots.membership import _member
+from farm.plots.membership import Boxes
 
 
 def explored_boxes(directory, state_names) -> tuple[np.ndarray, np.ndarray] | None:
@@ -78,8 +78,8 @@ def _campaign_of(out_dir: Path) -> Path | None:
     return None
 
 
-def _explored_member(explored, n: int) -> callable:
-    """Membership in the union of the explored boxes. A campaign's starts repeat its
-    vertices: duplicates are dropped before indexing."""
+def _explored_member(explored, n: int) -> Boxes:
+    """The explored boxes (a campaign's starts repeat its vertices: a box painted twice
+    is painted once)."""
     points, widths = explored
-    return _member(points, widths, n, distinct=True)
+    return Boxes(points, widths, n)

@@ -10,7 +10,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
 from farm.plots.layout import _label, _slices
-from farm.plots.membership import _axis, _member, _samples, _set_member
+from farm.plots.membership import Boxes, _axis, _samples, _set_member
 from farm.plots.slices import _extent, _paint
 from farm.plots.style import HIDDEN_SAMPLES, RESOLUTION, SAFE_COLOUR, _save
 
@@ -28,9 +28,8 @@ def _planes(scenario) -> list[tuple[int, int]]:
 def _projection(scenario, safe_set, x, y):
     """The safe set's shadow on the plane (x, y) as a grid: a run's projected start lies
     in it whatever its other coordinates, which no single slice could promise."""
-    flat = np.unique(np.column_stack([safe_set.centres[:, [x, y]], safe_set.half_widths]), axis=0)
     lo, hi = scenario.lower[[x, y]], scenario.upper[[x, y]]
-    member = _member(flat[:, :2], flat[:, 2], 2, lo, hi)
+    member = Boxes(safe_set.centres[:, [x, y]], safe_set.half_widths, 2)
     xs, ys = _samples(lo[0], hi[0], RESOLUTION), _samples(lo[1], hi[1], RESOLUTION)
     return xs, ys, member.grid({0: xs, 1: ys}, {})
 

@@ -12,7 +12,7 @@ from matplotlib.text import Text
 
 from coordinator.safe_set import SafeSet
 from farm import plots
-from farm.plots.membership import _member, _points
+from farm.plots.membership import Boxes
 from farm.summary import Summary
 from scenarios.fleet3 import Fleet3
 from scenarios.lead_follow import LeadFollow
@@ -301,50 +301,62 @@ def test_failures_of_fleet3_get_one_panel_per_plane(tmp_path):
     assert_png(plots.draw_failures(tmp_path / "f.png", sc, safe_set, [run]))
 
 
-def test_membership_indexing_only_boxes_a_query_can_meet_answers_as_one_full_index():
-    """Slices hold coordinates at one value, so only boxes near it are indexed; the
-    answers must be those of an index over every box."""
+def _grid_points(grids: dict, fixed: dict, n: int) -> np.ndarray:
+    """Every combination of ``grids`` (axis -> values, 'ij' order) as rows, the other
+    coordinates at ``fixed``; a coordinate in neither is NaN (in no box)."""
+    mesh = np.meshgrid(*grids.values(), indexing="ij")
+    pts = np.full((mesh[0].size, n), np.nan)
+    for axis, value in fixed.items():
+        pts[:, axis] = value
+    for axis, values in zip(grids, mesh):
+        pts[:, axis] = values.ravel()
+    return pts
+
+
+def _indexed(centres, widths, n, pts):
+    """The spatial index's membership (coordinator/spatial.py): one index per half-width."""
     from coordinator.spatial import PointIndex
 
-    rng = np.random.default_rng(5)
-    lower, upper, h = np.zeros(3), np.full(3, 10.0), 0.25
-    centres = np.round(rng.uniform(0, 10, (20_000, 3)) / 0.5) * 0.5 + rng.choice([0, 0.1], (20_000, 1))
-    full = PointIndex(3, 2 * h, lower, bounds=(lower, upper))
-    full.insert(centres)
-    member = _member(centres, h, 3, lower, upper)
-    xs = np.linspace(0, 10, 60)
-    for held in ({2: 5.0}, {2: 5.25}, {1: 3.1, 2: 7.0}, {}, {2: 5.0}):
-        grid = {a: xs for a in range(3) if a not in held}
-        pts = _points(type("S", (), {"n": 3})(), grid, held)
-        assert np.array_equal(member(pts), full.any_within(pts, h))
-        if held == {2: 5.0}:  # only the boxes near the held value, and only the last cut's index is kept
-            assert member._held == ((2, 5.0),) and 0 < member._index_of_held.count < len(centres) / 5
+    widths = np.broadcast_to(widths, (len(centres),))
+    inside = np.zeros(len(pts), dtype=bool)
+    with np.errstate(invalid="ignore"):  # NaN coordinates: in no box
+        for w in np.unique(widths):
+            index = PointIndex(n, 2 * w, centres.min(axis=0))
+            index.insert(centres[widths == w])
+            inside |= index.any_within(pts, w)
+    return inside
 
 
-def test_membership_painted_on_a_grid_answers_as_the_point_queries():
+def test_membership_painted_on_a_grid_answers_as_the_spatial_index():
     """The figures paint each box onto the pixel grid instead of querying every pixel:
-    the same decisions, on box faces and tolerances too (grid-aligned sets of mixed sizes,
-    samples on the faces, an axis sampled downwards, a held value on a face)."""
+    the decisions of the spatial index, on box faces and tolerances too (grid-aligned
+    sets of mixed sizes, samples on the faces, an axis sampled downwards, a held value
+    on a face, one held coordinate, two, none, and an unset one)."""
     rng = np.random.default_rng(5)
-    lower, upper = np.zeros(3), np.full(3, 10.0)
     cuts = [({0: np.linspace(0, 10, 81), 1: np.linspace(0, 10, 41)}, {2: 5.0}),
             ({0: np.linspace(0, 10, 41), 1: np.linspace(10, 0, 41), 2: np.linspace(0, 10, 21)}, {}),
             ({1: (np.arange(60) + 0.5) / 6, 2: np.linspace(0, 10, 41)}, {0: 3.25}),
-            ({0: np.linspace(0, 10, 41), 1: np.linspace(0, 10, 41)}, {2: 5.25 + 1e-9})]
+            ({0: np.linspace(0, 10, 41), 1: np.linspace(0, 10, 41)}, {2: 5.25 + 1e-9}),
+            ({0: np.linspace(0, 10, 60)}, {1: 3.1, 2: 7.0})]
+    outside = 0
     for shift in (0.0, 0.1, 1e-10):
         widths = rng.choice([0.125, 0.25, 0.5, 1.0], 400)
         centres = np.round(rng.uniform(0, 10, (400, 3)) / (2 * widths[:, None])) * 2 * widths[:, None]
         centres += widths[:, None] + shift
-        for member in (_member(centres, widths, 3, lower, upper), _member(centres, 0.25, 3, lower, upper)):
+        for w in (widths, 0.25):
+            boxes = Boxes(centres, w, 3)
             for grids, held in cuts:
-                pts = _points(type("S", (), {"n": 3})(), grids, held)
-                expected = member(pts).reshape([len(v) for v in grids.values()])
-                assert expected.any() and not expected.all()
-                assert np.array_equal(member.grid(grids, held), expected)
-    assert not _member(centres, widths, 3).grid({0: np.linspace(0, 10, 5)}, {2: 1.0}).any()  # axis 1 unset
+                expected = _indexed(centres, w, 3, _grid_points(grids, held, 3))
+                expected = expected.reshape([len(v) for v in grids.values()])
+                assert expected.any()
+                outside += int((~expected).sum())
+                assert np.array_equal(boxes.grid(grids, held), expected)
+    assert outside > 1000  # the cuts cross the boxes' faces, not only their insides
+    assert not Boxes(centres, widths, 3).grid({0: np.linspace(0, 10, 5)}, {2: 1.0}).any()  # axis 1 unset
+    assert Boxes(np.zeros((0, 3)), 1.0, 3).grid({0: np.linspace(0, 10, 5)}, {1: 1.0, 2: 1.0}).shape == (5,)
 
 
-def test_membership_on_a_grid_decides_samples_an_ulp_from_a_face_as_the_point_queries():
+def test_membership_on_a_grid_decides_samples_an_ulp_from_a_face_as_the_spatial_index():
     """Samples at c +- (h + TOLERANCE) as floats and their neighbours: a bisection on the
     rounded face lands a sample off for about a quarter of these boxes; the grid settles
     it by the point test."""
@@ -355,6 +367,6 @@ def test_membership_on_a_grid_decides_samples_an_ulp_from_a_face_as_the_point_qu
     faces = np.concatenate([centres[:, 0] + (h + TOLERANCE), centres[:, 0] - (h + TOLERANCE)])
     xs = np.unique(np.concatenate([faces, np.nextafter(faces, np.inf), np.nextafter(faces, -np.inf)]))
     for k in range(0, 2000, 100):  # a box at a time: every sample's answer is that box's
-        member = _member(centres[k:k + 1], h, 1)
-        assert np.array_equal(member.grid({0: xs}, {}), member(xs[:, None]))
-        assert np.array_equal(member.grid({0: xs[::-1]}, {}), member(xs[::-1, None]))
+        box = centres[k:k + 1]
+        assert np.array_equal(Boxes(box, h, 1).grid({0: xs}, {}), _indexed(box, h, 1, xs[:, None]))
+        assert np.array_equal(Boxes(box, h, 1).grid({0: xs[::-1]}, {}), _indexed(box, h, 1, xs[::-1, None]))
