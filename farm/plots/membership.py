@@ -59,16 +59,19 @@ def _grid(centres: np.ndarray, half_widths: np.ndarray, grids: dict[int, np.ndar
     if not keep.any():
         return np.zeros(shape, dtype=bool)
     padded = tuple(g + 1 for g in shape)
-    flat, signs = [], []
-    for corner in itertools.product((0, 1), repeat=len(shape)):
+    size = int(np.prod(padded))
+    counts = np.zeros(size, dtype=np.int64)
+    for corner in itertools.product((0, 1), repeat=len(shape)):  # one corner at a time: 2^d of them
         index = tuple(bounds[k][side][keep] for k, side in enumerate(corner))
-        flat.append(np.ravel_multi_index(index, padded))
-        signs.append(np.full(int(keep.sum()), (-1.0) ** sum(corner)))
-    counts = np.bincount(np.concatenate(flat), np.concatenate(signs), minlength=int(np.prod(padded)))
+        at = np.bincount(np.ravel_multi_index(index, padded), minlength=size)
+        if sum(corner) % 2:
+            counts -= at
+        else:
+            counts += at
     counts = counts.reshape(padded)
     for k in range(len(shape)):
         np.cumsum(counts, axis=k, out=counts)
-    return counts[tuple(slice(0, g) for g in shape)] > 0.5
+    return counts[tuple(slice(0, g) for g in shape)] > 0
 
 
 def _covered(values: np.ndarray, centres: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
