@@ -8,7 +8,7 @@ its key (seed, index), never on its batch-mates.
 from __future__ import annotations
 
 import inspect
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -80,6 +80,7 @@ class AdversarialActions(ActionPolicy):
 
     description: str = "u ~ U(Gamma*)"
     deterministic: bool = False  # True when Gamma* is a single action
+    _rows: tuple | None = field(default=None, init=False, repr=False, compare=False)  # see _constant
 
     def words(self, scenario):
         options = scenario.adversarial_actions
@@ -99,12 +100,11 @@ class AdversarialActions(ActionPolicy):
         """``rows`` copies of the one action in ``options`` (a scenario's Gamma*), read-only:
         rows of an array kept for that Gamma* (this runs once per step; a fresh broadcast
         view costs more than the step's arithmetic on small batches)."""
-        kept = self.__dict__.get("_rows")
-        if kept is None or kept[0] is not options or len(kept[1]) < rows:
+        if self._rows is None or self._rows[0] is not options or len(self._rows[1]) < rows:
             tiled = np.tile(np.asarray(options[0], dtype=float), (max(rows, 1024), 1))
             tiled.flags.writeable = False
-            kept = self.__dict__["_rows"] = (options, tiled)
-        return kept[1][:rows]
+            self._rows = (options, tiled)
+        return self._rows[1][:rows]
 
 
 @dataclass

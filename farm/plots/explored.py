@@ -6,7 +6,6 @@ from pathlib import Path
 
 import numpy as np
 
-from farm.plots.membership import Boxes
 
 
 def explored_boxes(directory, state_names) -> tuple[np.ndarray, np.ndarray] | None:
@@ -76,10 +75,3 @@ def _campaign_of(out_dir: Path) -> Path | None:
     if out_dir.parent.name == "plots" and out_dir.name.endswith("_side"):
         return out_dir.parent.parent / "sides" / out_dir.name[: -len("_side")]
     return None
-
-
-def _explored_member(explored, n: int) -> Boxes:
-    """The explored boxes (a campaign's starts repeat its vertices: a box painted twice
-    is painted once)."""
-    points, widths = explored
-    return Boxes(points, widths, n)

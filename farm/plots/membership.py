@@ -24,54 +24,49 @@ class Boxes:
     def grid(self, grids: dict[int, np.ndarray], fixed: dict[int, float]) -> np.ndarray:
         """Membership at every combination of ``grids`` (axis -> monotone values), the
         other coordinates at ``fixed`` (axis -> value; one in neither is in no box), as
-        a (len(grids[a]) for a in grids) bool array in ``grids``' axis order."""
-        return _grid(self.centres, self.half_widths, grids, fixed)
+        a (len(grids[a]) for a in grids) bool array in ``grids``' axis order.
+
+        Painted box by box: on each grid axis a box covers an interval of the samples, so
+        the grid is the union of a (d-dimensional) block per box, summed as +-1 at the
+        blocks' corners and integrated along each axis. A sample is in a box as
+        coordinator/spatial.py's point indexes decide it: ``|x - c| <= h + TOLERANCE`` per
+        axis, in the same floating-point operations (closed boxes)."""
+        shape = tuple(len(values) for values in grids.values())
+        centres = self.centres
+        if set(grids) | set(fixed) != set(range(centres.shape[1])) or 0 in shape:
+            return np.zeros(shape, dtype=bool)  # an unset coordinate is in no box
+        radii = self.half_widths + TOLERANCE
+        near = np.ones(len(centres), dtype=bool)
+        for axis, value in fixed.items():  # a cut meets only the boxes near its held values
+            near &= np.abs(centres[:, axis] - float(value)) <= radii
+        centres, radii = centres[near], radii[near]
+        keep = np.ones(len(centres), dtype=bool)
+        bounds = []
+        for axis, values in grids.items():
+            lo, hi = _covered(np.asarray(values, dtype=float), centres[:, axis], radii)
+            bounds.append((lo, hi))
+            keep &= lo < hi
+        if not keep.any():
+            return np.zeros(shape, dtype=bool)
+        padded = tuple(g + 1 for g in shape)
+        size = int(np.prod(padded))
+        counts = np.zeros(size, dtype=np.int64)
+        for corner in itertools.product((0, 1), repeat=len(shape)):  # one corner at a time: 2^d of them
+            index = tuple(bounds[k][side][keep] for k, side in enumerate(corner))
+            at = np.bincount(np.ravel_multi_index(index, padded), minlength=size)
+            if sum(corner) % 2:
+                counts -= at
+            else:
+                counts += at
+        counts = counts.reshape(padded)
+        for k in range(len(shape)):
+            np.cumsum(counts, axis=k, out=counts)
+        return counts[tuple(slice(0, g) for g in shape)] > 0
 
 
 def _set_member(scenario, safe_set) -> Boxes:
     """The boxes of a safe set."""
     return Boxes(safe_set.centres, safe_set.half_widths, scenario.n)
-
-
-def _grid(centres: np.ndarray, half_widths: np.ndarray, grids: dict[int, np.ndarray],
-          fixed: dict[int, float]) -> np.ndarray:
-    """Membership in the union of boxes ``centres`` +- ``half_widths`` at every point of a
-    grid (see ``Boxes.grid``), painted box by box: on each grid axis a box covers
-    an interval of the samples, so the grid is the union of a (d-dimensional) block per
-    box, summed as +-1 at the blocks' corners and integrated along each axis. A sample
-    is in a box as coordinator/spatial.py's point indexes decide it: ``|x - c| <= h +
-    TOLERANCE`` per axis, in the same floating-point operations (closed boxes)."""
-    shape = tuple(len(values) for values in grids.values())
-    n = centres.shape[1] if centres.ndim == 2 else 0
-    if set(grids) | set(fixed) != set(range(n)) or 0 in shape:
-        return np.zeros(shape, dtype=bool)  # an unset coordinate is in no box
-    radii = np.asarray(half_widths, dtype=float) + TOLERANCE
-    near = np.ones(len(centres), dtype=bool)
-    for axis, value in fixed.items():  # a cut meets only the boxes near its held values
-        near &= np.abs(centres[:, axis] - float(value)) <= radii
-    centres, radii = centres[near], radii[near]
-    keep = np.ones(len(centres), dtype=bool)
-    bounds = []
-    for axis, values in grids.items():
-        lo, hi = _covered(np.asarray(values, dtype=float), centres[:, axis], radii)
-        bounds.append((lo, hi))
-        keep &= lo < hi
-    if not keep.any():
-        return np.zeros(shape, dtype=bool)
-    padded = tuple(g + 1 for g in shape)
-    size = int(np.prod(padded))
-    counts = np.zeros(size, dtype=np.int64)
-    for corner in itertools.product((0, 1), repeat=len(shape)):  # one corner at a time: 2^d of them
-        index = tuple(bounds[k][side][keep] for k, side in enumerate(corner))
-        at = np.bincount(np.ravel_multi_index(index, padded), minlength=size)
-        if sum(corner) % 2:
-            counts -= at
-        else:
-            counts += at
-    counts = counts.reshape(padded)
-    for k in range(len(shape)):
-        np.cumsum(counts, axis=k, out=counts)
-    return counts[tuple(slice(0, g) for g in shape)] > 0
 
 
 def _covered(values: np.ndarray, centres: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

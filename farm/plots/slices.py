@@ -8,9 +8,8 @@ from matplotlib.collections import PatchCollection
 from matplotlib.colors import to_rgba
 from matplotlib.patches import Patch, Rectangle
 
-from farm.plots.explored import _explored_member
 from farm.plots.layout import _cuts, _label, _panel_title, _slices, _title
-from farm.plots.membership import _samples, _set_member
+from farm.plots.membership import Boxes, _samples, _set_member
 from farm.plots.style import (NEVER_COLOUR, NEVER_HATCH, NEVER_HATCH_COLOUR, OUTSIDE_COLOUR, PRUNED_COLOUR,
                               RESOLUTION, SAFE_COLOUR)
 
@@ -105,7 +104,7 @@ def slices_figure(scenario, safe_set, summary=None, slices=None, explored=None):
     safe, unsafe (explored and pruned) and never explored apart; None: safe or not."""
     rows = [_cuts(scenario, spec) for spec in (_slices(scenario) if slices is None else slices)]
     member = _set_member(scenario, safe_set)
-    explored_member = None if explored is None else _explored_member(explored, scenario.n)
+    explored_member = None if explored is None else Boxes(*explored, scenario.n)  # a box twice is painted once
     fig, axs = _panel_grid(rows)
     never = 0
     for r, row in enumerate(rows):
