@@ -14,6 +14,7 @@ import stat
 import sys
 import warnings
 from pathlib import Path
+from typing import NoReturn
 
 from farm import exits
 from scenarios.errors import ConfigError
@@ -324,6 +325,15 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("schema", help="print the JSON Schema of the config (for editors)")
     p.set_defaults(func=cmd_schema)
     return parser
+
+
+def run() -> NoReturn:
+    """The ``scenario-farm`` command (and ``python -m farm``): ``main`` on the command
+    line's arguments, then the process ends with its exit code (farm/ray_session.py
+    ``exit_process``: at once after a private local Ray)."""
+    from farm.ray_session import exit_process
+
+    exit_process(main())
 
 
 def main(argv=None) -> int:

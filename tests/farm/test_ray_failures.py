@@ -5,6 +5,8 @@ of ours and its exit code, and no Ray process outlives the driver.
 - the raylet killed mid-campaign: exit 4 (not 1, Ray's own exit), our line, no Ray log
   lines; `resume` then finishes with the uninterrupted result;
 - the driver killed with kill -9: every Ray process it started is gone within seconds;
+- a finished campaign: its process ends at once (farm/ray_session.py ``exit_process``), its
+  output and files whole, and no Ray process it started outlives it by more than seconds;
 - SIGTERM while Ray starts: exit 130 and a "stopped" line.
 The exit-code table of README.md is the CLI's (farm/exits.py).
 """
@@ -136,6 +138,21 @@ def test_kill_9_of_the_driver_leaves_no_ray_process_behind(tmp_path):
     proc.kill()
     proc.wait()
     deadline = time.monotonic() + 10  # "within seconds", on a loaded machine
+    while alive(procs) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not alive(procs), [(p.pid, p.name()) for p in alive(procs)]
+
+
+def test_a_finished_campaign_ends_at_once_whole_and_leaves_no_ray_process_behind(tmp_path):
+    (tmp_path / "c.toml").write_text(CAMPAIGN)
+    proc = popen("quantify", tmp_path / "c.toml", "--out", tmp_path / "out")
+    procs = running(proc, tmp_path / "c.toml")
+    stdout, stderr = proc.communicate(timeout=600)
+    assert proc.returncode == 0, stderr
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert f"result_hash: {summary['result_hash']}" in stdout  # the last lines came out before the exit
+    assert stdout.rstrip().splitlines()[-1].lstrip().startswith("results: "), stdout
+    deadline = time.monotonic() + 10
     while alive(procs) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert not alive(procs), [(p.pid, p.name()) for p in alive(procs)]
