@@ -75,7 +75,6 @@ def main() -> None:
           f"volume {s.volume_union:.0f}, result {s.result_hash}")
 
 
-
 def whole_command(cfg, args) -> None:
     """``python -m farm quantify`` on ``cfg`` in a process of its own: its wall time from
     start to exit and its peak resident memory (the largest child waited for)."""

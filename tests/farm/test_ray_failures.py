@@ -5,8 +5,8 @@ of ours and its exit code, and no Ray process outlives the driver.
 - the raylet killed mid-campaign: exit 4 (not 1, Ray's own exit), our line, no Ray log
   lines; `resume` then finishes with the uninterrupted result;
 - the driver killed with kill -9: every Ray process it started is gone within seconds;
-- a finished campaign: its process ends at once (farm/ray_session.py ``exit_process``), its
-  output and files whole, and no Ray process it started outlives it by more than seconds;
+- a finished campaign, which ends its process at once (farm/ray_session.py ``exit_process``):
+  its output and files whole, and no Ray process it started outlives it by more than seconds;
 - SIGTERM while Ray starts: exit 130 and a "stopped" line.
 The exit-code table of README.md is the CLI's (farm/exits.py).
 """
@@ -143,7 +143,7 @@ def test_kill_9_of_the_driver_leaves_no_ray_process_behind(tmp_path):
     assert not alive(procs), [(p.pid, p.name()) for p in alive(procs)]
 
 
-def test_a_finished_campaign_ends_at_once_whole_and_leaves_no_ray_process_behind(tmp_path):
+def test_a_finished_campaign_exits_whole_and_leaves_no_ray_process_behind(tmp_path):
     (tmp_path / "c.toml").write_text(CAMPAIGN)
     proc = popen("quantify", tmp_path / "c.toml", "--out", tmp_path / "out")
     procs = running(proc, tmp_path / "c.toml")
