@@ -7,7 +7,6 @@ from pathlib import Path
 import numpy as np
 
 
-
 def explored_boxes(directory, state_names) -> tuple[np.ndarray, np.ndarray] | None:
     """The boxes a campaign explored, from its directory: ``(points (P, n), half_widths
     (P,))``, or None when the directory holds no record of it (no ledger, no checkpoint).
