@@ -29,7 +29,7 @@ import time
 from pathlib import Path
 
 from farm import config as config_mod
-from farm.quantification import run
+from farm.jobs.quantification import run
 
 TARGETS = {0.25: (120.0, None), 0.125: (45.0, 1.5)}  # delta_min -> (s, GB)
 WHOLE_TARGET = (12.0, 0.8)  # issue 36, lead-follow band 0.125 end to end: (s, GB)

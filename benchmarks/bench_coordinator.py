@@ -20,7 +20,7 @@ import numpy as np
 
 from coordinator.lattice import Lattice
 from coordinator.spatial import PointIndex
-from farm.memory import keep_freed_memory
+from farm.execution.memory import keep_freed_memory
 
 TARGET_QPS = 5e6
 TARGET_SLOPE = 1.15
@@ -82,7 +82,7 @@ def query_rate(boxes: int, q: np.ndarray | None = None, repeats: int = 7) -> tup
 def campaign_scaling() -> tuple[list[tuple[int, float]], float]:
     from coordinator.campaign import Campaign, CampaignSettings
     from coordinator.spe import SPE, SPESettings
-    from farm.local_executor import LocalExecutor
+    from farm.execution.local import LocalExecutor
     from scenarios import make_scenario
     from scenarios.simulator import SimSpec
 

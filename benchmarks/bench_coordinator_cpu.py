@@ -29,7 +29,7 @@ def main() -> None:
     ap.add_argument("--batch", type=int, help="farm.batch_size (default: the config default)")
     ap.add_argument("--depth", type=int, help="farm.pipeline_depth (default: the config default)")
     args = ap.parse_args()
-    from farm.ray_session import start_local
+    from farm.ray_runtime.session import start_local
 
     start_local(os.cpu_count())  # as the CLI's local Ray
     farm = campaign_config(2, args.batch, args.depth).farm

@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from farm.simulators import build_simulator
+from farm.execution.process import build_simulator
 from scenarios.simulator import SimSpec
 from scenarios.streams import RunStreams
 from scenarios.rollout import run_scenario

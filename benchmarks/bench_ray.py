@@ -31,9 +31,9 @@ def campaign_config(executor="local", workers=1, backend="numpy", delta_min=0.5)
 
 def run_campaign(cfg):
     """-> (counters, wall seconds of the campaign loop, worker stats or None, result hash)."""
-    from farm.campaign_setup import build_algorithm, build_campaign, spec_of
-    from farm.executors import make_executor
-    from farm.simulators import build_simulator
+    from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+    from farm.execution.factory import make_executor
+    from farm.execution.process import build_simulator
 
     spec = spec_of(cfg)
     sim = build_simulator(spec)
@@ -60,7 +60,7 @@ def idle(stats, wall) -> str:
 def main() -> None:
     import ray
 
-    from farm.ray_session import start_local
+    from farm.ray_runtime.session import start_local
 
     start_local(2, HERE)
     print(f"machine: {os.cpu_count()} cores; Ray {ray.__version__} local two-core mode")
@@ -74,7 +74,7 @@ def main() -> None:
         print(f"numpy back end, lead-follow idm SPE (delta 2 -> 0.5, uniform Gamma): {label:15s} {rate:9,.0f} "
               f"committed runs/s ({c.committed} runs, {wall:.1f} s; {rate / base:.2f}x in-process"
               f"{idle(stats, wall)})")
-    from farm.ray_executor import RayExecutor
+    from farm.ray_runtime.executor import RayExecutor
     from scenarios.simulator import SimSpec
 
     spec = SimSpec({"name": "lead-follow", "sv_policy": "idm"}, {"mode": "uniform"}, 2, 0)

@@ -9,7 +9,7 @@ the default window (1024 x 2), seed 0. The time to the result runs from the camp
 first draw to its result; Ray start-up and actor creation are reported apart. Every row
 has the same result hash (the worker count never changes a result). Per row also: the
 workers' idle share, the chunks sent and their mean size, the run and call times the
-executor measured (farm/chunking.py), the driver's CPU per chunk and the workers' CPU.
+executor measured (farm/execution/chunking.py), the driver's CPU per chunk and the workers' CPU.
 
     python benchmarks/bench_scaling.py               # 1, 8, 32 workers: docs/scaling.json, docs/scaling.md
     python benchmarks/bench_scaling.py --workers 1 2 4 --backend slow_backend:SlowBackend --no-write
@@ -91,9 +91,9 @@ class CallClock:
 
 
 def run_campaign(cfg) -> dict:
-    from farm.campaign_setup import build_algorithm, build_campaign, spec_of
-    from farm.executors import make_executor
-    from farm.simulators import build_simulator
+    from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+    from farm.execution.factory import make_executor
+    from farm.execution.process import build_simulator
 
     spec = spec_of(cfg)
     sim = build_simulator(spec)
@@ -129,12 +129,12 @@ def run_campaign(cfg) -> dict:
 
 def virtual_seconds(workers: int, batch: int | None, depth: int | None, run_ms: float,
                     call_ms: float) -> tuple[float, str]:
-    """The virtual farm's time to the result for the campaign on ``workers`` (farm/virtual_executor.py:
+    """The virtual farm's time to the result for the campaign on ``workers`` (farm/execution/virtual.py:
     the same coordinator, each worker on a core of its own), a full-horizon run of ``run_ms``
     and a call of ``call_ms``, as measured on Ray here; and its result hash (the Ray run's)."""
-    from farm.campaign_setup import build_algorithm, build_campaign, spec_of
-    from farm.executors import make_executor
-    from farm.simulators import build_simulator
+    from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+    from farm.execution.factory import make_executor
+    from farm.execution.process import build_simulator
 
     # the numpy back end: the modelled clock stands in for the sleep (the dynamics are the same)
     cfg = campaign_config(workers, batch, depth, "numpy",
@@ -232,7 +232,7 @@ def _floor_note(rows: list[dict], cores: int) -> list[str]:
     return [
         f"Machine busy: every process's CPU over the campaign (Linux /proc/stat): the driver, the actors and Ray's own "
         f"processes. CPU floor: that CPU over this machine's {cores} cores, the shortest time the same work allows "
-        "here. Virtual farm: the same coordinator on a simulated clock (farm/virtual_executor.py), every worker on "
+        "here. Virtual farm: the same coordinator on a simulated clock (farm/execution/virtual.py), every worker on "
         "a core of its own, with the run time of the sleeping simulator and the call time measured on that row. "
         "In the calls: the driver's main thread inside the executor's calls, its waits for results excluded (while "
         "it waits it polls Ray); the virtual farm charges its coordinator the call time instead, per chunk.",
@@ -260,7 +260,7 @@ def main() -> None:
     ap.add_argument("--backend", default=BACKEND)
     ap.add_argument("--no-write", action="store_true", help="print only (no docs/scaling.json)")
     args = ap.parse_args()
-    from farm.ray_session import start_local
+    from farm.ray_runtime.session import start_local
     from slow_backend import SlowBackend, SlowRunBackend
 
     start_local(os.cpu_count(), str(HERE))

@@ -21,8 +21,8 @@ def main() -> None:
     import ray
 
     from scenarios.simulator import SimSpec
-    from farm.ray_executor import RayExecutor
-    from farm.ray_session import start_local
+    from farm.ray_runtime.executor import RayExecutor
+    from farm.ray_runtime.session import start_local
 
     start_local(2)
     spec = SimSpec({"name": "lead-follow", "backend": "sumo", "sv_policy": "sumo",

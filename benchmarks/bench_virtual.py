@@ -1,5 +1,5 @@
 """Time to the result on a farm of slow simulators, from the virtual farm: the real
-coordinator on a simulated clock (farm/virtual_executor.py). 1 / 32 / 256 / 1000 virtual
+coordinator on a simulated clock (farm/execution/virtual.py). 1 / 32 / 256 / 1000 virtual
 workers, a run of 1 s or 0.1 s (full horizon; a run that ends early takes its share),
 a call cost of 1 ms per chunk, seeds 0-3; the campaign is the scaling campaign
 (lead-follow idm, uniform Gamma, eps 0.001, beta 0.1, delta 2 -> 1, certified) with the
@@ -52,9 +52,9 @@ def run(workers: int, run_time: float, seed: int, free: bool = False, outstandin
     (its CPU not charged, no call cost) and applies up to ``outstanding`` changes past
     holds at any run time (a copy costs it nothing)."""
     from coordinator import speculation
-    from farm.campaign_setup import build_algorithm, build_campaign, spec_of
-    from farm.executors import make_executor
-    from farm.simulators import build_simulator
+    from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+    from farm.execution.factory import make_executor
+    from farm.execution.process import build_simulator
 
     cfg = config(workers, run_time, seed, call_cost=0.0 if free else 0.001)
     simulator = build_simulator(spec_of(cfg))
@@ -175,7 +175,7 @@ def render() -> Path:
            "<!-- rendered by `python benchmarks/bench_virtual.py --render` from docs/virtual.json: edit the script, "
            "not this file -->", "",
            f"`python benchmarks/bench_virtual.py` ({meta['date']}, {meta['machine']}): the real coordinator on a "
-           "simulated clock (farm/virtual_executor.py). lead-follow idm, uniform Gamma, eps 0.001, beta 0.1, "
+           "simulated clock (farm/execution/virtual.py). lead-follow idm, uniform Gamma, eps 0.001, beta 0.1, "
            "delta 2 -> 1, certified, the defaults (sequential counting; the window follows the workers; "
            "replacements to fast lanes, one per 16 workers, as on Ray), a call "
            f"cost of 1 ms per chunk, seeds {', '.join(map(str, seeds))}. The coordinator's own CPU time is "

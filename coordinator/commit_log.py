@@ -1,5 +1,5 @@
 """The committed-run record since the last flush: the rows of the run ledger
-(farm/storage.py writes them as Parquet segments at every checkpoint)."""
+(farm/directory/storage.py writes them as Parquet segments at every checkpoint)."""
 
 from __future__ import annotations
 

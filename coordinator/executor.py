@@ -110,7 +110,7 @@ class Chunk:
 
 class Executor(ABC):
     """Where runs are simulated (the contract above). Every executor passes the shared
-    conformance suite (farm/testing.py: the same committed sequence as in-process, cancel,
+    conformance suite (farm/execution/testing.py: the same committed sequence as in-process, cancel,
     close, a worker failure)."""
 
     name: str = ""

@@ -182,7 +182,7 @@ class SafeSet:
 
     def to_parquet(self, where, metadata: dict | None = None) -> None:
         """Write safe_set.parquet to ``where``: a path or an open binary file (farm
-        writes through ``farm.files.atomic_write``, so a reader never sees half a file)."""
+        writes through ``farm.directory.files.atomic_write``, so a reader never sees half a file)."""
         import pyarrow.parquet as pq
 
         pq.write_table(self.to_table(metadata), where)

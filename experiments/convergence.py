@@ -22,7 +22,7 @@ import numpy as np
 from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign, CampaignSettings
 from coordinator.spe import SPESettings
-from farm.local_executor import LocalExecutor
+from farm.execution.local import LocalExecutor
 from scenarios.simulator import SimSpec
 from scenarios import make_scenario
 from scenarios.backend import NumpyBackend

@@ -21,7 +21,7 @@ import sys
 import time
 from pathlib import Path
 
-from farm.summary import Summary
+from farm.reports.summary import Summary
 
 ROOT = Path(__file__).resolve().parents[1]
 FIGURES = ROOT / "docs" / "figures"

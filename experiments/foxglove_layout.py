@@ -2,7 +2,7 @@
 campaign of the README (examples/lead_follow_idm.toml, seed 0): one plot per state
 variable (v0, v1, p10), every recorded run as a series on its own topic.
 
-It is written by ``farm.recording.write_layout``, the function that writes the layout
+It is written by ``farm.directory.recording.write_layout``, the function that writes the layout
 beside every recording, from the run indices the campaign records (the campaign is
 deterministic: same config and seed, same recorded runs), so it cannot drift from what
 the tool writes:
@@ -24,7 +24,7 @@ CONFIG = ROOT / "examples" / "lead_follow_idm.toml"
 
 def recorded(directory: Path) -> tuple[str, list[str], list[int]]:
     """(scenario name, state names, sample indices) of every run recorded in a campaign."""
-    from farm.recording import read_recording
+    from farm.directory.recording import read_recording
 
     name, states, indices = None, None, []
     for path in sorted((Path(directory) / "recordings").glob("runs-*.mcap")):
@@ -39,7 +39,7 @@ def recorded(directory: Path) -> tuple[str, list[str], list[int]]:
 
 def main(argv: list[str]) -> Path:
     from farm import quantify
-    from farm.recording import write_layout
+    from farm.directory.recording import write_layout
 
     if argv:
         directory = Path(argv[0])

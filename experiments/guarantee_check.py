@@ -20,7 +20,7 @@ from scipy import stats
 from coordinator.domain import Domain
 from coordinator.validation import Checker, plan
 from farm import api
-from farm.local_executor import LocalExecutor
+from farm.execution.local import LocalExecutor
 from scenarios.simulator import SimSpec
 from scenarios.streams import RunStreams
 

@@ -13,7 +13,7 @@ from coordinator.baselines import make_algorithm
 from coordinator.campaign import Campaign, CampaignSettings
 from coordinator.reference import compare_boxes
 from coordinator.spe import SPESettings
-from farm.local_executor import LocalExecutor
+from farm.execution.local import LocalExecutor
 from scenarios.simulator import SimSpec
 from scenarios import make_scenario
 from scenarios.backend import NumpyBackend

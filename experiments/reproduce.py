@@ -21,7 +21,7 @@ from pathlib import Path
 
 from coordinator.sample_size import n_eps
 from farm import config as config_mod
-from farm.quantification import run
+from farm.jobs.quantification import run
 
 ROOT = Path(__file__).resolve().parents[1]
 KEYS = ["volume_union", "volume_hull", "boxes", "runs_committed", "rounds", "converged", "elapsed_s", "result_hash",

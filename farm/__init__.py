@@ -24,7 +24,7 @@ __all__ = ["Certificate", "QuantifyResult", "SafeSet", "Summary", "__version__",
 
 def __getattr__(name: str):
     # the API is imported when first asked for, not with the package: the CLI's own
-    # modules (farm.cli, farm.exits) load in a fraction of a second, so its signal
+    # modules (farm.cli.commands, farm.cli.exits) load in a fraction of a second, so its signal
     # handlers and error lines are in place before pydantic, scipy and the coordinator load
     if name in __all__:
         from farm import api  # it imports SafeSet and Summary too

@@ -1,3 +1,3 @@
-from farm.cli import run
+from farm.cli.commands import run
 
 run()

@@ -25,10 +25,10 @@ import numpy as np
 from farm import config as config_mod
 from farm.config import Config
 from coordinator.safe_set import SafeSet
-from farm.certificate import Certificate, certificate_of
-from farm.files import write_json
-from farm.storage import CampaignDir, CampaignError
-from farm.summary import Summary
+from farm.reports.certificate import Certificate, certificate_of
+from farm.directory.files import write_json
+from farm.directory.storage import CampaignDir, CampaignError
+from farm.reports.summary import Summary
 from scenarios.errors import DataError
 
 
@@ -114,7 +114,7 @@ class QuantifyResult:
         start vertex to the states it discovered. Default: DIR/exploration_graph.graphml."""
         import networkx as nx
 
-        from farm.journal import Journal
+        from farm.directory.journal import Journal
 
         state, _ = Journal(self.directory).read(["algo.graph.parent", "algo.vertices.points", "algo.vertices.alive"])
         if "algo.graph.parent" not in state:
@@ -134,15 +134,15 @@ class QuantifyResult:
 
     def report_html(self, path=None) -> Path:
         """One self-contained HTML page: guarantee, figures, rounds, summary (DIR/report.html)."""
-        from farm.report import write_html
+        from farm.reports.html import write_html
 
         return write_html(self.directory, path)
 
     def plot_failures(self, path=None) -> Path | None:
         """The recorded failing runs over the safe set (DIR/plots/failures.png); None if
         the campaign recorded none."""
-        from farm.plots import draw_failures
-        from farm.recording import read_recording
+        from farm.reports.plots import draw_failures
+        from farm.directory.recording import read_recording
 
         runs = []
         for rec in sorted((self.directory / "recordings").glob("runs-*.mcap")):
@@ -156,15 +156,15 @@ class QuantifyResult:
                              self.safe_set, runs[:64])
 
     def _scenario(self):
-        from farm.campaign_setup import spec_of
+        from farm.jobs.campaign_setup import spec_of
         from scenarios.registry import make_backend
 
         return make_backend(spec_of(CampaignDir(self.directory).frozen_config()).scenario).scenario
 
     def plot(self, out_dir=None) -> list[Path]:
         """Redraw the figures (into DIR/plots by default); -> the files written."""
-        from farm.plots import draw
-        from farm.campaign_setup import spec_of
+        from farm.reports.plots import draw
+        from farm.jobs.campaign_setup import spec_of
         from scenarios.registry import make_backend
 
         cfg = CampaignDir(self.directory).frozen_config()
@@ -178,8 +178,8 @@ def quantify(config, out=None, *, resume: bool = False, force: bool = False, pro
     ``out`` (default: a new temporary directory). ``resume`` continues a stopped
     campaign in ``out``; ``force`` replaces a campaign directory there. Keyword
     overrides as in ``load_config`` (``farm__executor="ray"``)."""
-    from farm.progress import Progress
-    from farm.quantification import run
+    from farm.reports.progress import Progress
+    from farm.jobs.quantification import run
 
     text = config_mod.read_text(config) if isinstance(config, (str, Path)) and _is_file(config) else None
     cfg = load_config(config_mod.parse(text, str(config)) if text is not None else config, **overrides)
@@ -198,8 +198,8 @@ def plan(config, out=None, *, workers=(1, 32, 256), force: bool = False, run_tim
     time to the result, the speed-up over the fewest workers, the workers' utilisation,
     the runs and the result hash; and ``recommended_workers``, the fewest within 10 % of
     the fastest. ``plan.png`` draws the time against the workers."""
-    from farm.planning import plan as run_plan
-    from farm.progress import Progress
+    from farm.jobs.planning import plan as run_plan
+    from farm.reports.progress import Progress
 
     cfg = load_config(config, **overrides)
     out = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="scenario-farm-")) / "plan"
@@ -226,9 +226,9 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
     from coordinator.domain import Domain
     from coordinator.guarantee import validated
     from coordinator.validation import plan, validate as run_validation
-    from farm.simulators import build_simulator
-    from farm.executors import make_executor
-    from farm.resources import check_validate
+    from farm.execution.process import build_simulator
+    from farm.execution.factory import make_executor
+    from farm.jobs.resources import check_validate
     from scenarios.simulator import SimSpec
 
     cfg = load_config(config, **overrides)
@@ -273,7 +273,7 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
                                                         "config_hash": cert.config_hash})
             cert.write(directory.path)
             if cert.counterexample and cfg.record.counterexamples:
-                from farm.rerun import record_counterexample
+                from farm.jobs.rerun import record_counterexample
 
                 record_counterexample(directory.path / "counterexample.mcap", scenario, cert)
         finally:
@@ -285,7 +285,7 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
 def overlay(results, path) -> Path:
     """Two or more campaigns of one scenario on the same slices (like the paper's Fig. 2:
     brake against idm); ``results``: directories or QuantifyResults."""
-    from farm.plots import draw_overlay
+    from farm.reports.plots import draw_overlay
 
     results = [r if isinstance(r, QuantifyResult) else open_campaign(r) for r in results]
     names = {r.summary.scenario for r in results}
@@ -301,10 +301,10 @@ def compare(target, *, grid: int | None = None, grid_total: int | None = None, e
     IoU, precision, recall, Hausdorff; writes compare.json and plots/compare.png. The
     reference grid: ``grid`` points per axis or ``grid_total`` points in all (default
     ~1.5e6 for a model reference, 24^3 for one simulated with a black-box back end).
-    ``progress`` (a farm.progress.Progress) is told the runs it will take and the time
+    ``progress`` (a farm.reports.progress.Progress) is told the runs it will take and the time
     estimated from a first batch before the rest; ``estimate_only`` returns that plan
     ({"reference_runs", "figure_runs", "estimated_s", ...}) and writes nothing."""
-    from farm.compare import compare as run_compare
+    from farm.reports.compare import compare as run_compare
 
     directory = target.directory if isinstance(target, QuantifyResult) else Path(target)
     return run_compare(directory, grid=grid, grid_total=grid_total, estimate_only=estimate_only, progress=progress)
@@ -326,11 +326,11 @@ def export_openscenario(target, *, force: bool = False) -> dict:
 
 def falsify(target, *, gamma_star=None, points: int = 10_000, tries: int = 4, seed: int | None = None,
             progress=None) -> dict:
-    """Try a worst case Gamma* on the black box (farm/falsify.py): ``gamma_star`` (m
+    """Try a worst case Gamma* on the black box (farm/jobs/falsify.py): ``gamma_star`` (m
     numbers; default: the proposal in the campaign's adversary.json) held from uniform
     start states; random sequences from Gamma from every start that survives it. Returns
     the report written to falsify.json (``refuted``, ``counterexamples`` with stream keys)."""
-    from farm.falsify import falsify as run_falsify
+    from farm.jobs.falsify import falsify as run_falsify
 
     directory = target.directory if isinstance(target, QuantifyResult) else Path(target)
     return run_falsify(directory, gamma_star=gamma_star, points=points, tries=tries, seed=seed, progress=progress)

@@ -13,7 +13,7 @@ def ray_local(tmp_path_factory):
     os.environ.setdefault("FARM_TEST_HANG", str(tmp_path_factory.mktemp("hang") / "marker"))
     # workers import user scenarios defined under tests/, like a user's own package, and
     # the benchmarks' slow back ends
-    from farm.ray_session import start_local
+    from farm.ray_runtime.session import start_local
 
     here = os.path.dirname(os.path.abspath(__file__))
     start_local(2, os.pathsep.join([here, os.path.join(os.path.dirname(here), "benchmarks")]))

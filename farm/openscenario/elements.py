@@ -7,7 +7,7 @@ import datetime as _dt
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from farm.files import atomic_write
+from farm.directory.files import atomic_write
 from scenarios.version import __version__
 
 AUTHOR = f"scenario-farm {__version__}"

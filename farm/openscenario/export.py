@@ -24,11 +24,11 @@ from farm.openscenario.distribution import uniform_box, value_sets
 from farm.openscenario.elements import write_xml
 from farm.openscenario.layout import layout_of
 from farm.openscenario.road import write_road
-from farm.certificate import FILE as CERTIFICATE_FILE, Certificate
-from farm.files import read_json
+from farm.reports.certificate import FILE as CERTIFICATE_FILE, Certificate
+from farm.directory.files import read_json
 from farm.openscenario.scenario import concrete_scenario, logical_scenario
-from farm.storage import CampaignDir, CampaignError
-from farm.summary import Summary
+from farm.directory.storage import CampaignDir, CampaignError
+from farm.reports.summary import Summary
 from scenarios.errors import ConfigError, DataError
 
 SUBDIR = "openscenario"
@@ -110,7 +110,7 @@ def _scenario(cfg):
 
 def _recorded_runs(directory: Path, scenario, sv_policy: str, notes: list) -> list[tuple[str, np.ndarray, str]]:
     """A damaged recording is left out with a note: it must not hide the others."""
-    from farm.recording import read_recording
+    from farm.directory.recording import read_recording
 
     runs = []
     for path in sorted((directory / "recordings").glob("*.mcap")):

@@ -8,7 +8,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
 
-from farm.ray_executor import RayExecutor  # noqa: E402
+from farm.ray_runtime.executor import RayExecutor  # noqa: E402
 from scenarios.simulator import SimSpec  # noqa: E402
 
 

@@ -8,7 +8,7 @@ import pytest
 from coordinator import testing
 from coordinator.baselines import make_algorithm
 from coordinator.spe import SPESettings
-from farm.local_executor import LocalExecutor
+from farm.execution.local import LocalExecutor
 from scenarios import make_scenario
 from scenarios.simulator import SimSpec
 

@@ -1,4 +1,4 @@
-"""The executor conformance suite (farm/testing.py) on every executor we ship: in-process,
+"""The executor conformance suite (farm/execution/testing.py) on every executor we ship: in-process,
 Ray actors on a real local Ray, and the virtual farm (64 simulated workers of 1 s runs)."""
 
 import os
@@ -6,15 +6,15 @@ import signal
 
 import pytest
 
-from farm import testing
-from farm.local_executor import LocalExecutor
+from farm.execution import testing
+from farm.execution.local import LocalExecutor
 from scenarios.simulator import SimSpec
 
 SPEC = SimSpec({"name": "lead-follow", "sv_policy": "idm"}, {"mode": "uniform"}, 30, testing.SETTINGS.seed)
 
 
 def ray_executor(workers: int = 2):
-    from farm.ray_executor import RayExecutor
+    from farm.ray_runtime.executor import RayExecutor
 
     return lambda spec: RayExecutor(spec, workers, "local", max_retries=3, pipeline_depth=2)
 
@@ -24,7 +24,7 @@ def kill_first_actor(executor) -> None:
 
 
 def virtual_executor(spec):
-    from farm.virtual_executor import VirtualExecutor
+    from farm.execution.virtual import VirtualExecutor
 
     return VirtualExecutor(spec, 64, run_time=1.0, jitter=0.3, call_cost=0.001)
 

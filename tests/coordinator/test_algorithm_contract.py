@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from farm import config as config_mod
-from farm.local_executor import LocalExecutor
-from farm.simulators import build_simulator
-from farm.campaign_setup import build_algorithm, build_campaign, spec_of
+from farm.execution.local import LocalExecutor
+from farm.execution.process import build_simulator
+from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
 
 
 @pytest.mark.parametrize("algorithm,mode", [("spe", "uniform"), ("spe", "adversarial"), ("ae", "uniform"),

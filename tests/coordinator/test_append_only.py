@@ -1,5 +1,5 @@
 """A checkpoint writes the arrays an algorithm declares append-only as journal segments
-of their new rows (farm/journal.py), so a declared array must only gain rows within a
+of their new rows (farm/directory/journal.py), so a declared array must only gain rows within a
 state epoch: a saved row that changed would be restored wrong. Checked on real campaigns
 (uniform actions; Gamma* with deterministic certification, whose certificates are
 append-only too) by comparing every chunk's state with the previous one."""
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from farm import config as config_mod
-from farm.local_executor import LocalExecutor
-from farm.simulators import build_simulator
-from farm.campaign_setup import build_algorithm, build_campaign, spec_of
+from farm.execution.local import LocalExecutor
+from farm.execution.process import build_simulator
+from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
 
 
 @pytest.mark.parametrize("algorithm,mode", [("spe", "uniform"), ("spe", "adversarial"), ("ae", "uniform")])

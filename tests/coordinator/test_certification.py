@@ -10,8 +10,8 @@ from coordinator.certification import check_quiet, closing_quiet
 from coordinator.sample_size import n_eps, n_eps_attempt
 from farm import api
 from farm import config as config_mod
-from farm.campaign_setup import build_algorithm, build_campaign, spec_of
-from farm.local_executor import LocalExecutor
+from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+from farm.execution.local import LocalExecutor
 
 EPS, BETA = 0.01, 0.1
 LF_IDM = {"name": "lead-follow", "sv_policy": "idm"}

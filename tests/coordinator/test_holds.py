@@ -12,9 +12,9 @@ import pytest
 from coordinator.campaign import Campaign, DriverState
 from coordinator.commit_log import CommitLog
 from farm import config as config_mod
-from farm.campaign_setup import build_algorithm, build_campaign, spec_of
-from farm.local_executor import LocalExecutor
-from farm.simulators import build_simulator
+from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+from farm.execution.local import LocalExecutor
+from farm.execution.process import build_simulator
 
 
 class LateReplacements(LocalExecutor):

@@ -3,7 +3,7 @@ import subprocess
 import sys
 
 from farm import config as config_mod
-from farm.quantification import run
+from farm.jobs.quantification import run
 
 
 def small_config(**quantify):

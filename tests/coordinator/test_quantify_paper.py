@@ -3,7 +3,7 @@
 import pytest
 
 from farm import config as config_mod
-from farm.quantification import run
+from farm.jobs.quantification import run
 
 
 def campaign(tmp_path, name, policy, **quantify):

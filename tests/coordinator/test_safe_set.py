@@ -15,7 +15,7 @@ from scipy.spatial import ConvexHull
 from coordinator.domain import Domain
 from coordinator.safe_set import SafeSet, SafeSetError
 from farm import config as config_mod
-from farm.quantification import run
+from farm.jobs.quantification import run
 from scenarios.lead_follow import LeadFollow
 from scenarios.streams import RunStreams
 from scenarios.toy import Toy

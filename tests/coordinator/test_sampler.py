@@ -9,7 +9,7 @@ from coordinator import sampler as sampler_mod
 from coordinator.sampler import BLOCK, PrioritySampler
 from coordinator.spe import ALPHAS
 from farm import config as config_mod
-from farm.quantification import run
+from farm.jobs.quantification import run
 
 
 REFRESH = PrioritySampler.refresh  # as written (one test wraps it)

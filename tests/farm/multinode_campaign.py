@@ -19,7 +19,7 @@ from pathlib import Path
 
 from ray.cluster_utils import Cluster
 
-from farm import ray_session
+from farm.ray_runtime import session as ray_session
 from small_campaign import lead_follow_toml
 
 LOSE_AFTER = 3  # chunks read before a node is lost
@@ -38,7 +38,8 @@ def in_process(raw_config: str, lose_worker: bool) -> None:
     import ray
 
     from farm import config as config_mod
-    from farm import facet_campaign, quantification
+    from farm.jobs import side_campaign as facet_campaign
+    from farm.jobs import quantification
 
     c, workers = cluster()
     ray.init(address=c.address, log_to_driver=False, configure_logging=False)
@@ -68,7 +69,7 @@ def in_process(raw_config: str, lose_worker: bool) -> None:
     facet_campaign.make_executor = make_and_look
     cfg = config_mod.normalize(json.loads(raw_config))
     try:
-        from farm.progress import Progress
+        from farm.reports.progress import Progress
 
         class Notes(Progress):
             def line(self, text):

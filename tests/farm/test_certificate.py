@@ -1,4 +1,4 @@
-"""certificate.json through farm.certificate.Certificate: real validations write only the
+"""certificate.json through farm.reports.certificate.Certificate: real validations write only the
 parameters their algorithm used, read back key for key and write back byte for byte; an
 older file (``statement`` without ``guarantee_formal``, unknown keys) still reads; replay
 reads the counterexample through it; and a set of mixed box sizes validates."""
@@ -10,9 +10,9 @@ import pytest
 
 from coordinator.safe_set import SafeSet
 from farm import api
-from farm.certificate import Certificate
-from farm.rerun import replay
-from farm.storage import CampaignError
+from farm.reports.certificate import Certificate
+from farm.jobs.rerun import replay
+from farm.directory.storage import CampaignError
 from scenarios.toy import Toy
 
 TOY = {"name": "toy", "sv_policy": "none"}

@@ -1,4 +1,4 @@
-"""The chunk-size rule (farm/chunking.py) on measured times: chunks follow the simulator,
+"""The chunk-size rule (farm/execution/chunking.py) on measured times: chunks follow the simulator,
 from one run (a slow one) to a whole batch (a fast vectorized one). The rule on real Ray
 is tested in tests/farm/test_parallel_contract.py; that no cut changes a result, there too."""
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from farm.chunking import DRIVER_SHARE, EXTRAPOLATE, LIMIT_FACTOR, LIMIT_FLOOR_S, REPLAY_FLOOR_S, UNMEASURED_LIMIT_S, ChunkSizer
+from farm.execution.chunking import DRIVER_SHARE, EXTRAPOLATE, LIMIT_FACTOR, LIMIT_FLOOR_S, REPLAY_FLOOR_S, UNMEASURED_LIMIT_S, ChunkSizer
 
 
 def measured(workers, chunk_cost, run_cost, call=1e-3, sizes=(1, 40, 60), timeout=0.0):

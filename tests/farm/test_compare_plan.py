@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from coordinator.reference import falsified, falsify
-from farm.compare import points_per_axis
+from farm.reports.compare import points_per_axis
 from scenarios.lead_follow import LeadFollow
 
 

@@ -8,11 +8,11 @@ import sys
 from pathlib import Path
 
 from farm import config as config_mod
-from farm.campaign_setup import build_algorithm, build_campaign, spec_of
-from farm.local_executor import LocalExecutor
-from farm.ray_executor import RayExecutor
-from farm.ray_pool import ActorPool, Call, Slot
-from farm.simulators import build_simulator
+from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+from farm.execution.local import LocalExecutor
+from farm.ray_runtime.executor import RayExecutor
+from farm.ray_runtime.pool import ActorPool, Call, Slot
+from farm.execution.process import build_simulator
 
 RAW = {"scenario": {"name": "lead-follow", "sv_policy": "idm"}, "actions": {"mode": "uniform"},
        "quantify": {"delta0": 4.0, "delta_min": 2.0, "epsilon": 0.005, "beta": 0.1, "horizon": 30},

@@ -1,11 +1,11 @@
-"""docs/foxglove_layout.json is what farm.recording.write_layout writes today for the
+"""docs/foxglove_layout.json is what farm.directory.recording.write_layout writes today for the
 lead-follow runs it names (regenerate it with `python experiments/foxglove_layout.py`)."""
 
 import json
 import re
 from pathlib import Path
 
-from farm.recording import write_layout
+from farm.directory.recording import write_layout
 from scenarios.lead_follow import LeadFollow
 
 LAYOUT = Path(__file__).resolve().parents[2] / "docs" / "foxglove_layout.json"

@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from farm.local_executor import LocalExecutor
-from farm.waiting import Interrupted, WorkerError
+from farm.execution.local import LocalExecutor
+from farm.execution.waiting import Interrupted, WorkerError
 from scenarios.simulator import SimSpec
 from small_campaign import lead_follow_toml
 from user_scenarios import HANG_MARKER
@@ -46,7 +46,7 @@ def marker(tmp_path):
 def make(kind, **kwargs):
     if kind == "local":
         return LocalExecutor(SPEC, **kwargs)
-    from farm.ray_executor import RayExecutor
+    from farm.ray_runtime.executor import RayExecutor
 
     return RayExecutor(SPEC, 2, "local", **kwargs)
 
@@ -150,7 +150,7 @@ def resume_gives(out, marker, want):
 
 
 def test_a_first_signal_sets_the_stop_and_a_second_stops_at_once():
-    from farm.signals import stop_on_signals
+    from farm.jobs.signals import stop_on_signals
 
     with stop_on_signals() as stop:
         os.kill(os.getpid(), signal.SIGTERM)

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from farm.ray_session import INLINE_RETURN_BYTES
+from farm.ray_runtime.session import INLINE_RETURN_BYTES
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -1,11 +1,11 @@
-"""Checkpoint journal (farm/journal.py): what a reader gets, and that reading changes
+"""Checkpoint journal (farm/directory/journal.py): what a reader gets, and that reading changes
 nothing on disk while the owner's load tidies up."""
 
 import numpy as np
 import pytest
 
-from farm.journal import Journal
-from farm.storage import CampaignError
+from farm.directory.journal import Journal
+from farm.directory.storage import CampaignError
 
 
 def _saved(tmp_path):
@@ -55,7 +55,7 @@ def test_a_finished_certified_campaign_checkpoints_its_whole_certificates_then_l
     # checkpoint still holds every entry, and certifies every alive centre of the result
     from coordinator.certificates import Certificates
     from farm import config as config_mod
-    from farm import quantification
+    from farm.jobs import quantification
 
     parts = []
     monkeypatch.setattr(quantification, "finish", lambda cfg, out, p: parts.append(p) or {"result_hash": ""})

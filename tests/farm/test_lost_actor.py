@@ -1,4 +1,4 @@
-"""A Ray actor killed under queued calls (farm/ray_pool.py ``ActorPool.failed``): every
+"""A Ray actor killed under queued calls (farm/ray_runtime/pool.py ``ActorPool.failed``): every
 chunk still comes back, whoever noticed the death first.
 
 A failed call is "ready" to ``ray.wait``, so a poll can take it off its actor's queue as
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from farm.ray_executor import RayExecutor
+from farm.ray_runtime.executor import RayExecutor
 from scenarios.simulator import SimSpec
 from user_scenarios import HANG_MARKER
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from mcap.reader import make_reader
 
-from farm.recording import read_recording, write_recording
+from farm.directory.recording import read_recording, write_recording
 
 
 def test_round_trip_and_plain_reader(tmp_path):

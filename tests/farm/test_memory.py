@@ -1,4 +1,4 @@
-"""glibc malloc tuning (farm/memory.py): freed memory stays in the process while a
+"""glibc malloc tuning (farm/execution/memory.py): freed memory stays in the process while a
 campaign runs, and goes back to the kernel at a phase boundary. Run in a fresh process:
 the thresholds are per process and the RSS figures must be this test's own."""
 
@@ -9,7 +9,7 @@ import pytest
 
 PROBE = r"""
 import sys
-from farm.memory import keep_freed_memory, release_freed_memory
+from farm.execution.memory import keep_freed_memory, release_freed_memory
 
 def rss_mb():
     return int(open("/proc/self/statm").read().split()[1]) * 4096 / 2**20

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from farm import config as config_mod
-from farm.quantification import run
+from farm.jobs.quantification import run
 
 RAW = {"scenario": {"name": "lead-follow", "sv_policy": "idm"}, "actions": {"mode": "uniform"},
        "quantify": {"delta0": 4.0, "delta_min": 2.0, "epsilon": 0.005, "beta": 0.1, "horizon": 30},

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from coordinator.safe_set import SafeSet
-from farm.recording import read_recording
+from farm.directory.recording import read_recording
 from scenarios.fleet3 import Fleet3
 from scenarios.lead_follow import LeadFollow
 from small_campaign import lead_follow_toml

@@ -11,7 +11,7 @@ import pytest
 
 from coordinator.sample_size import n_eps, n_eps_attempt
 from farm import config as config_mod
-from farm.quantification import run
+from farm.jobs.quantification import run
 
 
 def contract_config(executor="local", workers=2, **quantify):
@@ -27,7 +27,7 @@ def chunk_per_worker(monkeypatch):
     fast enough for one chunk per batch): with 4 workers and 3 batches in flight these
     campaigns' 128-run batches then arrive in 4 chunks each, 12 chunks over 4 workers,
     out of order, which is what the index-order commit must get right."""
-    from farm.chunking import ChunkSizer
+    from farm.execution.chunking import ChunkSizer
 
     monkeypatch.setattr(ChunkSizer, "size", lambda self, runs, urgent=False, lanes=0: max(1, -(-runs // self.workers)))
 
@@ -48,7 +48,7 @@ def test_ray_gives_the_in_process_result_bit_for_bit(ray_local, reference, tmp_p
 def test_any_chunking_gives_the_same_result(ray_local, reference, tmp_path, monkeypatch):
     """Chunk sizes drawn at random for every batch, 1 run up (a seeded generator of the
     test's own): the committed sequence is the in-process one all the same."""
-    from farm.chunking import ChunkSizer
+    from farm.execution.chunking import ChunkSizer
 
     rng = np.random.default_rng(3)
     sizes = []
@@ -66,7 +66,7 @@ def test_any_chunking_gives_the_same_result(ray_local, reference, tmp_path, monk
 def test_change_blocks_put_in_the_object_store_give_the_same_result(ray_local, reference, tmp_path, monkeypatch):
     """Small change blocks travel inside the task call; large ones are put in the object
     store once. Every block put there: the same result."""
-    from farm import ray_executor
+    from farm.ray_runtime import executor as ray_executor
 
     monkeypatch.setattr(ray_executor, "INLINE_BYTES", -1)
     puts = []
@@ -120,7 +120,7 @@ def test_n_eps_rule_is_exact_in_the_committed_record(reference, tmp_path):
 
 @pytest.mark.soak  # CI: tests/conformance/test_executors.py kills a Ray worker mid-campaign
 def test_a_killed_worker_costs_time_not_results(ray_local, reference, tmp_path, monkeypatch):
-    from farm import facet_campaign
+    from farm.jobs import side_campaign as facet_campaign
 
     killed = []
     make = facet_campaign.make_executor
@@ -147,7 +147,7 @@ def test_a_killed_worker_costs_time_not_results(ray_local, reference, tmp_path, 
 
 
 def test_an_exception_in_a_scenario_names_the_sample_and_does_not_hang(ray_local, tmp_path):
-    from farm.ray_executor import RayExecutor
+    from farm.ray_runtime.executor import RayExecutor
     from scenarios.errors import ScenarioError
     from scenarios.simulator import SimSpec
 
@@ -165,10 +165,10 @@ def test_an_exception_in_a_scenario_names_the_sample_and_does_not_hang(ray_local
 
 def test_batches_are_cut_by_the_measured_run_time(ray_local, monkeypatch):
     """The first batch starts with a one-run chunk that measures the run time; the rest is
-    cut by it (farm/chunking.py): a share of each batch per worker, at most about a second
+    cut by it (farm/execution/chunking.py): a share of each batch per worker, at most about a second
     of simulation a chunk, at least what the driver can afford. The sleeping back end
     (benchmarks/slow_backend.py at 20 ms a run) makes chunks of about 50 runs."""
-    from farm.ray_executor import RayExecutor
+    from farm.ray_runtime.executor import RayExecutor
 
     monkeypatch.undo()  # the real rule, not the autouse fixture's
     sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
@@ -177,7 +177,7 @@ def test_batches_are_cut_by_the_measured_run_time(ray_local, monkeypatch):
                                 "scenario": {"name": "lead-follow", "sv_policy": "idm",
                                              "backend": "slow_backend:SlowBackend",
                                              "slow_backend:SlowBackend": {"step_cost_s": 4e-4}}})
-    from farm.campaign_setup import spec_of
+    from farm.jobs.campaign_setup import spec_of
 
     ex = RayExecutor(spec_of(cfg), 2, pipeline_depth=2)
     try:
@@ -201,11 +201,11 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
     coordinator still forgets the changes it has applied (the unused actors would get a
     snapshot), and each screening is made at the coverage as it was submitted."""
     from coordinator.coverage import Coverage, Insert
-    from farm import ray_executor
-    from farm.campaign_setup import spec_of
-    from farm.ray_executor import RayExecutor
+    from farm.ray_runtime import executor as ray_executor
+    from farm.jobs.campaign_setup import spec_of
+    from farm.ray_runtime.executor import RayExecutor
 
-    from farm.chunking import ChunkSizer
+    from farm.execution.chunking import ChunkSizer
 
     monkeypatch.setattr(ChunkSizer, "size", lambda self, runs, urgent=False, lanes=0: runs)  # 20 runs: one chunk
     cfg = contract_config("ray", 4)
@@ -236,7 +236,7 @@ def test_workers_that_cannot_be_kept_busy_are_announced(ray_local, tmp_path):
     default) the batch follows the workers and nothing is said."""
     import io
 
-    from farm.progress import Progress
+    from farm.reports.progress import Progress
 
     log = io.StringIO()
     raw = contract_config("ray", 3).model_dump()
@@ -258,8 +258,8 @@ def test_a_dropped_chunk_is_left_to_finish_and_the_actor_goes_on(ray_local):
     leave a gap in the actor's sequence numbers that stalls its next tasks for Ray's 30 s
     reorder timeout. A chunk queued behind a running one is dropped; it still runs (the
     actor counts 3 tasks, 2 had it been cancelled), and the next chunk comes back."""
-    from farm import ray_executor
-    from farm.campaign_setup import spec_of
+    from farm.ray_runtime import executor as ray_executor
+    from farm.jobs.campaign_setup import spec_of
 
     ex = ray_executor.RayExecutor(spec_of(contract_config("ray", 1)), 1)
     ex.sizer.ran(20_000, 0.02)  # as if measured: each batch one chunk, no one-run probe first

@@ -6,8 +6,8 @@ import subprocess
 import sys
 
 from farm import api
-from farm.storage import CampaignDir
-from farm.summary import Summary
+from farm.directory.storage import CampaignDir
+from farm.reports.summary import Summary
 from small_campaign import lead_follow_toml
 
 

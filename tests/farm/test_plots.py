@@ -11,9 +11,9 @@ from matplotlib.colors import to_rgba
 from matplotlib.text import Text
 
 from coordinator.safe_set import SafeSet
-from farm import plots
-from farm.plots.membership import Boxes
-from farm.summary import Summary
+from farm.reports import plots
+from farm.reports.plots.membership import Boxes
+from farm.reports.summary import Summary
 from scenarios.fleet3 import Fleet3
 from scenarios.lead_follow import LeadFollow
 from scenarios.toy import Toy
@@ -92,7 +92,7 @@ def test_draw_writes_the_public_files_for_lead_follow(tmp_path):
 
 
 def test_draw_writes_the_files_of_fleet3_total_and_sides(tmp_path):
-    # as farm.quantification calls it: the total, then one directory per side
+    # as farm.jobs.quantification calls it: the total, then one directory per side
     sc, safe_set = fleet3_set()
     plots.draw(tmp_path / "plots", sc, safe_set, named("fleet3", "spe", "idm"))
     for label, facet in [("lead", "p10"), ("rear", "p20")]:

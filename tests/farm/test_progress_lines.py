@@ -2,7 +2,7 @@
 
 import io
 
-from farm.progress import Progress
+from farm.reports.progress import Progress
 
 
 def test_the_end_of_the_runs_is_announced_unless_quiet():
@@ -17,7 +17,7 @@ def test_the_end_of_the_runs_is_announced_unless_quiet():
 def test_a_certifying_campaign_says_closing_or_which_check_and_what_certification_cost():
     # a real (small) certified campaign, its plain progress lines captured as a job log has them
     from farm import config as config_mod
-    from farm.quantification import run
+    from farm.jobs.quantification import run
     from small_campaign import lead_follow_toml
 
     import tempfile

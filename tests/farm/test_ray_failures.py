@@ -5,10 +5,10 @@ of ours and its exit code, and no Ray process outlives the driver.
 - the raylet killed mid-campaign: exit 4 (not 1, Ray's own exit), our line, no Ray log
   lines; `resume` then finishes with the uninterrupted result;
 - the driver killed with kill -9: every Ray process it started is gone within seconds;
-- a finished campaign, which ends its process at once (farm/ray_session.py ``exit_process``):
+- a finished campaign, which ends its process at once (farm/ray_runtime/session.py ``exit_process``):
   its output and files whole, and no Ray process it started outlives it by more than seconds;
 - SIGTERM while Ray starts: exit 130 and a "stopped" line.
-The exit-code table of README.md is the CLI's (farm/exits.py).
+The exit-code table of README.md is the CLI's (farm/cli/exits.py).
 """
 
 import json
@@ -174,7 +174,7 @@ def test_sigterm_while_ray_starts_exits_130_with_a_stopped_line(tmp_path):
 
 
 def test_the_readme_and_help_show_the_exit_code_table_of_the_cli():
-    from farm.exits import TABLE
+    from farm.cli.exits import TABLE
 
     readme = (ROOT / "README.md").read_text()
     rows = re.findall(r"^\| (\d+) \| (.+) \|$", readme.split("## Exit codes and errors")[1].split("\n## ")[0], re.M)

@@ -16,7 +16,8 @@ def test_a_local_ray_returns_chunk_summaries_inline_and_keeps_visited_states_in_
 
         import numpy as np
         import ray
-        from farm import ray_executor, ray_session
+        from farm.ray_runtime import executor as ray_executor
+        from farm.ray_runtime import session as ray_session
         from scenarios.simulator import SimSpec
 
         ray_session.connect("local", 1)

@@ -104,7 +104,7 @@ def test_stale_temp_files_are_removed_on_resume_and_damaged_recordings_skipped(t
     assert not any(p.exists() for p in stale)
     recordings = sorted((out / "recordings").glob("runs-*.mcap"))
     assert len(recordings) >= 2
-    from farm.recording import read_recording
+    from farm.directory.recording import read_recording
 
     later = next(iter(read_recording(recordings[-1])["runs"]))
     recordings[0].write_bytes(b"damaged")
@@ -116,7 +116,7 @@ def test_stale_temp_files_are_removed_on_resume_and_damaged_recordings_skipped(t
 def test_local_ray_listens_on_loopback_only():
     code = """
 import os, time, psutil, ray
-from farm.ray_session import connect
+from farm.ray_runtime.session import connect
 connect("local", 2)
 @ray.remote
 def pid():

@@ -125,7 +125,7 @@ def test_stopped_mid_certification_then_resumed_gives_the_uninterrupted_result(t
     # in-process (the committed sequence does not depend on the executor): stopped in a
     # closing round or in a check, with a checkpoint, then resumed from it
     from farm import config as config_mod
-    from farm.quantification import Stopped, run
+    from farm.jobs.quantification import Stopped, run
 
     cfg = config_mod.parse(CONFIG, "c.toml")
     stop = _StopIn(phase)
@@ -158,7 +158,7 @@ def test_a_deterministic_certification_stopped_then_resumed_with_another_window_
     sequential counting farm.batch_size and pipeline_depth may change on resume and
     change no result (coordinator/campaign.py ENUMERATION_BATCH)."""
     from farm import config as config_mod
-    from farm.quantification import Stopped, run
+    from farm.jobs.quantification import Stopped, run
 
     toml = lead_follow_toml(delta_min=1.0, epsilon=0.002, horizon=40, farm_extra="pipeline_depth = 2\nseed = 5\n")
     toml = toml.replace('mode = "uniform"', 'mode = "adversarial"')

@@ -12,7 +12,7 @@ import pytest
 
 from coordinator.adversary import AdversarySearch
 from farm import config as config_mod
-from farm.quantification import run
+from farm.jobs.quantification import run
 from scenarios.base import FAILURE
 from scenarios.lead_follow import LeadFollow
 from scenarios.fleet3 import Fleet3

@@ -1,4 +1,4 @@
-"""summary.json through farm.summary.Summary: a real campaign's file reads back to the same
+"""summary.json through farm.reports.summary.Summary: a real campaign's file reads back to the same
 keys in the same order and writes back byte for byte (its sides too); an older file
 (the first writer's keys, and keys this reader does not know) still reads, and every
 reader of a campaign directory takes it; a file that is no summary is a one-line error."""
@@ -11,11 +11,11 @@ import pytest
 
 from coordinator.safe_set import SafeSet
 from farm import api, config as config_mod
-from farm.quantification import run
-from farm.report import write_html
-from farm.status import describe
-from farm.storage import CampaignError
-from farm.summary import SideSummary, Summary
+from farm.jobs.quantification import run
+from farm.reports.html import write_html
+from farm.reports.status import describe
+from farm.directory.storage import CampaignError
+from farm.reports.summary import SideSummary, Summary
 from scenarios.fleet3 import Fleet3
 
 # keys the first summary.json writer (before certification rounds) did not write

@@ -9,8 +9,8 @@ import sys
 
 import pyarrow.dataset as ds
 
-from farm.summary import Summary
-from farm.truncations import NOTICEABLE_SHARE, lines
+from farm.reports.summary import Summary
+from farm.reports.truncations import NOTICEABLE_SHARE, lines
 from scenarios.base import OUTCOME_NAMES, TRUNCATED
 from small_campaign import lead_follow_toml
 

@@ -7,7 +7,7 @@ import sys
 
 
 from farm import api
-from farm.progress import Progress
+from farm.reports.progress import Progress
 
 
 def verdicts(executor, section):

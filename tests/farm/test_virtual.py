@@ -59,10 +59,10 @@ def test_a_bad_virtual_setting_is_named(tmp_path, field, value):
 
 def _virtual_campaign(workers: int, run_time: float):
     """A two-round campaign on ``workers`` virtual workers: (config, algorithm, executor, campaign)."""
-    from farm.campaign_setup import build_algorithm, build_campaign, spec_of
+    from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
     from farm.config import parse
-    from farm.executors import make_executor
-    from farm.simulators import build_simulator
+    from farm.execution.factory import make_executor
+    from farm.execution.process import build_simulator
 
     cfg = parse(lead_follow_toml(executor="virtual", delta_min=1.0,
                                  farm_extra=f"workers = {workers}\n[farm.virtual]\nrun_time = {run_time}"))
@@ -170,10 +170,10 @@ def test_a_campaign_stopped_while_changes_are_applied_past_holds_resumes_to_the_
     # a checkpoint taken while changes are applied past holds keeps the state as the head
     # passed the first hold (the copy before the first such change): resumed, the campaign
     # reaches the result of one never stopped
-    from farm import checkpoint
+    from farm.directory import checkpoint
     from farm.config import parse
-    from farm.facet_campaign import FacetCampaign, Stopped
-    from farm.quantification import run
+    from farm.jobs.side_campaign import FacetCampaign, Stopped
+    from farm.jobs.quantification import run
 
     cfg = parse(lead_follow_toml(executor="virtual", delta_min=1.0,
                                  farm_extra="workers = 300\n[farm.virtual]\nrun_time = 1.0"))
@@ -213,7 +213,7 @@ def test_a_campaign_stopped_while_changes_are_applied_past_holds_resumes_to_the_
     # and the ledger: the committed sequence, run by run (which changed the state, which counted)
     import pyarrow.dataset as ds
 
-    from farm.storage import read_ledger
+    from farm.directory.storage import read_ledger
 
     columns = ["sample_index", "v0", "v1", "p10", "outcome", "changed", "counted"]
     used = [read_ledger(tmp_path / name, columns, filter=~ds.field("discarded")).sort_by("sample_index")

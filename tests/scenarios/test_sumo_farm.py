@@ -5,7 +5,7 @@ import pytest
 from coordinator.safe_set import SafeSet
 from coordinator.volume import raster_iou
 from farm import config as config_mod
-from farm.quantification import run
+from farm.jobs.quantification import run
 from scenarios.lead_follow import LeadFollow
 from scenarios.policies import IDM_A, IDM_B, IDM_DELTA, IDM_MIN, IDM_S0, IDM_T, IDM_V_DES
 

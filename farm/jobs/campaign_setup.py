@@ -1,0 +1,70 @@
+"""One place that turns a config into a running campaign's parts: what a worker
+simulates (``spec_of``), the driver's settings (``campaign_settings``), the algorithm
+(``build_algorithm``) and the driver itself (``build_campaign``). The CLI, the Python API,
+experiments, benchmarks and tests all build campaigns here, so that a setting means the
+same everywhere.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Iterable
+
+from coordinator.adversary import AdversarySearch
+from coordinator.algorithm import Algorithm
+from coordinator.baselines import make_algorithm
+from coordinator.campaign import Campaign, CampaignSettings, Observer
+from coordinator.executor import Executor
+from farm.config import Config, ConfigError
+from scenarios.search import SearchActions
+from scenarios.simulator import SimSpec, Simulator
+
+if TYPE_CHECKING:
+    from farm.directory.checkpoint import Restored
+
+
+def spec_of(cfg: Config, failure_facets: list | None = None) -> SimSpec:
+    """What a quantification's workers simulate; ``failure_facets`` replaces the
+    configured ones (a side campaign)."""
+    scenario = cfg.scenario.model_dump()
+    if failure_facets is not None:
+        scenario["failure_facets"] = list(failure_facets)
+    return SimSpec(scenario, cfg.actions.model_dump(), cfg.quantify.horizon, cfg.farm.seed)
+
+
+def campaign_settings(cfg: Config) -> CampaignSettings:
+    q, farm_cfg = cfg.quantify, cfg.farm
+    return CampaignSettings(epsilon=q.epsilon, beta=q.beta, budget=q.budget, batch_size=farm_cfg.batch_size,
+                            pipeline_depth=farm_cfg.pipeline_depth, seed=farm_cfg.seed, certify=q.certify,
+                            certify_margin=q.certify_margin, record_limit=cfg.record.quantify_runs, counting=farm_cfg.counting)
+
+
+def build_algorithm(cfg: Config, simulator: Simulator) -> Algorithm:
+    """The configured quantification algorithm over the simulator's scenario."""
+    return make_algorithm(cfg.quantify.algorithm, simulator.scenario, cfg.quantify.settings(), cfg.farm.seed,
+                          simulator.deterministic)
+
+
+def build_campaign(cfg: Config, algorithm: Algorithm, simulator: Simulator, executor: Executor | None,
+                   observers: Iterable[Observer] = (), restored: "Restored | None" = None) -> Campaign:
+    """The driver of ``algorithm`` on ``executor``; with actions.mode = "search", the
+    adversary search over the simulator's action mixture. ``restored``: where a
+    checkpoint left off (farm/directory/checkpoint.py)."""
+    if restored is not None:
+        return Campaign(algorithm, executor, campaign_settings(cfg), observers, restored.adversary, restored.driver)
+    policy = simulator.policy
+    adversary = AdversarySearch(policy, cfg.farm.seed) if isinstance(policy, SearchActions) else None
+    return Campaign(algorithm, executor, campaign_settings(cfg), observers, adversary)
+
+
+def side_facets(cfg: Config, scenario) -> dict[str, list | None]:
+    """The campaigns a quantification runs, by label: "total" (the configured failure
+    facets) and, for a scenario that declares sides (fleet3: lead, rear), one per side."""
+    facets = {"total": cfg.scenario.failure_facets}
+    sides = cfg.quantify.sides
+    if sides is None:
+        sides = bool(scenario.sides) and cfg.scenario.failure_facets is None
+    if sides:
+        if not scenario.sides:
+            raise ConfigError(f"quantify.sides: scenario {scenario.name!r} declares no sides; allowed: false")
+        facets.update({label: list(side) for label, side in scenario.sides.items()})
+    return facets

@@ -1,0 +1,130 @@
+"""A quantification campaign in a directory: check, start, checkpoint, stop, resume, finish.
+
+``run`` reads top to bottom: check the directory and the config, build one facet campaign
+per set of failure facets (farm/jobs/side_campaign.py: the total, and fleet3's sides), run
+each (checkpointing as it goes, farm/directory/checkpoint.py), then write the results. A resumed
+campaign re-simulates exactly what it had drawn and reaches the very result an
+uninterrupted run reaches. SIGINT and SIGTERM stop it at the next chunk boundary with a
+checkpoint (farm/jobs/signals.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from functools import partial
+from pathlib import Path
+
+from farm import config as config_mod
+from farm.jobs.campaign_setup import side_facets, spec_of
+from farm.config import Config
+from farm.jobs.side_campaign import FacetCampaign, Stopped
+from farm.directory.files import atomic_write, write_json
+from farm.reports.progress import Progress
+from farm.jobs.resources import check_quantify
+from farm.execution.process import build_simulator
+from farm.reports.status import StatusWriter
+from farm.directory.storage import CampaignDir, CampaignError
+from farm.reports.summary import Summary, summarize
+
+__all__ = ["Stopped", "run"]
+
+
+def run(cfg: Config, out: Path, *, resume: bool = False, force: bool = False, progress: Progress | None = None,
+        config_text: str | None = None) -> dict:
+    """Run (or continue) the campaign of ``cfg`` in directory ``out``; -> summary.
+
+    Everything is checked before anything is written: the config, the scenario, the back
+    end, the actions, and when resuming the checkpoints. ``resume`` continues a stopped or
+    killed campaign (a finished one is left untouched and its summary returned); ``force``
+    replaces a campaign directory. ``config_text``: the config as the user gave it (kept
+    as ``config.toml``)."""
+    out = Path(out)
+    progress = progress or Progress(enabled=False)
+    directory = CampaignDir(out)
+    directory.check_writable()
+    if resume and directory.nothing_started():
+        # killed before its first file: "continue" means start (a plain `resume DIR` has no
+        # config to start from and still says "not a campaign directory")
+        resume, force = False, True
+    if resume:
+        directory.open("quantify")
+        _refuse_a_changed_config(directory, cfg)
+        finished = directory.finished_summary()
+        if finished is not None:
+            return finished
+    scenario = build_simulator(spec_of(cfg)).scenario
+    check_quantify(cfg, scenario.lower, scenario.upper)
+    facets = [FacetCampaign(cfg, label, out if label == "total" else out / "sides" / label, failure_facets)
+              for label, failure_facets in side_facets(cfg, scenario).items()]
+    status = StatusWriter(out)
+    try:
+        if resume:
+            directory.lock(announce=False)
+            for facet in facets:  # every checkpoint is checked before anything is written
+                facet.restore()
+            directory.announce()
+            directory.remove_stale_temp_files()
+        else:
+            directory.create("quantify", force=force)
+            directory.freeze_config(cfg, config_text)
+        for facet in facets:
+            facet.run(progress, status)
+        progress.close()
+        status.write({"state": "finishing"})
+        summary = finish(cfg, out, {facet.label: facet for facet in facets})
+        status.write({"state": "done", "result_hash": summary["result_hash"]})
+        return summary
+    finally:
+        directory.unlock()
+
+
+def _refuse_a_changed_config(directory: CampaignDir, cfg: Config) -> None:
+    changed = config_mod.changed_fields(directory.frozen_config(), cfg)
+    if changed:
+        raise CampaignError(f"{directory.path}: the config differs from the campaign's frozen config in "
+                            f"{', '.join(changed)}; only settings that cannot change a result may change on "
+                            f"resume (farm.workers, farm.executor, farm.address, and with sequential counting "
+                            f"farm.batch_size and farm.pipeline_depth)")
+
+
+def guarantee_of(cfg: Config, part: FacetCampaign, delta: float):
+    """The plain and formal guarantee of a finished campaign part (coordinator/guarantee.py)."""
+    from coordinator.guarantee import quantified
+
+    q, campaign, algo = cfg.quantify, part.campaign, part.algorithm
+    certified = campaign.certify and algo.certifying
+    return quantified(part.scenario, part.policy, epsilon=q.epsilon, beta=q.beta, delta=delta, horizon=q.horizon,
+                      n_eps=campaign.n_eps, attempts=campaign.counters.attempts if certified else 0,
+                      n_final=campaign.quiet_needed() if certified else campaign.n_eps,
+                      converged=campaign.counters.converged, budget=q.budget,
+                      enumerated=certified and algo.enumerates, boxes=algo.vertices.alive_count,
+                      uniform=certified, distribution=campaign.final_distribution,
+                      escaped=campaign.counters.escaped_in_streak, adversarial=cfg.actions.mode == "adversarial",
+                      coarsest=algo.result().coarsest if q.refine == "band" else None)
+
+
+def finish(cfg: Config, out: Path, parts: dict[str, FacetCampaign]) -> Summary:
+    safe_sets = {label: p.algorithm.result() for label, p in parts.items()}
+    safe_sets["total"] = safe_sets["total"].sorted()
+    summary = summarize(cfg, parts, safe_sets,
+                        {label: guarantee_of(cfg, p, safe_sets[label].finest) for label, p in parts.items()})
+    for label, safe_set in safe_sets.items():
+        if label == "total":
+            name, meta = "safe_set.parquet", {"config_hash": summary.config_hash, "result_hash": summary.result_hash}
+        else:
+            name, meta = f"safe_set_{label}_side.parquet", {"config_hash": summary.config_hash, "side": label}
+        atomic_write(out / name, partial(safe_set.to_parquet, metadata=meta))
+    for label, p in parts.items():
+        if p.campaign.adversary is not None:
+            name = "adversary.json" if label == "total" else f"adversary_{label}_side.json"
+            write_json(out / name, p.campaign.adversary.report(p.scenario))
+    summary.write(out)
+    from farm.reports.plots import draw
+
+    for label, side in parts.items():
+        if label == "total":
+            draw(out / "plots", side.scenario, safe_sets[label], summary)
+        else:
+            draw(out / "plots" / f"{label}_side", side.scenario, safe_sets[label],
+                 replace(summary, algorithm=f"{label} side"))
+    return summary

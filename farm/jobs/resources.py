@@ -1,0 +1,118 @@
+"""What a campaign will need, estimated before it starts and refused past a limit.
+
+Accepted values can still ask for the impossible: ``delta_min = 1e-300`` means more boxes
+than atoms, a validation domain 1e-7 wide at ``delta = 1e-9`` a lattice of 10^18 centres.
+Both used to run until the machine gave out. The estimates here are worst cases (every
+cell of the finest covering alive), so a refusal is never wrong about what was asked;
+the limit is ``farm.max_memory_gb`` (default: three quarters of this machine's memory).
+The farm is checked too: a local Ray gets at most ``ACTORS_PER_CPU`` actors per CPU of
+this machine, and a cluster is joined before any file is written.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+from farm.config import Config, ConfigError
+
+# Measured: lead-follow idm under Gamma* at delta_min 0.125 peaked at 1.66 GB with 1.83 M
+# boxes alive (centres, graph, spatial index, failure distances, replay keys).
+BYTES_PER_BOX = 1024
+# A validation lattice holds centres, their index and per-centre verdicts.
+BYTES_PER_CENTRE = 256
+# Actors past the CPUs only share them (a local Ray gives each CPUs / workers of one), and
+# each is a process that takes its memory and seconds to start; a few per CPU still hide
+# a simulator that waits rather than computes (docs/benchmarks.md, branch errors).
+ACTORS_PER_CPU = 4
+
+
+def memory_limit_bytes(cfg: Config) -> float:
+    if cfg.farm.max_memory_gb is not None:
+        return cfg.farm.max_memory_gb * 1e9
+    try:
+        return 0.75 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):  # not a POSIX sysconf: a laptop's worth
+        return 8e9
+
+
+def cells(lo, hi, delta: float) -> float:
+    """Boxes of half-width ``delta`` tiling [lo, hi] (a float: it may exceed int64)."""
+    extent = np.asarray(hi, dtype=float) - np.asarray(lo, dtype=float)
+    with np.errstate(over="ignore"):  # inf boxes is a fine answer: it is refused
+        return float(np.prod(np.maximum(1.0, np.ceil(extent / (2 * delta) - 1e-9))))
+
+
+def _finest_allowed(lo, hi, max_cells: float) -> float:
+    """About the smallest delta whose tiling has at most ``max_cells`` boxes."""
+    extent = np.asarray(hi, dtype=float) - np.asarray(lo, dtype=float)
+    return 0.5 * math.exp((np.log(extent).sum() - math.log(max(max_cells, 1.0))) / len(extent))
+
+
+def _gb(b: float) -> str:
+    return f"{b / 1e9:.3g} GB"
+
+
+def _fits(cfg: Config, field: str, delta: float, lo, hi, per_cell: int, what: str) -> None:
+    """Refuse a ``delta`` whose worst-case tiling of [lo, hi] would not fit the limit."""
+    limit = memory_limit_bytes(cfg)
+    count = cells(lo, hi, delta)
+    if count * per_cell > limit:
+        finest = _finest_allowed(lo, hi, limit / per_cell)
+        raise ConfigError(f"{field}: {delta:g} {what.format(count)} (about {_gb(count * per_cell)}, over the limit "
+                          f"farm.max_memory_gb = {_gb(limit)}); allowed {field.split('.')[1]} >= about "
+                          f"{finest:.3g}, or raise farm.max_memory_gb")
+
+
+def machine_cpus() -> int:
+    """The CPUs this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def check_farm(cfg: Config) -> None:
+    """Refuse a local Ray with more actors than ``ACTORS_PER_CPU`` per CPU (ConfigError).
+    A cluster is joined now, before any file is written: an address that answers
+    nothing, or answers but is no Ray cluster, is refused with nothing to clean up."""
+    farm = cfg.farm
+    if farm.executor != "ray":
+        return
+    if farm.address == "local":
+        most = ACTORS_PER_CPU * machine_cpus()
+        if farm.workers > most:
+            raise ConfigError(f"farm.workers: {farm.workers} actors on a local Ray of {machine_cpus()} CPUs; allowed "
+                              f"[1, {most}] ({ACTORS_PER_CPU} per CPU: more only share the CPUs, each a process of "
+                              f"its own); for more, join a cluster with farm.address")
+        return
+    from farm.ray_runtime.session import connect
+
+    connect(farm.address, farm.workers)
+
+
+def check_quantify(cfg: Config, lower, upper) -> None:
+    """Refuse, with the field named, a quantification that cannot fit (ConfigError)."""
+    q = cfg.quantify
+    half = float(np.max(np.asarray(upper) - np.asarray(lower))) / 2
+    if q.delta0 > half * (1 + 1e-12):
+        raise ConfigError(f"quantify.delta0: {q.delta0:g} is larger than Sigma (one box of half-width {half:g} "
+                          f"covers it; every larger delta0 only adds rounds); allowed (0, {half:g}]")
+    _fits(cfg, "quantify.delta_min", q.delta_min, lower, upper, BYTES_PER_BOX, "may need {:.3g} boxes")
+    check_farm(cfg)
+
+
+def check_validate(cfg: Config, lo, hi, is_set: bool) -> None:
+    """Refuse a validation whose delta-lattice cannot fit, or whose delta exceeds the
+    domain (one box would cover it: a single start would 'certify' the whole domain)."""
+    v = cfg.validate
+    if v.algorithm != "eps" and not is_set:  # eps samples Phi itself; a set brings its own centres
+        half = float(np.max(np.asarray(hi) - np.asarray(lo))) / 2
+        if v.delta > half * (1 + 1e-12):
+            raise ConfigError(f"validate.delta: {v.delta:g} is larger than the domain (half its widest side is "
+                              f"{half:g}: one box would cover it, so a single start would stand for all of Phi); "
+                              f"allowed (0, {half:g}]")
+        _fits(cfg, "validate.delta", v.delta, lo, hi, BYTES_PER_CENTRE, "gives a lattice of {:.3g} centres")
+    check_farm(cfg)

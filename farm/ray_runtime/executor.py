@@ -1,0 +1,554 @@
+"""The Ray executor: stateless actors, each holding one scenario back end (for SUMO, one
+libsumo simulation per actor process) and a mirror of the coverage its runs are
+screened against.
+
+A batch is cut into chunks whose size follows the simulator (farm/execution/chunking.py: each
+worker a share of every batch, about a second of simulation at most, no more Ray calls
+than the driver can afford); the first batch begins with a one-run chunk that measures
+the run time before the rest is cut. Chunks go to the actor with the fewest runs queued;
+replacements (the runs the commit head waits for under sequential counting) go first to a
+fast lane, one more actor that takes nothing else, so that they never wait behind the
+chunks queued on a worker.
+With each chunk goes what its actor's mirror lacks: the coverage changes since the
+version the actor was last sent (small blocks inside the call, large ones put in the
+object store once and shared by every actor that needs the same range), or a whole
+snapshot for a new or restarted actor. A chunk returns two objects: a small per-run
+summary (outcome, length, screening, the actor's busy time), which comes back to the
+driver, and the visited states, which stay in the worker node's object store until the
+driver asks for them (re-screening, experience replay, recordings) or drops them.
+
+Every wait wakes for a stop and watches the chunks' time limits (farm/ray_runtime/pool.py): a
+hung or lost actor is replaced and its chunks retried on the others (bounded by
+``farm.max_retries``); an exception inside a scenario surfaces as a one-line error
+naming the sample index and start state. The mirror is a cache, not state: an actor
+that lost it asks for a snapshot.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import threading
+import time
+from typing import Callable
+
+import numpy as np
+
+from coordinator.coverage import Coverage, Reset
+from coordinator.executor import Chunk, Executor, chunk_of, screen_piece, summarize
+from farm.execution.chunking import ChunkSizer, fast_lanes
+from farm.ray_runtime.pool import ActorPool, Call, check_started
+from farm.ray_runtime.session import connect
+from farm.execution.process import build_simulator
+from farm.execution.waiting import WorkerError, name_runs
+from scenarios.errors import FarmError
+from scenarios.simulator import SimSpec
+
+__all__ = ["RayExecutor", "WorkerError"]
+
+RESYNC = "resync"  # a worker's answer when its mirror cannot reach the chunk's version
+STORED_PART = 4096  # runs per replay task when a stored piece must be re-simulated
+INLINE_BYTES = 1 << 16  # change blocks up to this size travel inside the task call
+CLOSE_GRACE_S = 2.0  # [s] an actor's time to finish its chunks at close before it is killed
+
+
+def _nbytes(changes) -> int:
+    """Array bytes of logged coverage changes (a whole-coverage Reset counts as large)."""
+    total = 0
+    for _, _, change in changes:
+        if isinstance(change, Reset):
+            return INLINE_BYTES + 1
+        total += sum(v.nbytes for v in vars(change).values() if isinstance(v, np.ndarray))
+    return total
+
+
+def _actor_class():
+    import ray
+
+    @ray.remote(num_cpus=1)
+    class SimWorker:
+        """Holds a scenario back end and a coverage mirror; simulates and screens
+        whatever chunk it is sent."""
+
+        def __init__(self, spec: dict, check_step_bound: bool):
+            self.simulator = build_simulator(SimSpec(**spec), check_step_bound)
+            self.mirror: Coverage | None = None
+            self.static = (None, None)
+            self.busy_s = 0.0
+            self.tasks = 0
+            self.runs = 0
+
+        @ray.method(num_returns=2)
+        def run(self, first_index: int, starts: np.ndarray, message, actions=None, indices=None):
+            t0 = time.perf_counter()
+            screen = self._screen(message)
+            if screen is RESYNC:
+                return RESYNC, None
+            batch = self.simulator.simulate(first_index, starts, indices=indices, actions=actions)
+            summary, visited = summarize(batch, screen)
+            busy = time.perf_counter() - t0
+            summary["busy_s"] = busy  # the chunk sizes follow it (farm/execution/chunking.py)
+            self.busy_s += busy
+            self.tasks += 1
+            self.runs += len(starts)
+            return summary, visited
+
+        def _screen(self, message):
+            kind, payload, base = message
+            if kind == "none":
+                return None
+            if kind == "static":  # fetched once per screen
+                if self.static[0] != payload.hex():
+                    self.static = (payload.hex(), ray.get(payload))
+                return self.static[1]
+            if kind == "snapshot":  # a whole coverage, as plain arrays
+                self.mirror = Coverage.from_state(ray.get(payload))
+                return self.mirror
+            # "changes": change blocks (inline, or refs) holding every change after number ``base``
+            # (a mirror ahead of base skips what it has: the chunk that took it there was
+            # dropped by the coordinator, which then sends from what it knows was applied)
+            if self.mirror is None or self.mirror.seq < base:
+                return RESYNC
+            for block in payload:
+                self.mirror.sync(ray.get(block) if isinstance(block, ray.ObjectRef) else block)
+            return self.mirror
+
+        def revisit(self, first_index: int, starts: np.ndarray, actions=None, indices=None):
+            """A chunk's visited states again (they were lost with their node): a run
+            depends on its key, start and the policy's state only."""
+            return self.simulator.simulate(first_index, starts, indices=indices, actions=actions).visited()
+
+        def replay_screen(self, pieces, source_refs, message, actions=None):
+            """Experience replay on stored pieces: each one's new states under the
+            coverage. All of an actor's pieces come in one call: a call costs the
+            driver ~0.7 ms, and a round end has a piece per chunk that kept states."""
+            if actions is not None:  # a re-simulation needs the policy the runs had
+                self.simulator.policy.load(actions)
+            screen = self._screen(message)
+            if screen is RESYNC:
+                return RESYNC
+            found = []
+            for piece, refs in zip(pieces, source_refs):
+                source = None
+                if refs:
+                    try:
+                        source = ray.get(refs[0])
+                    except ray.exceptions.ObjectLostError:  # its worker died: re-simulate from the keys
+                        source = None
+                found.append(screen_piece(self.simulator, source, piece, screen))
+            return found
+
+        def stats(self) -> dict:
+            return {"busy_s": self.busy_s, "tasks": self.tasks, "runs": self.runs, "pid": os.getpid()}
+
+        def pid(self) -> int:
+            return os.getpid()
+
+        def node(self) -> str:
+            return ray.get_runtime_context().get_node_id()
+
+    return SimWorker
+
+
+@dataclasses.dataclass(eq=False)
+class _Job(Call):
+    """A chunk: runs ``first, first + 1, ...`` (or ``indices``) from ``starts``."""
+
+    first: int = 0
+    starts: np.ndarray | None = None
+    screen: object = None
+    actions: dict | None = None  # the policy's adaptive state for this chunk
+    indices: np.ndarray | None = None
+    visited_ref: object = None
+    sent: tuple | None = None  # the coverage (id, epoch, seq) its message brings the actor to
+    fresh: bool = False  # send a whole snapshot (the actor lost its mirror)
+    summary: dict | None = None
+
+
+class RayExecutor(Executor):
+    name = "ray"
+
+    def __init__(self, spec: SimSpec, workers: int, address: str = "local", max_retries: int = 3,
+                 check_step_bound: bool = False, pipeline_depth: int = 1, chunk_timeout: float = 0.0,
+                 stop: threading.Event | None = None, notify: Callable[[str], None] | None = None,
+                 fast_lane: bool = True):
+        """``pipeline_depth``: batches the caller keeps in flight (farm.pipeline_depth);
+        ``chunk_timeout``: seconds a chunk may take (farm.chunk_timeout; 0: derived from
+        the measured run time); ``stop``: set on SIGINT / SIGTERM, it ends a wait for a
+        chunk (``farm.execution.waiting.Interrupted``); ``notify``: takes a line for the user (a
+        worker replaced); ``fast_lane``: actors for replacements only (one per 16 workers).
+        None of them changes a result."""
+        import ray
+
+        connect(address, workers)
+        self.ray = ray
+        self.spec = spec
+        self.workers = workers
+        self.max_retries = max_retries
+        self.pipeline_depth = max(1, int(pipeline_depth))
+        self.sizer = ChunkSizer(workers, chunk_timeout)
+        self._scenario = str(spec.scenario.get("name", "?"))
+        # More workers than CPUs (a test asking for 4 on a 2-core Ray) share the CPUs
+        # instead of waiting forever for a free one.
+        cpus = float(ray.cluster_resources().get("CPU", workers))
+        per_actor = min(1.0, cpus / workers)
+        # spread over the cluster's nodes: simulators are what the farm scales. Ray
+        # restarts a dead actor (for ever: a chunk's tries are bounded instead) and
+        # retries none of its calls: the pool sends them elsewhere.
+        cls = _actor_class().options(num_cpus=per_actor, max_restarts=-1, max_task_retries=0,
+                                     scheduling_strategy="SPREAD")
+        handles = [cls.remote(dataclasses.asdict(spec), check_step_bound) for _ in range(workers)]
+        self.pool = ActorPool(ray, handles, self.sizer.limit, max_retries, stop, notify)
+        self._check_step_bound = check_step_bound
+        self._lanes = fast_lanes(workers) if fast_lane else 0
+        self._lane = fast_lane  # started with the first replacement (many campaigns need none)
+        self._blocks: dict[tuple, object] = {}  # (coverage id, from seq, to seq) -> ref
+        self._static: dict[int, object] = {}  # id(screen) -> ref of a fixed screen
+        self._snapshot: tuple = (None, None)  # (coverage id, epoch, seq), ref of its state
+        self._jobs: dict[int, _Job] = {}
+        self._next = 0
+        self._since_trim = 0  # change messages since the coverage's log was last trimmed
+        self._actions: dict | None = None  # the newest adaptive policy state submitted
+
+    @property
+    def actors(self) -> list:
+        """The workers (not the fast lane)."""
+        return [s.handle for s in self.pool.slots if not s.lane]
+
+    def _actor(self, slot: int):
+        return self.pool.slots[slot].handle
+
+    @property
+    def stop(self) -> threading.Event | None:
+        return self.pool.stop
+
+    @stop.setter
+    def stop(self, event: threading.Event | None) -> None:
+        self.pool.stop = event
+
+    @property
+    def notify(self):
+        return self.pool.notify
+
+    @notify.setter
+    def notify(self, notify) -> None:
+        self.pool.notify = notify
+
+    @property
+    def chunks_sent(self) -> int:
+        """Chunks submitted so far (a retry is not another)."""
+        return self._next
+
+    def pids(self) -> list[int]:
+        return self.ray.get([a.pid.remote() for a in self.actors])
+
+    def nodes(self) -> list[str]:
+        """The Ray node of each actor."""
+        return self.ray.get([a.node.remote() for a in self.actors])
+
+    def worker_stats(self) -> list[dict]:
+        """Busy seconds, tasks and runs per worker (for idle-fraction measurements)."""
+        return self.ray.get([a.stats.remote() for a in self.actors])
+
+    # -- what a chunk's actor needs to screen it ------------------------------------------
+    def _message(self, actor: int, screen, fresh: bool = False):
+        if screen is None:
+            return ("none", None, 0)
+        if not isinstance(screen, Coverage):
+            key = id(screen)
+            if key not in self._static:
+                self._static = {key: self.ray.put(screen)}
+            return ("static", self._static[key], 0)
+        screen.start_log()
+        now = (id(screen), screen.epoch, screen.seq)
+        slot = self.pool.slots[actor]
+        sent = slot.synced
+        slot.synced = now
+        if fresh or sent is None or sent[:2] != now[:2]:
+            if self._snapshot[0] != now:
+                self._snapshot = (now, self.ray.put(screen.state()))
+            return ("snapshot", self._snapshot[1], 0)
+        if sent[2] == now[2]:
+            return ("changes", [], sent[2])
+        key = (id(screen), sent[2], now[2])
+        if key not in self._blocks:
+            self._blocks = {k: v for k, v in self._blocks.items() if k[2] == now[2]}  # older ranges are done
+            changes = screen.changes_since(sent[2])
+            # a small block goes inside the call (Ray inlines it; a put costs the driver
+            # ~1 ms), a large one once into the object store for every actor that needs it
+            self._blocks[key] = changes if _nbytes(changes) <= INLINE_BYTES else self.ray.put(changes)
+        self._since_trim += 1
+        if self._since_trim >= len(self.pool.slots):  # a look at every actor: about once a wave
+            self._trim(screen)
+            self._since_trim = 0
+        return ("changes", [self._blocks[key]], sent[2])
+
+    def _trim(self, screen: Coverage) -> None:
+        """Forget the changes every actor that was sent this coverage has applied. An
+        actor never sent it gets a snapshot, not changes, so it holds nothing back: with
+        fewer chunks in flight than workers the actors past the last are never used, and
+        waiting for them kept every change of the campaign."""
+        now = (id(screen), screen.epoch)
+        slots = self.pool.slots
+        holding = [s.confirmed for s in slots if s.synced is not None and s.synced[:2] == now]
+        if holding and all(c is not None and c[:2] == now for c in holding):
+            screen.trim_log(min(c[2] for c in holding))
+
+    # -- the contract -------------------------------------------------------------------
+    def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None,
+               indices: np.ndarray | None = None) -> list[int]:
+        # the policy's adaptive state goes with every chunk (a few numbers): an actor that
+        # Ray restarted from its constructor needs nothing else
+        self._actions = actions
+        n, handles, at = len(starts), [], 0
+        if n and self.sizer.run_s is None:
+            # nothing measured yet: one run first, then the rest cut by its time (a
+            # simulator of a second per run must not start with minutes-long chunks)
+            handles.append(self._send(first_index, starts, screen, actions, indices, np.arange(1)))
+            self._read(self._jobs[handles[0]])
+            at = 1
+        if n > at:
+            urgent = indices is not None
+            lanes = self._lanes if urgent else 0  # replacements go to the lanes
+            idle = 0 if urgent else sum(1 for slot in self.pool.slots if not slot.queue and not slot.lane and not slot.down)
+            cut = self.sizer.cut(n - at, urgent, lanes, idle)
+            if not urgent:  # long chunks wait in the pool, so that a replacement waits for none of them
+                self.pool.depth = 1 if self.sizer.one_at_a_time(max(len(rows) for rows in cut)) else 0
+                self.pool.dispatch()
+            for rows in cut:
+                handles.append(self._send(first_index, starts, screen, actions, indices, rows + at))
+        return handles
+
+    def _start_lane(self) -> None:
+        """The fast lanes (farm/execution/chunking.py ``fast_lanes``): under sequential counting the
+        commit head may wait for a replacement, which behind a worker's queued chunks would
+        wait seconds. They reserve no CPU: they are busy only with replacements, a few %
+        of the runs."""
+        lane = _actor_class().options(num_cpus=0, max_restarts=-1, max_task_retries=0, scheduling_strategy="SPREAD")
+        for _ in range(self._lanes):
+            self.pool.add(lane.remote(dataclasses.asdict(self.spec), self._check_step_bound), lane=True)
+        self._lane = False
+
+    def _send(self, first_index, starts, screen, actions, indices, rows) -> int:
+        if indices is not None and self._lane:
+            self._start_lane()
+        first = first_index + int(rows[0])
+        picked = None if indices is None else np.asarray(indices, dtype=np.int64)[rows]
+        job = _Job(len(rows), name_runs(self._scenario, first, starts[rows], picked), None, first=first, starts=starts[rows],
+                   screen=screen, actions=actions, indices=picked, urgent=indices is not None)
+        job.launch = lambda actor, job=job: self._launch(job, actor)
+        self.pool.send(job)
+        self._jobs[self._next] = job
+        self._next += 1
+        return self._next - 1
+
+    def run_seconds(self) -> float | None:
+        return self.sizer.run_s
+
+    def batch_size(self, requested: int) -> int:
+        return self.sizer.batch_size(requested)
+
+    def busy_at_most(self, batch_size: int) -> int:
+        """Workers that batches of ``batch_size`` runs, ``pipeline_depth`` in flight, can
+        keep busy by the run time measured so far: the others are never sent a chunk."""
+        return self.sizer.busy_at_most(batch_size, self.pipeline_depth)
+
+    def _launch(self, job: _Job, actor: int) -> None:
+        t0 = time.perf_counter()
+        message = self._message(actor, job.screen, job.fresh)
+        job.sent = self.pool.slots[actor].synced
+        job.ref, job.visited_ref = self._actor(actor).run.remote(job.first, job.starts, message, job.actions,
+                                                                 job.indices)
+        job.fresh = False
+        job.call_s += time.perf_counter() - t0
+        self.pool.sent(job, actor)
+
+    def ready(self, handle: int) -> bool:
+        job = self._jobs[handle]
+        if job.summary is not None:
+            return True
+        self.pool.poll_now()  # chunks waiting in the pool go out as actors finish
+        if job.ref is None:
+            return False
+        ready, _ = self.ray.wait([job.ref], timeout=0)
+        return bool(ready)
+
+    def result(self, handle: int) -> Chunk:
+        job = self._jobs.pop(handle)
+        summary = self._read(job)
+        visited_ref = job.visited_ref
+        return chunk_of(summary, lambda: self._visited(job), lambda rows, takes: visited_ref)
+
+    def _visited(self, job: _Job):
+        """A chunk's visited states from its node's object store, or simulated again on a
+        live actor when that node is gone."""
+        try:
+            return self.ray.get(job.visited_ref)
+        except self.ray.exceptions.ObjectLostError:
+            pass
+        call = Call(job.runs, f"{job.what} (simulated again: their node was lost)", None)
+
+        def launch(actor: int) -> None:
+            call.ref = self._actor(actor).revisit.remote(job.first, job.starts, job.actions, job.indices)
+            self.pool.sent(call, actor)
+
+        call.launch = launch
+        self.pool.send(call, interruptible=False)
+        return self._get(call, interruptible=False)  # in the middle of a commit: not stopped there
+
+    def _get(self, call: Call, interruptible: bool = True):
+        """``call``'s value once it is back: it is sent again, to another actor, while its
+        actor is lost (a stop ends the wait when ``interruptible``)."""
+        ray = self.ray
+        while True:
+            self.pool.wait(call, interruptible)
+            t0 = time.perf_counter()
+            try:
+                value = ray.get(call.ref)
+            except ray.exceptions.RayTaskError as exc:
+                cause = getattr(exc, "cause", None)
+                if isinstance(cause, FarmError):  # e.g. the user's scenario raised: its own one line
+                    raise cause from None
+                raise WorkerError(f"worker failed on {call.what}: {cause if cause is not None else exc}") from None
+            except (ray.exceptions.RayActorError, ray.exceptions.WorkerCrashedError,
+                    ray.exceptions.ObjectLostError) as exc:
+                check_started(exc)
+                self.pool.failed(call, type(exc).__name__, interruptible)
+                continue
+            call.call_s += time.perf_counter() - t0
+            self.pool.finished(call)
+            return value
+
+    def _read(self, job: _Job) -> dict:
+        """The chunk's summary (once: it is kept), sent again where its actor was restarted
+        without its mirror; the chunk sizes learn from its time."""
+        while job.summary is None:
+            summary = self._get(job)
+            if isinstance(summary, str) and summary == RESYNC:  # restarted without its mirror
+                job.fresh = True
+                job.launch(job.actor)
+                continue
+            slot = self.pool.slots[job.actor]
+            if job.sent is not None:  # the actor's mirror has reached what was sent
+                known = slot.confirmed
+                if known is None or known[:2] != job.sent[:2] or known[2] < job.sent[2]:
+                    slot.confirmed = job.sent
+            self.sizer.ran(job.runs, summary.pop("busy_s"))
+            self.sizer.called(job.call_s)
+            job.summary = summary
+        return job.summary
+
+    def screen_stored(self, pieces, screen):
+        """The pieces shared out among the actors by runs, one call per actor; a piece
+        whose states are gone (resume) is re-simulated in shares, so that every actor
+        takes a share."""
+        from coordinator.experience_replay import Stored
+
+        shares = []
+        for piece in pieces:
+            if piece.source is None and len(piece.indices) > STORED_PART:
+                for lo in range(0, len(piece.indices), STORED_PART):
+                    sl = slice(lo, lo + STORED_PART)
+                    shares.append(Stored(None, piece.indices[sl], piece.rows[sl], piece.takes[sl], piece.parents[sl],
+                                        piece.starts[sl]))
+            else:
+                shares.append(piece)
+        # one call per actor with its share (balanced by runs), results
+        # back in the shares' order
+        up = [i for i, slot in enumerate(self.pool.slots) if not slot.down and not slot.lane] or [0]
+        groups: list[list[int]] = [[] for _ in up]
+        load = np.zeros(len(up))
+        for i, share in enumerate(shares):
+            g = int(np.argmin(load))
+            groups[g].append(i)
+            load[g] += len(share.indices)
+        calls = []
+        for members in groups:
+            if members:
+                call = self._replay_call([shares[i] for i in members], screen)
+                self.pool.send(call, interruptible=False)
+                calls.append((members, call))
+        found: list = [None] * len(shares)
+        for members, call in calls:
+            for i, piece_found in zip(members, self._read_replay(call)):
+                found[i] = piece_found
+        # back to one result per piece (re-simulated pieces came in shares)
+        out, at = [], 0
+        for piece in pieces:
+            if piece.source is None and len(piece.indices) > STORED_PART:
+                k = -(-len(piece.indices) // STORED_PART)
+                states = np.concatenate([found[at + i][0] for i in range(k)])
+                run = np.concatenate([found[at + i][1] + i * STORED_PART for i in range(k)])
+                out.append((states, run))
+                at += k
+            else:
+                out.append(found[at])
+                at += 1
+        return out
+
+    def _replay_call(self, shares: list, screen) -> Call:
+        """Experience replay of ``shares`` on one actor (one call: a call costs the driver
+        ~0.7 ms, and a round end has a piece per chunk that kept states)."""
+        from coordinator.experience_replay import Stored
+
+        stripped = [Stored(None, p.indices, p.rows, p.takes, p.parents, p.starts) for p in shares]
+        sources = [[p.source] if p.source is not None else [] for p in shares]  # nested: not resolved by Ray
+        runs = sum(len(p.indices) for p in shares)
+        call = Call(runs, f"scenario {self._scenario!r}: experience replay of {runs} runs", None,
+                    limit=self.sizer.replay_limit(runs))
+
+        def launch(actor: int, fresh: bool = False) -> None:
+            message = self._message(actor, screen, fresh)
+            call.ref = self._actor(actor).replay_screen.remote(stripped, sources, message, self._actions)
+            self.pool.sent(call, actor)
+
+        call.launch = launch
+        call.relaunch_fresh = lambda: launch(call.actor, fresh=True)
+        return call
+
+    def _read_replay(self, call: Call) -> list:
+        while True:
+            result = self._get(call, interruptible=False)  # a round end's replay finishes before a stop
+            if not isinstance(result, str):
+                return result
+            call.relaunch_fresh()  # the actor was restarted without its mirror
+
+    def cancel(self, handle: int) -> None:
+        job = self._jobs.pop(handle, None)
+        if job is None:
+            return
+        job.dropped = True  # a chunk still waiting in the pool is never sent
+        if job.summary is None and job.actor >= 0:
+            # its changes may never reach the actor: the next message starts from what is known
+            slot = self.pool.slots[job.actor]
+            slot.synced = slot.confirmed
+        # The chunk is left to finish, its results unread (and freed with the refs): no
+        # ray.cancel. Cancelling a queued actor task can leave a gap in the actor's
+        # sequence numbers that stalls its next tasks until Ray's 30 s reorder timeout
+        # (Ray issues 65785, 66020); seen once here, a round end's replay screening
+        # retried after "Timed out waiting for seq_no". A running actor task is not
+        # cancelled anyway, and a round end drops at most the batches in flight; its
+        # time on the actor still counts towards the next chunk's limit (farm/ray_runtime/pool.py).
+
+    def close(self) -> None:
+        """End the actors. Each first finishes what it was sent (at a round's end, chunks
+        that were dropped: short) and exits; one still busy after ``CLOSE_GRACE_S`` (at
+        once after a stop), or down, is killed. Killing at once failed the running chunk, which Ray reports on
+        the driver as "Task SimWorker.run failed ... will be retried" at the end of every
+        normal campaign."""
+        slots = self.pool.slots
+        if not slots:
+            return
+        live = [s for s in slots if not s.down]
+        ends = [s.handle.__ray_terminate__.options(max_task_retries=0).remote() for s in live]
+        busy = []
+        if ends:  # no grace on a stop: a hung chunk would hold it up
+            grace = 0.0 if self.stop is not None and self.stop.is_set() else CLOSE_GRACE_S
+            _, busy = self.ray.wait(ends, num_returns=len(ends), timeout=grace)
+        for slot in slots:
+            if slot.down and not slot.dead:
+                self.ray.kill(slot.handle, no_restart=True)
+        for slot, end in zip(live, ends):
+            if end in busy:
+                self.ray.kill(slot.handle, no_restart=True)
+        self.pool.slots = []
