@@ -80,7 +80,7 @@ def query_rate(boxes: int, q: np.ndarray | None = None, repeats: int = 7) -> tup
 
 
 def campaign_scaling() -> tuple[list[tuple[int, float]], float]:
-    from coordinator.campaign import Campaign, CampaignSettings
+    from coordinator.driver import Campaign, CampaignSettings
     from coordinator.spe import SPE, SPESettings
     from farm.execution.local import LocalExecutor
     from scenarios import make_scenario

@@ -31,9 +31,9 @@ def campaign_config(executor="local", workers=1, backend="numpy", delta_min=0.5)
 
 def run_campaign(cfg):
     """-> (counters, wall seconds of the campaign loop, worker stats or None, result hash)."""
-    from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+    from farm.jobs.campaign_setup import build_algorithm, build_campaign
+    from farm.execution.process import build_simulator, spec_of
     from farm.execution.factory import make_executor
-    from farm.execution.process import build_simulator
 
     spec = spec_of(cfg)
     sim = build_simulator(spec)
@@ -78,7 +78,7 @@ def main() -> None:
     from scenarios.simulator import SimSpec
 
     spec = SimSpec({"name": "lead-follow", "sv_policy": "idm"}, {"mode": "uniform"}, 2, 0)
-    ex = RayExecutor(spec, 1, "local")
+    ex = RayExecutor(spec, 1, "local").start()
     starts = np.tile([[10.0, 10.0, 30.0]], (8, 1))
     ex.result(ex.submit(0, starts)[0])
     t0 = time.perf_counter()

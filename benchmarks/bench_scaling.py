@@ -91,9 +91,9 @@ class CallClock:
 
 
 def run_campaign(cfg) -> dict:
-    from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+    from farm.jobs.campaign_setup import build_algorithm, build_campaign
+    from farm.execution.process import build_simulator, spec_of
     from farm.execution.factory import make_executor
-    from farm.execution.process import build_simulator
 
     spec = spec_of(cfg)
     sim = build_simulator(spec)
@@ -132,9 +132,9 @@ def virtual_seconds(workers: int, batch: int | None, depth: int | None, run_ms: 
     """The virtual farm's time to the result for the campaign on ``workers`` (farm/execution/virtual.py:
     the same coordinator, each worker on a core of its own), a full-horizon run of ``run_ms``
     and a call of ``call_ms``, as measured on Ray here; and its result hash (the Ray run's)."""
-    from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+    from farm.jobs.campaign_setup import build_algorithm, build_campaign
+    from farm.execution.process import build_simulator, spec_of
     from farm.execution.factory import make_executor
-    from farm.execution.process import build_simulator
 
     # the numpy back end: the modelled clock stands in for the sleep (the dynamics are the same)
     cfg = campaign_config(workers, batch, depth, "numpy",

@@ -31,7 +31,7 @@ def main() -> None:
     starts = np.tile([[10.0, 10.0, 60.0]], (2048, 1))
     rates = {}
     for workers in (1, 2):
-        ex = RayExecutor(spec, workers, "local")
+        ex = RayExecutor(spec, workers, "local").start()
         for h in ex.submit(0, starts[:256]):  # warm up: one libsumo start per actor
             ex.result(h)
         t0 = time.perf_counter()

@@ -51,10 +51,10 @@ def run(workers: int, run_time: float, seed: int, free: bool = False, outstandin
     """One campaign on the virtual farm. ``free``: the coordinator costs no simulated time
     (its CPU not charged, no call cost) and applies up to ``outstanding`` changes past
     holds at any run time (a copy costs it nothing)."""
-    from coordinator import speculation
-    from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+    from coordinator.driver import speculation
+    from farm.jobs.campaign_setup import build_algorithm, build_campaign
+    from farm.execution.process import build_simulator, spec_of
     from farm.execution.factory import make_executor
-    from farm.execution.process import build_simulator
 
     cfg = config(workers, run_time, seed, call_cost=0.0 if free else 0.001)
     simulator = build_simulator(spec_of(cfg))
@@ -127,7 +127,7 @@ def main() -> None:
 
 def free_rows(args, workers: list[int]) -> None:
     """The --free-coordinator rows, against the one-worker rows already in docs/virtual.json."""
-    from coordinator import speculation
+    from coordinator.driver import speculation
 
     path = DOCS / "virtual.json"
     data = json.loads(path.read_text())
@@ -164,7 +164,7 @@ def render() -> Path:
     """docs/virtual.md from docs/virtual.json."""
     import numpy as np
 
-    from coordinator import speculation
+    from coordinator.driver import speculation
 
     data = json.loads((DOCS / "virtual.json").read_text())
     rows, meta = data["rows"], data["meta"]
@@ -214,7 +214,7 @@ def render() -> Path:
                        "replacements (they may change the set: a round's end waits for all of them, a change for those "
                        f"before it, for runs of {speculation.RUN_S:g} s or more only once "
                        f"{speculation.MAX_OUTSTANDING} changes are applied past holds, "
-                       "coordinator/speculation.py), the rest for batch runs not back yet (after a round end the "
+                       "coordinator/driver/speculation.py), the rest for batch runs not back yet (after a round end the "
                        "pipeline refills).")
     out += free_table(data)
     path = DOCS / "virtual.md"
@@ -234,7 +234,7 @@ def free_table(data: dict) -> list[str]:
     out = ["", "## What the counting rule allows: the coordinator free", "",
            "`python benchmarks/bench_virtual.py --free-coordinator --outstanding 4 8`: the same campaigns with a "
            "coordinator that costs no simulated time (its CPU not charged, no call cost) and applies changes past "
-           "holds (coordinator/speculation.py) at any run time, 4 or 8 at once; speed-ups against the one-worker "
+           "holds (coordinator/driver/speculation.py) at any run time, 4 or 8 at once; speed-ups against the one-worker "
            "rows above. What is left (all of the time) is the head waiting for runs the rule orders: a replacement that may change "
            "the set before the change after it, a round's end for its streak's replacements, a new round for "
            "its first runs. A target that this table misses cannot be met by a faster coordinator or cheaper "

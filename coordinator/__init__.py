@@ -5,16 +5,17 @@
   state; ``SPE`` (``spe.py``, paper Alg. 8) and the baselines AE, delta-pruning and VS
   (``baselines.py``), by name from ``make_algorithm``; ``coordinator/testing.py`` is the
   conformance suite every algorithm passes.
-- ``Campaign`` and ``CampaignSettings`` (``campaign.py``): the batch driver that keeps the
-  parallel contract (shared/spec/algorithms.md); it asks an ``Executor``
-  (``executor.py``: the contract of where runs are simulated) for ``Chunk``s.
+- ``Campaign`` and ``CampaignSettings`` (the ``driver`` package): the batch driver that
+  keeps the parallel contract (shared/spec/algorithms.md), one part per job
+  (``driver/__init__.py`` lists them); it asks an ``Executor`` (``executor.py``: the
+  contract of where runs are simulated) for ``Chunk``s.
 - ``Coverage`` (``coverage.py``): what a run is screened against, on the coordinator
   and as mirrors on the workers; the spatial index under it (``spatial.py``); the
   lattice of delta-coverings (``lattice.py``); the exploration graph (``graph.py``);
   experience replay (``experience_replay.py``); prioritized sampling (``sampler.py``,
   ``priorities.py``); certification (``certification.py``: closing rounds and checks)
   and its bookkeeping (``certificates.py``, ``enumeration.py``); coupled counting's
-  stable draws (``stable_sampler.py``) and replacements (``replacements.py``); boxes of
+  stable draws (``stable_sampler.py``); boxes of
   mixed sizes (``levels.py``, ``level_grid.py``, ``refinement.py``); a growable array
   (``buffers.py``).
 - Validation of a claimed domain (``validation.py``, ``domain.py``), sample sizes
@@ -25,7 +26,7 @@
 
 from coordinator.algorithm import Algorithm, EmptySetError, Event
 from coordinator.baselines import AdaptiveExploration, DeltaPruning, VanillaSampling, make_algorithm
-from coordinator.campaign import Campaign, CampaignSettings, Counters, DriverState
+from coordinator.driver import Campaign, CampaignSettings, Counters, DriverState
 from coordinator.coverage import Coverage, Screening
 from coordinator.executor import Chunk, Executor
 from coordinator.lattice import Lattice

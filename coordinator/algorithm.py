@@ -1,6 +1,6 @@
 """The quantification-algorithm contract: ask/tell over explicit state.
 
-``coordinator.campaign`` drives every algorithm the same way (the parallel contract):
+``coordinator.driver`` drives every algorithm the same way (the parallel contract):
 
     draw(streams)             ask: start vertices for a batch from each run's own stream,
                               at the state as it is now (its ``version``)
@@ -39,7 +39,7 @@ import numpy as np
 from coordinator.coverage import Coverage, Rescreen
 from coordinator.safe_set import SafeSet
 from coordinator.stable_sampler import Draws
-from scenarios.base import Scenario
+from scenarios.base import FAILURE, Scenario
 from scenarios.errors import UserError
 from scenarios.streams import RunStreams
 
@@ -64,6 +64,13 @@ class Event:
     uncovered: np.ndarray | None = None
     near_failure: np.ndarray | None = None
 
+    @classmethod
+    def of_run(cls, index: int, chunk, row: int, start: np.ndarray, start_id, rescreen: Rescreen) -> "Event":
+        """Run ``row`` of ``chunk`` (a ``coordinator.executor.Chunk``; sample index ``index``,
+        from ``start``, vertex ``start_id``) as the change it makes at ``rescreen``'s coverage."""
+        return cls(index, start, int(start_id), bool(chunk.outcomes[row] == FAILURE), rescreen.candidates(row),
+                   *rescreen.classification(row))
+
 
 class Algorithm(ABC):
     """A quantification algorithm (paper Alg. 5-8) over explicit state."""
@@ -81,7 +88,7 @@ class Algorithm(ABC):
     version: int = 0
     round: int = 0
     # what ``apply`` never changes, shared by a ``copy`` (experience replay stores only
-    # the effects of final commits: coordinator/campaign.py)
+    # the effects of final commits: coordinator/driver/campaign.py)
     SHARED: tuple[str, ...] = ("replay", "scenario", "settings", "lattice")
     restorable: bool = False  # ``restore`` is supported (``_forget_draws`` is implemented)
 

@@ -130,7 +130,7 @@ class Coverage:
 
     def fork(self, epoch: int) -> None:
         """This coverage is a copy taken earlier and restored (the algorithm went back to
-        it, coordinator/speculation.py) after changes up to ``epoch``: its change numbers
+        it, coordinator/driver/speculation.py) after changes up to ``epoch``: its change numbers
         after the copy were used since for other changes. A new epoch tells screenings made
         since apart; those made at its state or before (``descends``) still hold."""
         self._ancestors = {**self._ancestors, self.epoch: self.seq}
@@ -409,7 +409,7 @@ class Rescreen:
         if sc.epoch != cov.epoch or sc.seq > cov.seq:
             # vertex ids of another covering: witnesses mean nothing; or screened at changes
             # this coverage has not had (a hold judged at the state the head passed it,
-            # coordinator/speculation.py): its new states are not this coverage's
+            # coordinator/driver/speculation.py): its new states are not this coverage's
             self._full[lo:] = True
         elif cov.kill_seq > max(sc.seq, self._checked_kills):
             self._mark_dead_witnesses(lo)  # only a Kill can uncover a state

@@ -44,7 +44,7 @@ from scenarios.base import FAILURE, TRUNCATED
 from scenarios.rollout import RunBatch
 
 
-@dataclass
+@dataclass(eq=False)  # one chunk is one object: the driver keys its re-screenings on it
 class Chunk:
     first_index: int  # the sample index of its first run
     lengths: np.ndarray  # (k,) states per run, start included
@@ -56,7 +56,6 @@ class Chunk:
     _visited: tuple | None = field(default=None, repr=False)
     exits: np.ndarray | None = field(default=None, repr=False)  # (k,) int8 facet left through (RunBatch.exits)
     indices: np.ndarray | None = None  # (k,) sample indices, when not first_index + row
-    rescreen: Any = field(default=None, repr=False)  # the driver's re-decisions of its runs (coverage.Rescreen)
 
     def __post_init__(self):
         if self.indices is None:
@@ -115,6 +114,7 @@ class Executor(ABC):
 
     name: str = ""
     workers: int = 1
+    notify = None  # takes a line for the user (e.g. a worker replaced), or None
 
     @abstractmethod
     def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None,
@@ -150,10 +150,20 @@ class Executor(ABC):
         change a result (sequential counting)."""
         return requested
 
+    def started(self, counting: str, batch_size: int, pipeline_depth: int) -> list[str]:
+        """Lines for the user once the executor is up (e.g. where Ray runs), given the
+        campaign's farm.counting, batch_size and pipeline_depth."""
+        return []
+
+    def report(self):
+        """What a simulated clock measured (the virtual farm's ``VirtualClock``); None for
+        an executor that runs in real time."""
+        return None
+
     def run_seconds(self) -> float | None:
         """A worker's seconds per run as measured so far (None: nothing measured, or runs
         simulated when their results are asked for). How far ahead the campaign works for
-        a change that waits follows it (coordinator/campaign.py ``_launch_past_holds``);
+        a change that waits follows it (coordinator/driver/campaign.py ``LookAhead.past_holds``);
         it never changes a result."""
         return None
 

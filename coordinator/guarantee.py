@@ -109,15 +109,15 @@ def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, h
 
 
 # -- validation -----------------------------------------------------------------------------
-def validated(scenario, policy, result: dict, *, algorithm: str, plan_description: str, epsilon: float,
+def validated(scenario, policy, result, *, algorithm: str, plan_description: str, epsilon: float,
               beta: float, delta: float, horizon: int, seed: int, adversarial: bool, mixed: bool = False) -> Guarantee:
     """The verdict of a validation in both forms. ``mixed``: the domain is a set of mixed
     box sizes (boundary refinement), its own covering: each box at max(its half-width, delta)."""
     cond, fail, t = _conditions(scenario, policy), scenario.failure_words, _horizon_s(scenario, horizon)
     gamma = "Gamma* (the adversarial set, Definition 7)" if adversarial else "Gamma"
-    n = result["n_run"]
-    if result["verdict"] == "counterexample":
-        ce = result["counterexample"]
+    n = result.n_run  # result: a coordinator.validation.ValidationResult
+    if not result.certified:
+        ce = result.counterexample
         what = (f"did {fail}" if ce["outcome"] == "failure" else "left the domain")
         at = ce["violating_step"] * scenario.dt
         plain = (f"Not certified: the scenario started at {ce['start_state']}, {cond}, {what} after {at:g} s "

@@ -1,6 +1,6 @@
 """QNT^SPE (paper Alg. 8): synchronous pruning and exploration, with prioritized
 sampling and experience replay (Sec. 4.4), over explicit state (``SPE`` holds arrays,
-no hidden globals), driven ask/tell-style by ``coordinator.campaign`` (the contract is
+no hidden globals), driven ask/tell-style by ``coordinator.driver`` (the contract is
 coordinator/algorithm.py).
 
 A run *changes the state* when it fails (line 9: prune reachable(sigma), add sigma to

@@ -33,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 from coordinator.algorithm import Algorithm, Event
-from coordinator.campaign import Campaign, CampaignSettings, DriverState
+from coordinator.driver import Campaign, CampaignSettings, DriverState
 from scenarios.streams import RunStreams
 
 MakeAlgorithm = Callable[[], Algorithm]

@@ -24,6 +24,23 @@ from scenarios.base import FAILURE, OUTCOME_NAMES, TRUNCATED
 from scenarios.errors import ConfigError
 
 
+@dataclass(frozen=True)
+class ValidationResult:
+    """What a validation found: ``verdict`` "certified" or "counterexample", the runs it
+    committed (``n_run``: up to and including the first violation) and simulated, and the
+    first violating run (``counterexample``: JSON-able, as certificate.json holds it)."""
+
+    verdict: str
+    n_run: int
+    runs_simulated: int
+    steps_simulated: int
+    counterexample: dict | None = None
+
+    @property
+    def certified(self) -> bool:
+        return self.verdict == "certified"
+
+
 @dataclass
 class ValidationPlan:
     algorithm: str  # delta | eps | eps-delta
@@ -33,7 +50,7 @@ class ValidationPlan:
     description: str  # what the sampled distribution is
 
 
-def plan(domain: Domain, algorithm: str, epsilon: float, beta: float, delta: float, boundary: bool,
+def validation_plan(domain: Domain, algorithm: str, epsilon: float, beta: float, delta: float, boundary: bool,
          deterministic: bool) -> ValidationPlan:
     sc = domain.scenario
     band = sc.step_bound() if boundary else None
@@ -109,7 +126,7 @@ class Checker:
 
 
 def validate(domain: Domain, p: ValidationPlan, executor, *, seed: int, delta: float, batch_size: int,
-             pipeline_depth: int, progress=None) -> dict:
+             pipeline_depth: int, progress=None) -> ValidationResult:
     """Run up to p.n_required runs; stop at the first violation (smallest index)."""
     checker = Checker(domain, p, delta)
     pending: deque = deque()  # (first index, starts, handles)
@@ -133,9 +150,8 @@ def validate(domain: Domain, p: ValidationPlan, executor, *, seed: int, delta: f
                 row = int(np.argmax(violated))
                 committed += row + 1
                 start = starts[chunk.first_index - first + row]
-                return {"verdict": "counterexample", "n_run": committed, "runs_simulated": simulated,
-                        "steps_simulated": steps,
-                        "counterexample": counterexample(domain, chunk, row, start, int(chunk.screening[row]), seed)}
+                return ValidationResult("counterexample", committed, simulated, steps,
+                                        counterexample(domain, chunk, row, start, int(chunk.screening[row]), seed))
             committed += len(chunk)
             if progress:
                 progress(committed, p.n_required)
@@ -143,8 +159,7 @@ def validate(domain: Domain, p: ValidationPlan, executor, *, seed: int, delta: f
         for _, _, handles in pending:
             for handle in handles:
                 executor.cancel(handle)
-    return {"verdict": "certified", "n_run": committed, "runs_simulated": simulated, "steps_simulated": steps,
-            "counterexample": None}
+    return ValidationResult("certified", committed, simulated, steps)
 
 
 def counterexample(domain: Domain, chunk, row: int, start: np.ndarray, step: int, seed: int) -> dict:

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from coordinator.baselines import make_algorithm
-from coordinator.campaign import Campaign, CampaignSettings
+from coordinator.driver import Campaign, CampaignSettings
 from coordinator.spe import SPESettings
 from farm.execution.local import LocalExecutor
 from scenarios.simulator import SimSpec

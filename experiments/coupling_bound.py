@@ -28,7 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-import coordinator.campaign as campaign_mod
+import coordinator.driver.campaign as campaign_mod
+import coordinator.driver.pipeline as pipeline_mod
 import coordinator.spe as spe_mod
 from coordinator.stable_sampler import probabilities, total_variation
 from experiment import machine_stamp, main, run_in_process, write_doc
@@ -47,7 +48,7 @@ def recording():
     laws: dict[int, np.ndarray] = {}
     batches: list[tuple[int, int, int]] = []  # (first index, size, version drawn at)
     commits: dict[int, int] = {}
-    law, init, verify = spe_mod.SPE._law, campaign_mod.Pending.__init__, campaign_mod.Campaign._verify
+    law, init, verify = spe_mod.SPE._law, pipeline_mod.Pending.__init__, campaign_mod.verify
 
     def recorded_law(self):
         out = law(self)
@@ -60,18 +61,18 @@ def recording():
         if not draws.fixed and len(draws):
             batches.append((first_index, len(draws), int(draws.versions[0])))
 
-    def recorded_verify(self, p, lo, hi):
-        v = self.algorithm.version
+    def recorded_verify(launcher, p, lo, hi):
+        v = launcher.algorithm.version
         for i in range(p.first_index + lo, p.first_index + hi):
             commits[i] = v  # the last check before the commit is the one at its version
-        return verify(self, p, lo, hi)
+        return verify(launcher, p, lo, hi)
 
-    spe_mod.SPE._law, campaign_mod.Pending.__init__, campaign_mod.Campaign._verify = (
+    spe_mod.SPE._law, pipeline_mod.Pending.__init__, campaign_mod.verify = (
         recorded_law, recorded_init, recorded_verify)
     try:
         yield laws, batches, commits
     finally:
-        spe_mod.SPE._law, campaign_mod.Pending.__init__, campaign_mod.Campaign._verify = law, init, verify
+        spe_mod.SPE._law, pipeline_mod.Pending.__init__, campaign_mod.verify = law, init, verify
 
 
 def bound(laws: dict, batches: list, commits: dict) -> float:

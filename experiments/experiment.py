@@ -35,7 +35,8 @@ def main(run: Callable[[list[str]], None], render: Callable[[], object]) -> None
 def run_in_process(cfg):
     """One campaign of ``cfg`` on the in-process executor (the committed sequence does not
     depend on the executor): -> its counters, algorithm, back end and seconds."""
-    from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+    from farm.jobs.campaign_setup import build_algorithm, build_campaign
+    from farm.execution.process import spec_of
     from farm.execution.local import LocalExecutor
 
     executor = LocalExecutor(spec_of(cfg))

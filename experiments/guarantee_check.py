@@ -18,7 +18,7 @@ import numpy as np
 from scipy import stats
 
 from coordinator.domain import Domain
-from coordinator.validation import Checker, plan
+from coordinator.validation import Checker, validation_plan
 from farm import api
 from farm.execution.local import LocalExecutor
 from scenarios.simulator import SimSpec
@@ -41,7 +41,7 @@ def config(b: float, seed: int) -> dict:
 def true_violation_rate(b: float, runs: int = 400_000, seed: int = 10**9) -> tuple[float, int]:
     ex = LocalExecutor(SimSpec(SCENARIO, {"mode": "uniform"}, HORIZON, seed))
     domain = Domain.from_config(ex.simulator.scenario, domain_section(b))
-    checker = Checker(domain, plan(domain, "eps", EPS, BETA, 1.0, False, False), 1.0)
+    checker = Checker(domain, validation_plan(domain, "eps", EPS, BETA, 1.0, False, False), 1.0)
     bad = 0
     for first in range(0, runs, 50_000):
         starts = domain.sample(RunStreams.of(seed, np.arange(first, first + 50_000, dtype=np.uint64)))

@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 
 from coordinator.baselines import make_algorithm
-from coordinator.campaign import Campaign, CampaignSettings
+from coordinator.driver import Campaign, CampaignSettings
 from coordinator.reference import compare_boxes
 from coordinator.spe import SPESettings
 from farm.execution.local import LocalExecutor

@@ -27,7 +27,7 @@ def __getattr__(name: str):
     # modules (farm.cli.commands, farm.cli.exits) load in a fraction of a second, so its signal
     # handlers and error lines are in place before pydantic, scipy and the coordinator load
     if name in __all__:
-        from farm import api  # it imports SafeSet and Summary too
+        from farm import lazy  # (farm/lazy.py: every module imported when first used)
 
-        return getattr(api, name)
+        return getattr(lazy.api, name)
     raise AttributeError(f"module 'farm' has no attribute {name!r}")

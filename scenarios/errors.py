@@ -8,6 +8,7 @@
     │   └── ScenarioError     user code (scenario, back end, feedback policy) that raised or misbehaved
     └── InfrastructureError   what runs the campaign failed: Ray, a disk (CLI exit 4)
 
+``Stopped`` is no error: a campaign stopped by a signal, checkpointed (CLI exit 130).
 Anything else escaping is a bug of this tool (exit 3). Every message is one line that
 names the field, file or sample index and, where there is one, the allowed range.
 Errors that were a ``ValueError`` before stay one (callers may catch that).
@@ -44,3 +45,7 @@ class ScenarioError(UserError):
 class InfrastructureError(FarmError):
     """What runs the campaign failed (Ray lost, a full disk): the input may be fine, and a
     campaign's last checkpoint stands (``resume`` continues it)."""
+
+
+class Stopped(Exception):
+    """A campaign was stopped by a signal; it is checkpointed and can be resumed."""

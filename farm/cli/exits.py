@@ -17,7 +17,7 @@ import sys
 import tempfile
 import traceback
 
-from scenarios.errors import FarmError, InfrastructureError, UserError
+from scenarios.errors import FarmError, InfrastructureError, Stopped, UserError
 from scenarios.version import __version__
 
 OK, FINDING, USER, BUG, INFRASTRUCTURE, STOPPED = 0, 1, 2, 3, 4, 130
@@ -74,8 +74,6 @@ def _ray_error(exc: BaseException) -> int | None:
 def report(exc: BaseException, campaign_dir: str | None = None) -> int:
     """Print the one line ``exc`` ends a command with (its traceback too under DEBUG);
     -> the exit code. ``campaign_dir``: the directory a resume would continue."""
-    from farm.jobs.quantification import Stopped
-
     if os.environ.get(DEBUG):
         traceback.print_exception(exc, file=sys.stderr)
     if isinstance(exc, Stopped):

@@ -19,7 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-from farm.directory.files import atomic_write
+from mcap.reader import make_reader
+from mcap.writer import Writer
+
+from farm.directory.files import atomic_write, write_json
 from scenarios.errors import DataError
 
 def schema_for(scenario_name: str, state_names: list[str]) -> dict:
@@ -34,8 +37,6 @@ def schema_for(scenario_name: str, state_names: list[str]) -> dict:
 def write_recording(path, *, scenario_name: str, state_names: list[str], dt: float, runs: list[dict],
                     metadata: dict[str, str]) -> None:
     """Write ``runs`` (dicts with sample_index, trajectory (L, n), outcome) atomically."""
-    from mcap.writer import Writer
-
     def write(fh) -> None:
         writer = Writer(fh)
         writer.start(profile="", library="scenario-farm")
@@ -68,8 +69,6 @@ def write_recording(path, *, scenario_name: str, state_names: list[str], dt: flo
 
 def write_layout(path: Path, scenario_name: str, state_names: list[str], indices: list[int]) -> None:
     """A Foxglove layout: a column of plots, one per state variable, a series per run."""
-    from farm.directory.files import write_json
-
     panels = {}
     for name in state_names:
         panels[f"Plot!{name}"] = {
@@ -85,8 +84,6 @@ def write_layout(path: Path, scenario_name: str, state_names: list[str], indices
 
 def read_recording(path) -> dict:
     """-> {"metadata", "runs": {index: {"trajectory", "outcome", "metadata"}}, "schema", "topic"}."""
-    from mcap.reader import make_reader
-
     path = Path(path)
     try:
         with open(path, "rb") as fh:

@@ -31,8 +31,10 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from coordinator.commit_log import CommitLog
+from coordinator.driver.commit_log import CommitLog
+from farm import config as config_mod, lazy
 from farm.directory.files import TEMP_MARK, atomic_write, read_json, sha256_file, write_json
+from scenarios.base import OUTCOME_NAMES
 from scenarios.errors import CampaignError
 from scenarios.version import __version__
 
@@ -156,8 +158,6 @@ class CampaignDir:
     # -- what a campaign directory holds ----------------------------------------------------
     def frozen_config(self):
         """The campaign's config as frozen when it started (``config.json``)."""
-        from farm import config as config_mod
-
         path = self.path / "config.json"
         raw = read_json(path, ("config",), missing=f"{self.path}: not a campaign directory (no config.json)")["config"]
         try:
@@ -172,21 +172,10 @@ class CampaignDir:
     def freeze_config(self, cfg, text: str | None = None) -> None:
         """Keep the config as given (``config.toml``: ``text``, or the normalized config as
         TOML) and normalized with its hash (``config.json``)."""
-        from farm import config as config_mod
-
         (self.path / "config.toml").write_text(text if text is not None else config_mod.to_toml(cfg))
         write_json(self.path / "config.json", {"config": cfg.model_dump(mode="json"),
                                                "config_hash": config_mod.config_hash(cfg),
                                                "scenario_farm_version": __version__})
-
-    def finished_summary(self):
-        """``summary.json`` of a finished campaign (``farm.reports.summary.Summary``), or None."""
-        from farm.reports.summary import Summary
-
-        try:
-            return Summary.read(self.path)
-        except (CampaignError, OSError, ValueError):
-            return None
 
     def nothing_started(self) -> bool:
         """No directory, an empty one, or one of ours killed before its config was frozen."""
@@ -230,8 +219,6 @@ class Ledger:
     def append(self, log: dict[str, np.ndarray] | None) -> None:
         if not log:
             return
-        from scenarios.base import OUTCOME_NAMES
-
         self.dir.mkdir(parents=True, exist_ok=True)
         cols = {"sample_index": log["sample_index"], "round": log["round"], "delta": log["delta"]}
         for i, name in enumerate(self.state_names):
@@ -285,8 +272,7 @@ def read_ledger(directory: Path, columns=None, filter=None) -> pa.Table:
     """The committed runs of DIR/ledger, every segment, as one table (``columns`` and a
     pyarrow.dataset ``filter`` as ``Dataset.to_table`` takes them); a missing ledger or a
     damaged segment is a one-line CampaignError naming it."""
-    import pyarrow.dataset as ds
-
+    ds = lazy.pyarrow_dataset
     ledger = Path(directory) / "ledger"
     paths = sorted(str(p) for p in ledger.glob("segment-*.parquet"))
     if not paths:

@@ -1,8 +1,10 @@
-"""A simulator in a process that simulates batches from now on (the coordinator with the
-local executor, a Ray actor, a re-run)."""
+"""What a worker simulates, from a config (``spec_of``), and a simulator in a process that
+simulates batches from now on (``build_simulator``: the coordinator with the local
+executor, a Ray actor, a re-run)."""
 
 from __future__ import annotations
 
+from farm.config import Config
 from farm.execution.memory import keep_freed_memory
 from scenarios.simulator import SimSpec, Simulator
 
@@ -12,3 +14,12 @@ def build_simulator(spec: SimSpec, check_step_bound: bool = False) -> Simulator:
     fails here, before any file is written)."""
     keep_freed_memory()  # this process simulates batches from now on: keep freed memory for reuse
     return Simulator(spec, check_step_bound)
+
+
+def spec_of(cfg: Config, failure_facets: list | None = None) -> SimSpec:
+    """What a quantification's workers simulate; ``failure_facets`` replaces the
+    configured ones (a side campaign)."""
+    scenario = cfg.scenario.model_dump()
+    if failure_facets is not None:
+        scenario["failure_facets"] = list(failure_facets)
+    return SimSpec(scenario, cfg.actions.model_dump(), cfg.quantify.horizon, cfg.farm.seed)

@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from coordinator.campaign import Campaign, CampaignSettings
+from coordinator.driver import Campaign, CampaignSettings
 from coordinator.coverage import Coverage, Insert
 from coordinator.executor import Executor
 from coordinator.spe import SPE, SPESettings

@@ -7,28 +7,17 @@ same everywhere.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Iterable
+from typing import Iterable
 
 from coordinator.adversary import AdversarySearch
 from coordinator.algorithm import Algorithm
 from coordinator.baselines import make_algorithm
-from coordinator.campaign import Campaign, CampaignSettings, Observer
+from coordinator.driver import Campaign, CampaignSettings, Observer
 from coordinator.executor import Executor
 from farm.config import Config, ConfigError
+from farm.directory.checkpoint import Restored
 from scenarios.search import SearchActions
-from scenarios.simulator import SimSpec, Simulator
-
-if TYPE_CHECKING:
-    from farm.directory.checkpoint import Restored
-
-
-def spec_of(cfg: Config, failure_facets: list | None = None) -> SimSpec:
-    """What a quantification's workers simulate; ``failure_facets`` replaces the
-    configured ones (a side campaign)."""
-    scenario = cfg.scenario.model_dump()
-    if failure_facets is not None:
-        scenario["failure_facets"] = list(failure_facets)
-    return SimSpec(scenario, cfg.actions.model_dump(), cfg.quantify.horizon, cfg.farm.seed)
+from scenarios.simulator import Simulator
 
 
 def campaign_settings(cfg: Config) -> CampaignSettings:
@@ -45,7 +34,7 @@ def build_algorithm(cfg: Config, simulator: Simulator) -> Algorithm:
 
 
 def build_campaign(cfg: Config, algorithm: Algorithm, simulator: Simulator, executor: Executor | None,
-                   observers: Iterable[Observer] = (), restored: "Restored | None" = None) -> Campaign:
+                   observers: Iterable[Observer] = (), restored: Restored | None = None) -> Campaign:
     """The driver of ``algorithm`` on ``executor``; with actions.mode = "search", the
     adversary search over the simulator's action mixture. ``restored``: where a
     checkpoint left off (farm/directory/checkpoint.py)."""

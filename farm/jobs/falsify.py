@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from farm.directory.files import read_json, write_json
-from farm.execution.process import build_simulator
+from farm.directory.recording import write_recording
+from farm.execution.process import build_simulator, spec_of
 from farm.directory.storage import CampaignDir
 from scenarios.actions import ConstantActions, check_action
 from scenarios.base import FAILURE
@@ -50,8 +51,6 @@ def falsify(directory, *, gamma_star=None, points: int = 10_000, tries: int = 4,
     """Try ``gamma_star`` (a list of m numbers; default: the campaign's proposal) from
     ``points`` uniform start states with ``tries`` random sequences each; writes
     falsify.json (and falsify.mcap when something failed) in ``directory``."""
-    from farm.jobs.campaign_setup import spec_of
-
     directory = Path(directory)
     CampaignDir(directory).open("quantify")
     if not 1 <= points <= 10_000_000:
@@ -99,8 +98,6 @@ def falsify(directory, *, gamma_star=None, points: int = 10_000, tries: int = 4,
               "counterexamples": [{k: v for k, v in f.items() if k != "trajectory"} for f in found]}
     write_json(directory / "falsify.json", report)
     if found:
-        from farm.directory.recording import write_recording
-
         write_recording(directory / "falsify.mcap", scenario_name=scenario.name,
                         state_names=list(scenario.state_names), dt=scenario.dt,
                         runs=[{"sample_index": f["key"]["index"], "trajectory": f["trajectory"], "outcome": "failure"}

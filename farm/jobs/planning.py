@@ -15,11 +15,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from farm import config as config_mod
+from farm import config as config_mod, lazy
 from farm.config import Config
 from farm.directory.files import write_json
 from farm.reports.progress import Progress
 from farm.directory.storage import CampaignDir, CampaignError
+from farm.jobs.quantification import run
 from scenarios.errors import ConfigError
 
 PLAN_FILE, PLOT_FILE = "plan.json", "plan.png"
@@ -54,8 +55,6 @@ def plan(cfg: Config, out: Path, workers, *, force: bool = False, run_time: floa
     if len(counts) > MAX_COUNTS:
         raise ConfigError(f"--workers: {len(counts)} counts; allowed at most {MAX_COUNTS} (each is a whole campaign)")
     configs = {w: virtual_config(cfg, w, run_time, call_cost, jitter) for w in counts}  # all checked first
-    from farm.jobs.quantification import run
-
     out = Path(out)
     directory = CampaignDir(out)
     marker = directory.marker() if out.is_dir() else None
@@ -78,7 +77,7 @@ def plan(cfg: Config, out: Path, workers, *, force: bool = False, run_time: floa
                          "runs_simulated": summary["runs_simulated"], "result_hash": summary["result_hash"]})
         result = _plan_of(configs[counts[0]], rows)
         write_json(out / PLAN_FILE, result)
-        _draw(out / PLOT_FILE, result)
+        lazy.plots.draw_plan(out / PLOT_FILE, result, NEAR_BEST)
         return result
     finally:
         directory.unlock()
@@ -130,29 +129,3 @@ def _duration(seconds: float) -> str:
     if seconds >= 60:
         return f"{seconds / 60:.1f} min"
     return f"{seconds:.1f} s"
-
-
-def _draw(path: Path, result: dict) -> Path:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from farm.reports.plots.style import SAFE_COLOUR, _save
-
-    rows = result["rows"]
-    w = [r["workers"] for r in rows]
-    t = [r["virtual_elapsed_s"] for r in rows]
-    fig, ax = plt.subplots(figsize=(6, 4.2))
-    ax.plot(w, [t[0] * w[0] / x for x in w], color="#999999", linestyle="--", label="every worker busy (ideal)")
-    ax.plot(w, t, marker="o", color=SAFE_COLOUR, label="virtual farm")
-    ax.axvline(result["recommended_workers"], color="#666666", linewidth=0.8,
-               label=f"fewest within {NEAR_BEST:g}x of the fastest: {result['recommended_workers']:,}")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("workers")
-    ax.set_ylabel("time to the result [s]")
-    ax.set_title(f"Time to the result, a run of {result['run_time']:g} s")
-    ax.legend()
-    fig.tight_layout()
-    return _save(fig, path)

@@ -1,7 +1,7 @@
 """A quantification campaign in a directory: check, start, checkpoint, stop, resume, finish.
 
-``run`` reads top to bottom: check the directory and the config, build one facet campaign
-per set of failure facets (farm/jobs/side_campaign.py: the total, and fleet3's sides), run
+``run`` reads top to bottom: check the directory and the config, build one campaign per
+side (farm/jobs/side_campaign.py: the total, and fleet3's sides), run
 each (checkpointing as it goes, farm/directory/checkpoint.py), then write the results. A resumed
 campaign re-simulates exactly what it had drawn and reaches the very result an
 uninterrupted run reaches. SIGINT and SIGTERM stop it at the next chunk boundary with a
@@ -14,14 +14,15 @@ from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
-from farm import config as config_mod
-from farm.jobs.campaign_setup import side_facets, spec_of
+from coordinator.guarantee import quantified
+from farm import config as config_mod, lazy
+from farm.jobs.campaign_setup import side_facets
+from farm.execution.process import build_simulator, spec_of
 from farm.config import Config
-from farm.jobs.side_campaign import FacetCampaign, Stopped
+from farm.jobs.side_campaign import SideCampaign, Stopped
 from farm.directory.files import atomic_write, write_json
 from farm.reports.progress import Progress
 from farm.jobs.resources import check_quantify
-from farm.execution.process import build_simulator
 from farm.reports.status import StatusWriter
 from farm.directory.storage import CampaignDir, CampaignError
 from farm.reports.summary import Summary, summarize
@@ -30,8 +31,8 @@ __all__ = ["Stopped", "run"]
 
 
 def run(cfg: Config, out: Path, *, resume: bool = False, force: bool = False, progress: Progress | None = None,
-        config_text: str | None = None) -> dict:
-    """Run (or continue) the campaign of ``cfg`` in directory ``out``; -> summary.
+        config_text: str | None = None) -> Summary:
+    """Run (or continue) the campaign of ``cfg`` in directory ``out``; -> its summary.json.
 
     Everything is checked before anything is written: the config, the scenario, the back
     end, the actions, and when resuming the checkpoints. ``resume`` continues a stopped or
@@ -49,30 +50,30 @@ def run(cfg: Config, out: Path, *, resume: bool = False, force: bool = False, pr
     if resume:
         directory.open("quantify")
         _refuse_a_changed_config(directory, cfg)
-        finished = directory.finished_summary()
+        finished = Summary.finished(out)
         if finished is not None:
             return finished
     scenario = build_simulator(spec_of(cfg)).scenario
     check_quantify(cfg, scenario.lower, scenario.upper)
-    facets = [FacetCampaign(cfg, label, out if label == "total" else out / "sides" / label, failure_facets)
-              for label, failure_facets in side_facets(cfg, scenario).items()]
+    sides = [SideCampaign(cfg, side, out if side == "total" else out / "sides" / side, failure_facets)
+             for side, failure_facets in side_facets(cfg, scenario).items()]
     status = StatusWriter(out)
     try:
         if resume:
             directory.lock(announce=False)
-            for facet in facets:  # every checkpoint is checked before anything is written
-                facet.restore()
+            for side in sides:  # every checkpoint is checked before anything is written
+                side.restore()
             directory.announce()
             directory.remove_stale_temp_files()
         else:
             directory.create("quantify", force=force)
             directory.freeze_config(cfg, config_text)
-        for facet in facets:
-            facet.run(progress, status)
+        for side in sides:
+            side.run(progress, status)
         progress.close()
         status.write({"state": "finishing"})
-        summary = finish(cfg, out, {facet.label: facet for facet in facets})
-        status.write({"state": "done", "result_hash": summary["result_hash"]})
+        summary = finish(cfg, out, {side.side: side for side in sides})
+        status.write({"state": "done", "result_hash": summary.result_hash})
         return summary
     finally:
         directory.unlock()
@@ -87,13 +88,11 @@ def _refuse_a_changed_config(directory: CampaignDir, cfg: Config) -> None:
                             f"farm.batch_size and farm.pipeline_depth)")
 
 
-def guarantee_of(cfg: Config, part: FacetCampaign, delta: float):
-    """The plain and formal guarantee of a finished campaign part (coordinator/guarantee.py)."""
-    from coordinator.guarantee import quantified
-
-    q, campaign, algo = cfg.quantify, part.campaign, part.algorithm
+def guarantee_of(cfg: Config, side: SideCampaign, delta: float):
+    """The plain and formal guarantee of a finished side's campaign (coordinator/guarantee.py)."""
+    q, campaign, algo = cfg.quantify, side.campaign, side.algorithm
     certified = campaign.certify and algo.certifying
-    return quantified(part.scenario, part.policy, epsilon=q.epsilon, beta=q.beta, delta=delta, horizon=q.horizon,
+    return quantified(side.scenario, side.policy, epsilon=q.epsilon, beta=q.beta, delta=delta, horizon=q.horizon,
                       n_eps=campaign.n_eps, attempts=campaign.counters.attempts if certified else 0,
                       n_final=campaign.quiet_needed() if certified else campaign.n_eps,
                       converged=campaign.counters.converged, budget=q.budget,
@@ -103,28 +102,28 @@ def guarantee_of(cfg: Config, part: FacetCampaign, delta: float):
                       coarsest=algo.result().coarsest if q.refine == "band" else None)
 
 
-def finish(cfg: Config, out: Path, parts: dict[str, FacetCampaign]) -> Summary:
-    safe_sets = {label: p.algorithm.result() for label, p in parts.items()}
+def finish(cfg: Config, out: Path, sides: dict[str, SideCampaign]) -> Summary:
+    """The result files of finished side campaigns: the safe sets, summary.json, the
+    adversary's report and the figures."""
+    safe_sets = {name: side.algorithm.result() for name, side in sides.items()}
     safe_sets["total"] = safe_sets["total"].sorted()
-    summary = summarize(cfg, parts, safe_sets,
-                        {label: guarantee_of(cfg, p, safe_sets[label].finest) for label, p in parts.items()})
-    for label, safe_set in safe_sets.items():
-        if label == "total":
-            name, meta = "safe_set.parquet", {"config_hash": summary.config_hash, "result_hash": summary.result_hash}
+    summary = summarize(cfg, sides, safe_sets,
+                        {name: guarantee_of(cfg, side, safe_sets[name].finest) for name, side in sides.items()})
+    for name, safe_set in safe_sets.items():
+        if name == "total":
+            file, meta = "safe_set.parquet", {"config_hash": summary.config_hash, "result_hash": summary.result_hash}
         else:
-            name, meta = f"safe_set_{label}_side.parquet", {"config_hash": summary.config_hash, "side": label}
-        atomic_write(out / name, partial(safe_set.to_parquet, metadata=meta))
-    for label, p in parts.items():
-        if p.campaign.adversary is not None:
-            name = "adversary.json" if label == "total" else f"adversary_{label}_side.json"
-            write_json(out / name, p.campaign.adversary.report(p.scenario))
+            file, meta = f"safe_set_{name}_side.parquet", {"config_hash": summary.config_hash, "side": name}
+        atomic_write(out / file, partial(safe_set.to_parquet, metadata=meta))
+    for name, side in sides.items():
+        if side.campaign.adversary is not None:
+            file = "adversary.json" if name == "total" else f"adversary_{name}_side.json"
+            write_json(out / file, side.campaign.adversary.report(side.scenario))
     summary.write(out)
-    from farm.reports.plots import draw
-
-    for label, side in parts.items():
-        if label == "total":
-            draw(out / "plots", side.scenario, safe_sets[label], summary)
+    for name, side in sides.items():
+        if name == "total":
+            lazy.plots.draw(out / "plots", side.scenario, safe_sets[name], summary)
         else:
-            draw(out / "plots" / f"{label}_side", side.scenario, safe_sets[label],
-                 replace(summary, algorithm=f"{label} side"))
+            lazy.plots.draw(out / "plots" / f"{name}_side", side.scenario, safe_sets[name],
+                 replace(summary, algorithm=f"{name} side"))
     return summary

@@ -13,6 +13,9 @@ from pathlib import Path
 import numpy as np
 import pyarrow.dataset as ds
 
+from coordinator.adversary import schedule_state
+from farm.directory.journal import Journal
+from farm.directory.recording import read_recording, write_recording
 from farm.reports.certificate import FILE as CERTIFICATE_FILE, Certificate
 from farm.execution.process import build_simulator
 from farm.directory.storage import CampaignDir, read_ledger
@@ -27,8 +30,6 @@ def rerun(simulator, index: int, start: np.ndarray):
 
 
 def record_counterexample(path: Path, scenario, cert: Certificate) -> None:
-    from farm.directory.recording import write_recording
-
     ce = cert.counterexample
     write_recording(path, scenario_name=scenario.name, state_names=list(scenario.state_names), dt=scenario.dt,
                     runs=[{"sample_index": ce["sample_index"], "trajectory": np.array(ce["trajectory"]),
@@ -41,8 +42,6 @@ def record_counterexample(path: Path, scenario, cert: Certificate) -> None:
 def _recorded(directory: Path, index: int):
     """The recording holding run ``index`` (path, run) or (None, None). A damaged file is
     skipped with a warning: it must not hide the runs recorded in the others."""
-    from farm.directory.recording import read_recording
-
     for path in sorted((directory / "recordings").glob("*.mcap")) + sorted(directory.glob("*.mcap")):
         try:
             rec = read_recording(path)
@@ -59,9 +58,6 @@ def _load_adaptive_actions(directory: Path, simulator) -> None:
     and the campaign's weight schedule, which the last checkpoint holds."""
     if simulator.policy.state() is None:
         return
-    from coordinator.adversary import schedule_state
-    from farm.directory.journal import Journal
-
     arrays, _ = Journal(directory).read(["adv.firsts", "adv.weights"])
     schedule = schedule_state(arrays)
     if schedule is not None:

@@ -17,6 +17,7 @@ import os
 import numpy as np
 
 from farm.config import Config, ConfigError
+from farm.ray_runtime.session import connect
 
 # Measured: lead-follow idm under Gamma* at delta_min 0.125 peaked at 1.66 GB with 1.83 M
 # boxes alive (centres, graph, spatial index, failure distances, replay keys).
@@ -88,8 +89,6 @@ def check_farm(cfg: Config) -> None:
                               f"[1, {most}] ({ACTORS_PER_CPU} per CPU: more only share the CPUs, each a process of "
                               f"its own); for more, join a cluster with farm.address")
         return
-    from farm.ray_runtime.session import connect
-
     connect(farm.address, farm.workers)
 
 

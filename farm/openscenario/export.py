@@ -19,7 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
+from coordinator.domain import Domain
 from coordinator.safe_set import SafeSet
+from farm.directory.recording import read_recording
+from farm.openscenario.ranges import validate_section
 from farm.openscenario.distribution import uniform_box, value_sets
 from farm.openscenario.elements import write_xml
 from farm.openscenario.layout import layout_of
@@ -29,7 +32,9 @@ from farm.directory.files import read_json
 from farm.openscenario.scenario import concrete_scenario, logical_scenario
 from farm.directory.storage import CampaignDir, CampaignError
 from farm.reports.summary import Summary
+from scenarios.base import EXTERNAL_SV
 from scenarios.errors import ConfigError, DataError
+from scenarios.registry import backend_class, make_scenario
 
 SUBDIR = "openscenario"
 ROAD, LOGICAL = "road.xodr", "logical_scenario.xosc"
@@ -99,9 +104,6 @@ def describe(result: dict) -> str:
 # -- sources ----------------------------------------------------------------------------------
 def _scenario(cfg):
     """The scenario object of a frozen config, without starting its back end (SUMO)."""
-    from scenarios.base import EXTERNAL_SV
-    from scenarios.registry import backend_class, make_scenario
-
     sc = cfg.scenario
     external = getattr(backend_class(sc.backend), "external_sv", None)
     scenario = make_scenario(sc.name, EXTERNAL_SV if external else sc.sv_policy, sc.failure_facets, sc.disturbance)
@@ -110,8 +112,6 @@ def _scenario(cfg):
 
 def _recorded_runs(directory: Path, scenario, sv_policy: str, notes: list) -> list[tuple[str, np.ndarray, str]]:
     """A damaged recording is left out with a note: it must not hide the others."""
-    from farm.directory.recording import read_recording
-
     runs = []
     for path in sorted((directory / "recordings").glob("*.mcap")):
         try:
@@ -163,9 +163,6 @@ def _certified(directory: Path, kind: str, cfg, scenario, summary: dict, notes: 
                          "OpenSCENARIO distribution (only boxes and sets of boxes do)")
             return None
         else:
-            from farm.openscenario.ranges import validate_section
-            from coordinator.domain import Domain
-
             try:
                 dom = Domain.from_config(scenario, validate_section(v, scenario))
             except ConfigError as exc:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import socket
 
+from farm import lazy
 from scenarios.errors import ConfigError
 
 PROBE_TIMEOUT_S = 3.0  # [s] for a cluster's address to accept a TCP connection
@@ -24,9 +25,7 @@ def reachable(address: str, timeout: float = PROBE_TIMEOUT_S) -> str:
     client = target.startswith("ray://")
     host, port = _host_port(target.removeprefix("ray://"), address)
     if not client:  # Ray connects to this host's routable address for a loopback one: probe that
-        from ray._private.services import canonicalize_bootstrap_address
-
-        host, port = _host_port(canonicalize_bootstrap_address(target), address)
+        host, port = _host_port(lazy.ray_services.canonicalize_bootstrap_address(target), address)
     try:
         socket.create_connection((host, port), timeout=timeout).close()
     except OSError as exc:
@@ -43,9 +42,7 @@ def _resolve(address: str) -> str:
     machine: on a shared machine that is another user's private Ray."""
     if address != "auto":
         return address
-    from ray._private.utils import read_ray_address
-
-    found = os.environ.get("RAY_ADDRESS") or read_ray_address()
+    found = os.environ.get("RAY_ADDRESS") or lazy.ray_utils.read_ray_address()
     if not found:
         raise ConfigError("farm.address: 'auto' found no Ray cluster (no RAY_ADDRESS, and no `ray start` on this "
                           "machine); start one, give its address, or use --address local")

@@ -9,10 +9,8 @@ the run time before the rest is cut. Chunks go to the actor with the fewest runs
 replacements (the runs the commit head waits for under sequential counting) go first to a
 fast lane, one more actor that takes nothing else, so that they never wait behind the
 chunks queued on a worker.
-With each chunk goes what its actor's mirror lacks: the coverage changes since the
-version the actor was last sent (small blocks inside the call, large ones put in the
-object store once and shared by every actor that needs the same range), or a whole
-snapshot for a new or restarted actor. A chunk returns two objects: a small per-run
+With each chunk goes what its actor's mirror lacks (farm/ray_runtime/mirror.py); the actor
+is farm/ray_runtime/actor.py. A chunk returns two objects: a small per-run
 summary (outcome, length, screening, the actor's busy time), which comes back to the
 driver, and the visited states, which stay in the worker node's object store until the
 driver asks for them (re-screening, experience replay, recordings) or drops them.
@@ -27,127 +25,28 @@ that lost it asks for a snapshot.
 from __future__ import annotations
 
 import dataclasses
-import os
 import threading
 import time
 from typing import Callable
 
 import numpy as np
 
-from coordinator.coverage import Coverage, Reset
-from coordinator.executor import Chunk, Executor, chunk_of, screen_piece, summarize
+from coordinator.executor import Chunk, Executor, chunk_of
+from coordinator.experience_replay import Stored
+from farm import lazy
 from farm.execution.chunking import ChunkSizer, fast_lanes
+from farm.ray_runtime.actor import RESYNC, actor_class
+from farm.ray_runtime.mirror import Mirrors
 from farm.ray_runtime.pool import ActorPool, Call, check_started
 from farm.ray_runtime.session import connect
-from farm.execution.process import build_simulator
 from farm.execution.waiting import WorkerError, name_runs
 from scenarios.errors import FarmError
 from scenarios.simulator import SimSpec
 
 __all__ = ["RayExecutor", "WorkerError"]
 
-RESYNC = "resync"  # a worker's answer when its mirror cannot reach the chunk's version
 STORED_PART = 4096  # runs per replay task when a stored piece must be re-simulated
-INLINE_BYTES = 1 << 16  # change blocks up to this size travel inside the task call
 CLOSE_GRACE_S = 2.0  # [s] an actor's time to finish its chunks at close before it is killed
-
-
-def _nbytes(changes) -> int:
-    """Array bytes of logged coverage changes (a whole-coverage Reset counts as large)."""
-    total = 0
-    for _, _, change in changes:
-        if isinstance(change, Reset):
-            return INLINE_BYTES + 1
-        total += sum(v.nbytes for v in vars(change).values() if isinstance(v, np.ndarray))
-    return total
-
-
-def _actor_class():
-    import ray
-
-    @ray.remote(num_cpus=1)
-    class SimWorker:
-        """Holds a scenario back end and a coverage mirror; simulates and screens
-        whatever chunk it is sent."""
-
-        def __init__(self, spec: dict, check_step_bound: bool):
-            self.simulator = build_simulator(SimSpec(**spec), check_step_bound)
-            self.mirror: Coverage | None = None
-            self.static = (None, None)
-            self.busy_s = 0.0
-            self.tasks = 0
-            self.runs = 0
-
-        @ray.method(num_returns=2)
-        def run(self, first_index: int, starts: np.ndarray, message, actions=None, indices=None):
-            t0 = time.perf_counter()
-            screen = self._screen(message)
-            if screen is RESYNC:
-                return RESYNC, None
-            batch = self.simulator.simulate(first_index, starts, indices=indices, actions=actions)
-            summary, visited = summarize(batch, screen)
-            busy = time.perf_counter() - t0
-            summary["busy_s"] = busy  # the chunk sizes follow it (farm/execution/chunking.py)
-            self.busy_s += busy
-            self.tasks += 1
-            self.runs += len(starts)
-            return summary, visited
-
-        def _screen(self, message):
-            kind, payload, base = message
-            if kind == "none":
-                return None
-            if kind == "static":  # fetched once per screen
-                if self.static[0] != payload.hex():
-                    self.static = (payload.hex(), ray.get(payload))
-                return self.static[1]
-            if kind == "snapshot":  # a whole coverage, as plain arrays
-                self.mirror = Coverage.from_state(ray.get(payload))
-                return self.mirror
-            # "changes": change blocks (inline, or refs) holding every change after number ``base``
-            # (a mirror ahead of base skips what it has: the chunk that took it there was
-            # dropped by the coordinator, which then sends from what it knows was applied)
-            if self.mirror is None or self.mirror.seq < base:
-                return RESYNC
-            for block in payload:
-                self.mirror.sync(ray.get(block) if isinstance(block, ray.ObjectRef) else block)
-            return self.mirror
-
-        def revisit(self, first_index: int, starts: np.ndarray, actions=None, indices=None):
-            """A chunk's visited states again (they were lost with their node): a run
-            depends on its key, start and the policy's state only."""
-            return self.simulator.simulate(first_index, starts, indices=indices, actions=actions).visited()
-
-        def replay_screen(self, pieces, source_refs, message, actions=None):
-            """Experience replay on stored pieces: each one's new states under the
-            coverage. All of an actor's pieces come in one call: a call costs the
-            driver ~0.7 ms, and a round end has a piece per chunk that kept states."""
-            if actions is not None:  # a re-simulation needs the policy the runs had
-                self.simulator.policy.load(actions)
-            screen = self._screen(message)
-            if screen is RESYNC:
-                return RESYNC
-            found = []
-            for piece, refs in zip(pieces, source_refs):
-                source = None
-                if refs:
-                    try:
-                        source = ray.get(refs[0])
-                    except ray.exceptions.ObjectLostError:  # its worker died: re-simulate from the keys
-                        source = None
-                found.append(screen_piece(self.simulator, source, piece, screen))
-            return found
-
-        def stats(self) -> dict:
-            return {"busy_s": self.busy_s, "tasks": self.tasks, "runs": self.runs, "pid": os.getpid()}
-
-        def pid(self) -> int:
-            return os.getpid()
-
-        def node(self) -> str:
-            return ray.get_runtime_context().get_node_id()
-
-    return SimWorker
 
 
 @dataclasses.dataclass(eq=False)
@@ -172,43 +71,63 @@ class RayExecutor(Executor):
                  check_step_bound: bool = False, pipeline_depth: int = 1, chunk_timeout: float = 0.0,
                  stop: threading.Event | None = None, notify: Callable[[str], None] | None = None,
                  fast_lane: bool = True):
-        """``pipeline_depth``: batches the caller keeps in flight (farm.pipeline_depth);
+        """Stores its settings; ``start`` starts or joins Ray and its actors.
+        ``pipeline_depth``: batches the caller keeps in flight (farm.pipeline_depth);
         ``chunk_timeout``: seconds a chunk may take (farm.chunk_timeout; 0: derived from
         the measured run time); ``stop``: set on SIGINT / SIGTERM, it ends a wait for a
         chunk (``farm.execution.waiting.Interrupted``); ``notify``: takes a line for the user (a
         worker replaced); ``fast_lane``: actors for replacements only (one per 16 workers).
         None of them changes a result."""
-        import ray
-
-        connect(address, workers)
-        self.ray = ray
         self.spec = spec
         self.workers = workers
+        self.address = address
         self.max_retries = max_retries
         self.pipeline_depth = max(1, int(pipeline_depth))
         self.sizer = ChunkSizer(workers, chunk_timeout)
         self._scenario = str(spec.scenario.get("name", "?"))
+        self._check_step_bound = check_step_bound
+        self._stop, self._notify = stop, notify
+        self._lanes = fast_lanes(workers) if fast_lane else 0
+        self._lane = fast_lane  # started with the first replacement (many campaigns need none)
+        self.ray = None
+        self.pool: ActorPool | None = None
+        self.startup_s = 0.0
+        self.mirrors: Mirrors | None = None
+        self._jobs: dict[int, _Job] = {}
+        self._next = 0
+        self._actions: dict | None = None  # the newest adaptive policy state submitted
+
+    def start(self) -> "RayExecutor":
+        """Start or join Ray (``address``) and start the actors; -> self."""
+        ray = lazy.ray
+        t0 = time.monotonic()
+        connect(self.address, self.workers)
+        self.ray = ray
         # More workers than CPUs (a test asking for 4 on a 2-core Ray) share the CPUs
         # instead of waiting forever for a free one.
-        cpus = float(ray.cluster_resources().get("CPU", workers))
-        per_actor = min(1.0, cpus / workers)
+        cpus = float(ray.cluster_resources().get("CPU", self.workers))
+        per_actor = min(1.0, cpus / self.workers)
         # spread over the cluster's nodes: simulators are what the farm scales. Ray
         # restarts a dead actor (for ever: a chunk's tries are bounded instead) and
         # retries none of its calls: the pool sends them elsewhere.
-        cls = _actor_class().options(num_cpus=per_actor, max_restarts=-1, max_task_retries=0,
-                                     scheduling_strategy="SPREAD")
-        handles = [cls.remote(dataclasses.asdict(spec), check_step_bound) for _ in range(workers)]
-        self.pool = ActorPool(ray, handles, self.sizer.limit, max_retries, stop, notify)
-        self._check_step_bound = check_step_bound
-        self._lanes = fast_lanes(workers) if fast_lane else 0
-        self._lane = fast_lane  # started with the first replacement (many campaigns need none)
-        self._blocks: dict[tuple, object] = {}  # (coverage id, from seq, to seq) -> ref
-        self._static: dict[int, object] = {}  # id(screen) -> ref of a fixed screen
-        self._snapshot: tuple = (None, None)  # (coverage id, epoch, seq), ref of its state
-        self._jobs: dict[int, _Job] = {}
-        self._next = 0
-        self._since_trim = 0  # change messages since the coverage's log was last trimmed
-        self._actions: dict | None = None  # the newest adaptive policy state submitted
+        cls = actor_class().options(num_cpus=per_actor, max_restarts=-1, max_task_retries=0,
+                                    scheduling_strategy="SPREAD")
+        handles = [cls.remote(dataclasses.asdict(self.spec), self._check_step_bound) for _ in range(self.workers)]
+        self.pool = ActorPool(ray, handles, self.sizer.limit, self.max_retries, self._stop, self._notify)
+        self.mirrors = Mirrors(ray, self.pool)
+        self.startup_s = time.monotonic() - t0
+        return self
+
+    def started(self, counting: str, batch_size: int, pipeline_depth: int) -> list[str]:
+        lines = [f"Ray ({self.address}) up with {self.workers} workers in {self.startup_s:.1f} s"]
+        busy = self.busy_at_most(batch_size)
+        if counting != "sequential" and busy < self.workers:
+            # deferred counting: the window is result-relevant, so said, not changed (under
+            # sequential counting the batch follows the workers)
+            lines.append(f"note: {batch_size} x {pipeline_depth} runs in flight (farm.batch_size x "
+                         f"farm.pipeline_depth) keep at most {busy} of the {self.workers} workers busy; raise them "
+                         f"for more (it costs runs: README, 'Many workers', and docs/window.md)")
+        return lines
 
     @property
     def actors(self) -> list:
@@ -220,19 +139,23 @@ class RayExecutor(Executor):
 
     @property
     def stop(self) -> threading.Event | None:
-        return self.pool.stop
+        return self._stop
 
     @stop.setter
     def stop(self, event: threading.Event | None) -> None:
-        self.pool.stop = event
+        self._stop = event
+        if self.pool is not None:
+            self.pool.stop = event
 
     @property
     def notify(self):
-        return self.pool.notify
+        return self._notify
 
     @notify.setter
     def notify(self, notify) -> None:
-        self.pool.notify = notify
+        self._notify = notify
+        if self.pool is not None:
+            self.pool.notify = notify
 
     @property
     def chunks_sent(self) -> int:
@@ -249,50 +172,6 @@ class RayExecutor(Executor):
     def worker_stats(self) -> list[dict]:
         """Busy seconds, tasks and runs per worker (for idle-fraction measurements)."""
         return self.ray.get([a.stats.remote() for a in self.actors])
-
-    # -- what a chunk's actor needs to screen it ------------------------------------------
-    def _message(self, actor: int, screen, fresh: bool = False):
-        if screen is None:
-            return ("none", None, 0)
-        if not isinstance(screen, Coverage):
-            key = id(screen)
-            if key not in self._static:
-                self._static = {key: self.ray.put(screen)}
-            return ("static", self._static[key], 0)
-        screen.start_log()
-        now = (id(screen), screen.epoch, screen.seq)
-        slot = self.pool.slots[actor]
-        sent = slot.synced
-        slot.synced = now
-        if fresh or sent is None or sent[:2] != now[:2]:
-            if self._snapshot[0] != now:
-                self._snapshot = (now, self.ray.put(screen.state()))
-            return ("snapshot", self._snapshot[1], 0)
-        if sent[2] == now[2]:
-            return ("changes", [], sent[2])
-        key = (id(screen), sent[2], now[2])
-        if key not in self._blocks:
-            self._blocks = {k: v for k, v in self._blocks.items() if k[2] == now[2]}  # older ranges are done
-            changes = screen.changes_since(sent[2])
-            # a small block goes inside the call (Ray inlines it; a put costs the driver
-            # ~1 ms), a large one once into the object store for every actor that needs it
-            self._blocks[key] = changes if _nbytes(changes) <= INLINE_BYTES else self.ray.put(changes)
-        self._since_trim += 1
-        if self._since_trim >= len(self.pool.slots):  # a look at every actor: about once a wave
-            self._trim(screen)
-            self._since_trim = 0
-        return ("changes", [self._blocks[key]], sent[2])
-
-    def _trim(self, screen: Coverage) -> None:
-        """Forget the changes every actor that was sent this coverage has applied. An
-        actor never sent it gets a snapshot, not changes, so it holds nothing back: with
-        fewer chunks in flight than workers the actors past the last are never used, and
-        waiting for them kept every change of the campaign."""
-        now = (id(screen), screen.epoch)
-        slots = self.pool.slots
-        holding = [s.confirmed for s in slots if s.synced is not None and s.synced[:2] == now]
-        if holding and all(c is not None and c[:2] == now for c in holding):
-            screen.trim_log(min(c[2] for c in holding))
 
     # -- the contract -------------------------------------------------------------------
     def submit(self, first_index: int, starts: np.ndarray, screen=None, actions: dict | None = None,
@@ -324,7 +203,7 @@ class RayExecutor(Executor):
         commit head may wait for a replacement, which behind a worker's queued chunks would
         wait seconds. They reserve no CPU: they are busy only with replacements, a few %
         of the runs."""
-        lane = _actor_class().options(num_cpus=0, max_restarts=-1, max_task_retries=0, scheduling_strategy="SPREAD")
+        lane = actor_class().options(num_cpus=0, max_restarts=-1, max_task_retries=0, scheduling_strategy="SPREAD")
         for _ in range(self._lanes):
             self.pool.add(lane.remote(dataclasses.asdict(self.spec), self._check_step_bound), lane=True)
         self._lane = False
@@ -355,7 +234,7 @@ class RayExecutor(Executor):
 
     def _launch(self, job: _Job, actor: int) -> None:
         t0 = time.perf_counter()
-        message = self._message(actor, job.screen, job.fresh)
+        message = self.mirrors.message(actor, job.screen, job.fresh)
         job.sent = self.pool.slots[actor].synced
         job.ref, job.visited_ref = self._actor(actor).run.remote(job.first, job.starts, message, job.actions,
                                                                  job.indices)
@@ -442,8 +321,6 @@ class RayExecutor(Executor):
         """The pieces shared out among the actors by runs, one call per actor; a piece
         whose states are gone (resume) is re-simulated in shares, so that every actor
         takes a share."""
-        from coordinator.experience_replay import Stored
-
         shares = []
         for piece in pieces:
             if piece.source is None and len(piece.indices) > STORED_PART:
@@ -489,8 +366,6 @@ class RayExecutor(Executor):
     def _replay_call(self, shares: list, screen) -> Call:
         """Experience replay of ``shares`` on one actor (one call: a call costs the driver
         ~0.7 ms, and a round end has a piece per chunk that kept states)."""
-        from coordinator.experience_replay import Stored
-
         stripped = [Stored(None, p.indices, p.rows, p.takes, p.parents, p.starts) for p in shares]
         sources = [[p.source] if p.source is not None else [] for p in shares]  # nested: not resolved by Ray
         runs = sum(len(p.indices) for p in shares)
@@ -498,7 +373,7 @@ class RayExecutor(Executor):
                     limit=self.sizer.replay_limit(runs))
 
         def launch(actor: int, fresh: bool = False) -> None:
-            message = self._message(actor, screen, fresh)
+            message = self.mirrors.message(actor, screen, fresh)
             call.ref = self._actor(actor).replay_screen.remote(stripped, sources, message, self._actions)
             self.pool.sent(call, actor)
 
@@ -536,7 +411,7 @@ class RayExecutor(Executor):
         once after a stop), or down, is killed. Killing at once failed the running chunk, which Ray reports on
         the driver as "Task SimWorker.run failed ... will be retried" at the end of every
         normal campaign."""
-        slots = self.pool.slots
+        slots = self.pool.slots if self.pool is not None else []
         if not slots:
             return
         live = [s for s in slots if not s.down]

@@ -15,6 +15,8 @@ import threading
 from pathlib import Path
 from typing import NoReturn
 
+from farm import lazy
+from farm.ray_runtime import watch as ray_watch
 from farm.ray_runtime.address import reachable
 from scenarios.errors import ConfigError, InfrastructureError
 
@@ -35,8 +37,7 @@ def connect(address: str, workers: int) -> None:
     workers get the working directory on their path, as the CLI has it: a config's
     'module:Class' imports there as it does in the coordinator. A SIGTERM while Ray
     starts is a KeyboardInterrupt (the CLI: "stopped", exit 130)."""
-    import ray
-
+    ray = lazy.ray
     if ray.is_initialized():
         return
     # The executor reports a failed chunk once, as one line; the refs of chunks it drops
@@ -65,8 +66,6 @@ def connect(address: str, workers: int) -> None:
             raise InfrastructureError(f"Ray did not start on this machine ({type(exc).__name__}: {text})") from None
         raise ConfigError(f"farm.address: {address!r} answers at {target}, but joining it as a Ray cluster failed "
                           f"({type(exc).__name__}: {text})") from None
-    from farm.ray_runtime import watch as ray_watch
-
     ray_watch.watch(ray)  # a lost raylet or head: our line, not Ray's exit 1
 
 
@@ -74,8 +73,7 @@ def start_local(num_cpus: int, extra_path: str | None = None) -> None:
     """A private local Ray as the CLI starts it (benchmarks and tests start theirs here
     too): loopback only, ``RAY_SYSTEM_CONFIG``, and ``extra_path``, the working directory
     and PYTHONPATH on the workers' import path."""
-    import ray
-
+    ray = lazy.ray
     # the banner says token auth is on by default; it stays on, the line goes
     logging.getLogger("ray._private.authentication").setLevel(logging.ERROR)
     with _loopback_only(), _workers_path(extra_path):
@@ -142,8 +140,7 @@ class _loopback_only:
     switch is read when the node starts, so it is set for ``ray.init`` only."""
 
     def __enter__(self):
-        from ray._private import ray_constants
-
+        ray_constants = lazy.ray_constants
         self.constants, self.before = ray_constants, ray_constants.ENABLE_RAY_CLUSTER
         ray_constants.ENABLE_RAY_CLUSTER = False
 

@@ -89,18 +89,18 @@ class Certificate(JsonFile):
 
 
 
-def certificate_of(cfg: Config, plan, result: dict, guarantee, scenario, policy, domain) -> Certificate:
+def certificate_of(cfg: Config, plan, result, guarantee, scenario, policy, domain) -> Certificate:
     """The certificate of a finished validation of ``cfg`` (its [validate] section):
-    ``plan`` (coordinator.validation.ValidationPlan), ``result`` (what
-    coordinator.validation.validate returned), ``guarantee``
+    ``plan`` (coordinator.validation.ValidationPlan), ``result``
+    (coordinator.validation.ValidationResult), ``guarantee``
     (coordinator.guarantee.validated), the scenario, action policy and Domain."""
     v = cfg.validate
     used = PARAMETERS[plan.algorithm]
     return Certificate(
-        verdict=result["verdict"], guarantee=guarantee.plain, guarantee_formal=guarantee.formal,
+        verdict=result.verdict, guarantee=guarantee.plain, guarantee_formal=guarantee.formal,
         algorithm=plan.algorithm, **{name: getattr(v, name) for name in used}, horizon=v.horizon,
-        n_required=plan.n_required, n_run=result["n_run"], runs_simulated=result["runs_simulated"],
-        steps_simulated=result["steps_simulated"], seed=cfg.farm.seed, config_hash=config_mod.config_hash(cfg),
+        n_required=plan.n_required, n_run=result.n_run, runs_simulated=result.runs_simulated,
+        steps_simulated=result.steps_simulated, seed=cfg.farm.seed, config_hash=config_mod.config_hash(cfg),
         scenario=cfg.scenario.name, sv_policy=scenario.sv_policy_name, domain=domain.describe(),
         sampling=plan.description, actions=policy.description, boundary=v.boundary,
-        counterexample=result["counterexample"], scenario_farm_version=__version__)
+        counterexample=result.counterexample, scenario_farm_version=__version__)

@@ -22,7 +22,8 @@ import numpy as np
 from coordinator.reference import compare_boxes, falsified, grid as grid_points, reference_safe
 from coordinator.safe_set import SafeSet
 from farm.directory.files import write_json
-from farm.execution.process import build_simulator
+from farm import lazy
+from farm.execution.process import build_simulator, spec_of
 from farm.directory.storage import CampaignDir
 from farm.reports.summary import Summary
 from scenarios.errors import ConfigError
@@ -73,8 +74,6 @@ def compare(directory: Path, grid: int | None = None, progress=None, *, grid_tot
     phase. ``estimate_only``: time the first batch, return the plan with its estimate
     (``estimated_s``), write nothing."""
     say = progress.line if progress is not None else (lambda text: None)
-    from farm.jobs.campaign_setup import spec_of
-
     directory = Path(directory)
     CampaignDir(directory).open("quantify")
     Summary.read(directory)  # a stopped campaign's safe set is not its result: "has not finished; see status"
@@ -132,7 +131,9 @@ def compare(directory: Path, grid: int | None = None, progress=None, *, grid_tot
         metrics["half_width_max"] = safe_set.coarsest
     metrics["notes"] = notes
     metrics["runs"] = runs
-    _plot(directory / "plots" / "compare.png", scenario, safe_set, cfg, res, pixel_truth)
+    x, y, varied, levels = _figure_slices(scenario)
+    lazy.plots.draw_reference(directory / "plots" / "compare.png", scenario, safe_set, x, y, varied, levels,
+                              _figure_pixels(scenario, res), pixel_truth, res)
     write_json(directory / "compare.json", metrics)
     return metrics
 
@@ -262,33 +263,3 @@ def _figure_pixels(scenario, res: int) -> np.ndarray:
             pts[:, varied] = level
         out.append(pts)
     return np.concatenate(out)
-
-
-def _plot(path: Path, scenario, safe_set: SafeSet, cfg, res: int, truth: np.ndarray) -> None:
-    """The slices with the reference membership ``truth`` of ``_figure_pixels``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    lo, hi = scenario.lower, scenario.upper
-    x, y, varied, levels = _figure_slices(scenario)
-    pixels = _figure_pixels(scenario, res).reshape(len(levels), res * res, scenario.n)
-    fig, axs = plt.subplots(1, len(levels), figsize=(4.2 * len(levels), 4), squeeze=False)
-    for ax, level, pts, ref in zip(axs[0], levels, pixels, truth.reshape(len(levels), res, res)):
-        got = safe_set.contains(pts).reshape(res, res)
-        img = np.zeros((res, res, 3)) + 1.0
-        img[ref & got] = (0.75, 0.9, 0.75)
-        img[got & ~ref] = (0.85, 0.1, 0.1)
-        img[ref & ~got] = (0.2, 0.35, 0.9)
-        ax.imshow(np.transpose(img, (1, 0, 2)), origin="lower", aspect="auto", extent=(lo[x], hi[x], lo[y], hi[y]))
-        ax.set_xlabel(scenario.state_names[x])
-        ax.set_ylabel(scenario.state_names[y])
-        if varied is not None:
-            ax.set_title(f"{scenario.state_names[varied]} = {level:.3g}", fontsize=9)
-    fig.suptitle(f"{cfg.scenario.name} / {scenario.sv_policy_name}: green agree, red claimed but unsafe, "
-                 f"blue safe but not claimed", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)

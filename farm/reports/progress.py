@@ -12,6 +12,7 @@ from __future__ import annotations
 import sys
 import time
 
+from farm import lazy
 from farm.reports.status import snapshot
 
 PLAIN_INTERVAL_S = 10.0
@@ -35,7 +36,7 @@ class Progress:
         self._bar = None
 
     # -- campaigns -------------------------------------------------------------------------
-    def update(self, label: str, campaign) -> None:
+    def update(self, side: str, campaign) -> None:
         if not self.enabled:
             return
         # called after every committed chunk: decide from cheap fields whether to show
@@ -48,28 +49,26 @@ class Progress:
             return
         s = snapshot(campaign)
         if self.live:
-            self._draw(label, s, campaign)
+            self._draw(side, s, campaign)
             return
         self._last = now
-        side = "" if label == "total" else f"{label} side: "
-        self.line(f"{side}round {s['round']}  delta {s['delta']:g}  boxes {s['boxes']:,}  {_counter(s)}  "
+        prefix = "" if side == "total" else f"{side} side: "
+        self.line(f"{prefix}round {s['round']}  delta {s['delta']:g}  boxes {s['boxes']:,}  {_counter(s)}  "
                   f"runs {s['runs_committed']:,}  {s['runs_per_s'] or 0:,.0f} runs/s  {s['elapsed_s']:.0f} s")
 
-    def _draw(self, label, s, campaign) -> None:
+    def _draw(self, side, s, campaign) -> None:
         self._last = time.monotonic()
         if self._bar is None:
-            from rich.console import Console
-            from rich.progress import BarColumn, Progress as Bar, TextColumn, TimeElapsedColumn
-
-            self._bar = Bar(TextColumn("{task.description}"), BarColumn(bar_width=12),
-                            TextColumn("{task.fields[what]} {task.completed:,.0f}/{task.total:,.0f}"),
-                            TextColumn("{task.fields[detail]}"), TimeElapsedColumn(),
-                            console=Console(file=self.stream), transient=False)
+            bar = lazy.rich_progress
+            self._bar = bar.Progress(bar.TextColumn("{task.description}"), bar.BarColumn(bar_width=12),
+                                     bar.TextColumn("{task.fields[what]} {task.completed:,.0f}/{task.total:,.0f}"),
+                                     bar.TextColumn("{task.fields[detail]}"), bar.TimeElapsedColumn(),
+                                     console=lazy.rich_console.Console(file=self.stream), transient=False)
             self._bar.start()
             self._task = self._bar.add_task("", total=1, detail="", what="N_eps")
         done, total = (s["certified"], s["centres"]) if "certified" in s else (s["n_eps_counter"], s["n_eps_needed"])
-        side = "" if label == "total" else f"{label} side: "  # no [brackets]: rich reads them as markup
-        self._bar.update(self._task, description=f"{side}round {s['round']} delta {s['delta']:g}",
+        prefix = "" if side == "total" else f"{side} side: "  # no [brackets]: rich reads them as markup
+        self._bar.update(self._task, description=f"{prefix}round {s['round']} delta {s['delta']:g}",
                          completed=done, total=max(total, 1), what="certified" if "certified" in s else _what(s),
                          detail=f"boxes {s['boxes']:,}  runs {s['runs_committed']:,}{_certification_runs(s)}  "
                                 f"{s['runs_per_s'] or 0:,.0f}/s", refresh=True)

@@ -1,7 +1,7 @@
 """Live status of a campaign, from its files alone.
 
 ``StatusWriter`` rewrites ``DIR/status.json`` atomically every ``EVERY_S`` seconds while a
-campaign runs (independent of checkpoints): state, part, round, delta, boxes, the N_eps
+campaign runs (independent of checkpoints): state, side, round, delta, boxes, the N_eps
 counter, committed runs, runs/s. ``describe`` (``scenario-farm status DIR``) reads it,
 and tells a live campaign from a dead one by the directory lock, not by a heartbeat.
 """
@@ -9,6 +9,7 @@ and tells a live campaign from a dead one by the directory lock, not by a heartb
 from __future__ import annotations
 
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -28,16 +29,16 @@ class StatusWriter:
     def write(self, fields: dict) -> None:
         write_json(self.dir / "status.json", {**fields, "updated": time.time(), "started": self._started})
 
-    def update(self, label: str, campaign, *, state: str = "running", force: bool = False):
+    def update(self, side: str, campaign, *, state: str = "running", force: bool = False):
         now = time.monotonic()
         if not force and now - self._last < EVERY_S:
             return
         self._last = now
-        self.write({"state": state, "part": label, **snapshot(campaign)})
+        self.write({"state": state, "side": side, **snapshot(campaign)})
 
 
 def snapshot(campaign) -> dict:
-    """Where a running campaign stands (coordinator.campaign.Campaign)."""
+    """Where a running campaign stands (coordinator.driver.Campaign)."""
     c, algorithm, n_eps = campaign.counters, campaign.algorithm, campaign.n_eps
     counts = algorithm.counts()
     return {"round": counts.get("round", 0), "delta": counts.get("delta"), "boxes": counts.get("boxes"),
@@ -97,7 +98,7 @@ def describe(directory: Path) -> str:
             state = f"stopped while {state} (process gone; continue with `scenario-farm resume {directory}`)"
         elif holder is not None:
             state = f"{state} (pid {holder}, updated {time.time() - st.get('updated', 0):.0f} s ago)"
-        fields = ["part", "round", "delta", "boxes", "n_eps_counter", "n_eps", "runs_committed", "runs_simulated",
+        fields = ["side", "round", "delta", "boxes", "n_eps_counter", "n_eps", "runs_committed", "runs_simulated",
                   "runs_per_s", "elapsed_s", "result_hash"]
         detail = ", ".join(f"{k} {st[k]}" for k in fields if st.get(k) is not None)
         lines.append(f"  {state}" + (f": {detail}" if detail else ""))
@@ -113,8 +114,6 @@ def describe(directory: Path) -> str:
 def watch(directory: Path, every: float = EVERY_S, stream=None, max_s: float | None = None) -> str:
     """Print ``describe`` each time the status changes, until the campaign is done or no
     process works on it any more (``scenario-farm status DIR --watch``); -> the last text."""
-    import sys
-
     stream = stream or sys.stdout
     shown, start = None, time.monotonic()
     while True:

@@ -15,6 +15,7 @@ from coordinator.safe_set import SafeSet
 from farm import config as config_mod
 from farm.config import Config
 from farm.directory.json_record import JsonFile, record_from_json, record_to_json
+from scenarios.errors import CampaignError
 from scenarios.version import __version__
 
 FILE = "summary.json"
@@ -114,6 +115,14 @@ class Summary(JsonFile):
         return out
 
     @classmethod
+    def finished(cls, directory) -> "Summary | None":
+        """``summary.json`` of a finished campaign in ``directory``, or None (not finished)."""
+        try:
+            return cls.read(directory)
+        except (CampaignError, OSError, ValueError):
+            return None
+
+    @classmethod
     def from_json(cls, data, source: str = FILE) -> "Summary":
         if not isinstance(data, dict):
             return record_from_json(cls, data, source, REQUIRED)
@@ -128,16 +137,16 @@ class Summary(JsonFile):
 
 
 
-def summarize(cfg: Config, parts: dict, safe_sets: dict[str, SafeSet], guarantees: dict) -> Summary:
-    """The summary of a finished campaign. ``parts``: label -> its finished part
-    (``farm.jobs.side_campaign.FacetCampaign``: campaign, algorithm, scenario, policy;
-    "total" first, then the sides); ``safe_sets`` and ``guarantees``
-    (``coordinator.guarantee.Guarantee``): label -> the part's set and guarantee."""
-    part, total = parts["total"], safe_sets["total"]
-    campaign, scenario = part.campaign, part.scenario
+def summarize(cfg: Config, sides: dict, safe_sets: dict[str, SafeSet], guarantees: dict) -> Summary:
+    """The summary of a finished campaign. ``sides``: side -> its finished campaign
+    (``farm.jobs.side_campaign.SideCampaign``: campaign, algorithm, scenario, policy;
+    "total" first, then the scenario's sides); ``safe_sets`` and ``guarantees``
+    (``coordinator.guarantee.Guarantee``): side -> its set and guarantee."""
+    main, total = sides["total"], safe_sets["total"]
+    campaign, scenario = main.campaign, main.scenario
     c = campaign.counters
     bounds = (scenario.lower, scenario.upper)
-    counters = [p.campaign.counters for p in parts.values()]
+    counters = [side.campaign.counters for side in sides.values()]
     return Summary(
         scenario=cfg.scenario.name,
         sv_policy=scenario.sv_policy_name,
@@ -147,7 +156,7 @@ def summarize(cfg: Config, parts: dict, safe_sets: dict[str, SafeSet], guarantee
         beta=cfg.quantify.beta,
         n_eps=campaign.n_eps,
         certification_attempts=c.attempts,
-        n_eps_final=campaign.quiet_needed() if c.attempts and not part.algorithm.enumerates else campaign.n_eps,
+        n_eps_final=campaign.quiet_needed() if c.attempts and not main.algorithm.enumerates else campaign.n_eps,
         runs_certification=sum(k.runs_certification for k in counters),
         delta_final=total.finest,
         half_width_max=total.coarsest,
@@ -168,24 +177,24 @@ def summarize(cfg: Config, parts: dict, safe_sets: dict[str, SafeSet], guarantee
         config_hash=config_mod.config_hash(cfg),
         result_hash=total.result_hash,
         elapsed_s=round(sum(k.elapsed_s for k in counters), 3),
-        startup_s=round(sum(p.startup_s for p in parts.values()), 3),
+        startup_s=round(sum(side.startup_s for side in sides.values()), 3),
         guarantee=guarantees["total"].plain,
         guarantee_formal=guarantees["total"].formal,
-        actions=part.policy.description,
+        actions=main.policy.description,
         failure_facets=list(scenario.failure_facets),
         round_ends=list(c.round_ends),
         truncations=_truncations(scenario, counters),
         scenario_farm_version=__version__,
-        **_virtual(parts),
-        sides={label: SideSummary(volume=safe_sets[label].volume_union(bounds),
-                                  volume_hull=safe_sets[label].volume_hull(bounds),
-                                  result_hash=safe_sets[label].result_hash, guarantee=guarantees[label].plain,
-                                  guarantee_formal=guarantees[label].formal)
-               for label in parts if label != "total"})
+        **_virtual(sides),
+        sides={name: SideSummary(volume=safe_sets[name].volume_union(bounds),
+                                 volume_hull=safe_sets[name].volume_hull(bounds),
+                                 result_hash=safe_sets[name].result_hash, guarantee=guarantees[name].plain,
+                                 guarantee_formal=guarantees[name].formal)
+               for name in sides if name != "total"})
 
 
 def _truncations(scenario, counters: list) -> dict[str, int]:
-    """Committed truncated runs per facet label, over the facet campaigns."""
+    """Committed truncated runs per facet label, over the sides' campaigns."""
     totals = {}
     for k in counters:
         for (facet, _), n in zip(scenario.facets(), k.truncations):
@@ -194,9 +203,9 @@ def _truncations(scenario, counters: list) -> dict[str, int]:
     return totals
 
 
-def _virtual(parts: dict) -> dict:
-    """The virtual farm's clock over the facet campaigns (they run one after the other)."""
-    clocks = [p.virtual for p in parts.values() if p.virtual is not None]
+def _virtual(sides: dict) -> dict:
+    """The virtual farm's clock over the sides' campaigns (they run one after the other)."""
+    clocks = [side.virtual for side in sides.values() if side.virtual is not None]
     if not clocks:
         return {}
     elapsed = sum(c.elapsed_s for c in clocks)

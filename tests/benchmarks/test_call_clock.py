@@ -20,12 +20,12 @@ def test_the_call_clock_counts_the_calls_and_leaves_the_waits_out_and_the_chunks
                 "slow_backend:SlowRunBackend": {"step_cost_s": 0.001}}
     spec = SimSpec(scenario, {"mode": "uniform"}, 50, 0)
     starts = np.tile([10.0, 10.0, 60.0], (16, 1))  # the lead far ahead: every run lasts the horizon
-    plain = RayExecutor(spec, 2)
+    plain = RayExecutor(spec, 2).start()
     try:
         expected = [plain.result(h) for h in plain.submit(0, starts)]
     finally:
         plain.close()
-    ex = RayExecutor(spec, 2)
+    ex = RayExecutor(spec, 2).start()
     clock = CallClock(ex)
     try:
         got = [ex.result(h) for h in ex.submit(0, starts)]

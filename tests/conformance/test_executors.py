@@ -16,7 +16,7 @@ SPEC = SimSpec({"name": "lead-follow", "sv_policy": "idm"}, {"mode": "uniform"},
 def ray_executor(workers: int = 2):
     from farm.ray_runtime.executor import RayExecutor
 
-    return lambda spec: RayExecutor(spec, workers, "local", max_retries=3, pipeline_depth=2)
+    return lambda spec: RayExecutor(spec, workers, "local", max_retries=3, pipeline_depth=2).start()
 
 
 def kill_first_actor(executor) -> None:

@@ -9,8 +9,8 @@ import pytest
 
 from farm import config as config_mod
 from farm.execution.local import LocalExecutor
-from farm.execution.process import build_simulator
-from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+from farm.execution.process import build_simulator, spec_of
+from farm.jobs.campaign_setup import build_algorithm, build_campaign
 
 
 @pytest.mark.parametrize("algorithm,mode", [("spe", "uniform"), ("spe", "adversarial"), ("ae", "uniform"),

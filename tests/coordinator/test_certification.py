@@ -10,7 +10,8 @@ from coordinator.certification import check_quiet, closing_quiet
 from coordinator.sample_size import n_eps, n_eps_attempt
 from farm import api
 from farm import config as config_mod
-from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+from farm.jobs.campaign_setup import build_algorithm, build_campaign
+from farm.execution.process import spec_of
 from farm.execution.local import LocalExecutor
 
 EPS, BETA = 0.01, 0.1

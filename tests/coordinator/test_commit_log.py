@@ -5,7 +5,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from coordinator.commit_log import CommitLog
+from coordinator.driver.commit_log import CommitLog
 
 
 def test_a_flush_gives_every_committed_row_with_its_chunk_values_and_empties_the_log():

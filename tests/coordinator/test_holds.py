@@ -1,5 +1,5 @@
 """The head commits on past a replacement that is not back (a hold) and goes back when it
-changes the state (coordinator/replacements.py): the runs used (the ledger but for the
+changes the state (coordinator/driver/replacements.py): the runs used (the ledger but for the
 discarded rows, which follow when batches were drawn), the counters and the result are
 those of a campaign that waits for every replacement, and a checkpoint taken while
 replacements are held resumes to the same result."""
@@ -9,12 +9,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from coordinator.campaign import Campaign, DriverState
-from coordinator.commit_log import CommitLog
+from coordinator.driver import Campaign, DriverState
+from coordinator.driver.commit_log import CommitLog
 from farm import config as config_mod
-from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+from farm.jobs.campaign_setup import build_algorithm, build_campaign
+from farm.execution.process import build_simulator, spec_of
 from farm.execution.local import LocalExecutor
-from farm.execution.process import build_simulator
 
 
 class LateReplacements(LocalExecutor):

@@ -51,7 +51,7 @@ def test_take_lowered_names_exactly_the_ids_whose_distance_fell():
 
 
 def test_a_copy_keeps_lowering_its_own_distances():
-    # a copy of the algorithm (coordinator/speculation.py) is restored and goes on: its
+    # a copy of the algorithm (coordinator/driver/speculation.py) is restored and goes on: its
     # distances must go on falling in its own buffer (a view held apart from its buffer
     # would part from it in a deep copy and lose what a new failure lowers)
     import copy

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from coordinator.baselines import make_algorithm
-from coordinator.campaign import Campaign, CampaignSettings
+from coordinator.driver import Campaign, CampaignSettings
 from coordinator.spe import SPESettings
 from farm.execution.local import LocalExecutor
 from scenarios.simulator import SimSpec

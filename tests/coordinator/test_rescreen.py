@@ -101,7 +101,7 @@ def test_witnesses_after_an_insert_are_those_of_a_fresh_screening(mixed):
 
 def test_a_screening_is_judged_at_the_state_it_had_across_a_fork():
     # the algorithm went back to a copy of its coverage and went on (a fork,
-    # coordinator/speculation.py): a chunk screened before the copy still holds; one
+    # coordinator/driver/speculation.py): a chunk screened before the copy still holds; one
     # screened on the state left behind, or at changes the copy has not had (a hold
     # judged at the state the head passed it), is screened again from its states
     import copy

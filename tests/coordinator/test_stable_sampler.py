@@ -121,7 +121,7 @@ def test_the_coupling_moves_about_the_share_no_exact_sampler_can_keep(change):
 
 
 def test_after_a_fork_a_draw_moves_where_the_state_left_behind_differed():
-    # the state went back to a copy (coordinator/speculation.py): draws made on the state
+    # the state went back to a copy (coordinator/driver/speculation.py): draws made on the state
     # left behind stand only if no slot they examined differs between the two, and a draw
     # of an id born there is drawn again (the id names another centre here)
     import copy

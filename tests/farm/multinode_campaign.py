@@ -38,7 +38,7 @@ def in_process(raw_config: str, lose_worker: bool) -> None:
     import ray
 
     from farm import config as config_mod
-    from farm.jobs import side_campaign as facet_campaign
+    from farm.jobs import side_campaign
     from farm.jobs import quantification
 
     c, workers = cluster()
@@ -46,7 +46,7 @@ def in_process(raw_config: str, lose_worker: bool) -> None:
     nodes_seen: list[list[str]] = []
     notes: list[str] = []
     lost: list[str] = []
-    make = facet_campaign.make_executor
+    make = side_campaign.make_executor
 
     def make_and_look(*args, **kwargs):
         executor = make(*args, **kwargs)
@@ -66,7 +66,7 @@ def in_process(raw_config: str, lose_worker: bool) -> None:
             executor.result = result_then_lose
         return executor
 
-    facet_campaign.make_executor = make_and_look
+    side_campaign.make_executor = make_and_look
     cfg = config_mod.normalize(json.loads(raw_config))
     try:
         from farm.reports.progress import Progress

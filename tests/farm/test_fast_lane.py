@@ -8,11 +8,11 @@ import sys
 from pathlib import Path
 
 from farm import config as config_mod
-from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+from farm.jobs.campaign_setup import build_algorithm, build_campaign
+from farm.execution.process import build_simulator, spec_of
 from farm.execution.local import LocalExecutor
 from farm.ray_runtime.executor import RayExecutor
 from farm.ray_runtime.pool import ActorPool, Call, Slot
-from farm.execution.process import build_simulator
 
 RAW = {"scenario": {"name": "lead-follow", "sv_policy": "idm"}, "actions": {"mode": "uniform"},
        "quantify": {"delta0": 4.0, "delta_min": 2.0, "epsilon": 0.005, "beta": 0.1, "horizon": 30},
@@ -70,7 +70,7 @@ def test_a_call_remembers_it_is_urgent_for_its_retries():
 
 def test_a_ray_campaign_sends_its_replacements_to_the_lane_and_gives_the_in_process_result(ray_local):
     local_hash, _, _ = campaign(LocalExecutor)
-    ray_hash, counters, (lane, pool) = campaign(lambda spec: RayExecutor(spec, 2))
+    ray_hash, counters, (lane, pool) = campaign(lambda spec: RayExecutor(spec, 2).start())
     assert ray_hash == local_hash
     assert counters.runs_replaced > 0  # the campaign had replacements to send ...
     assert lane["tasks"] > 0  # ... and the lane ran them, and only them
@@ -87,7 +87,7 @@ def test_long_chunks_wait_with_the_driver_and_replacements_go_first(ray_local):
     pool; the result is still the in-process one (the slow back end simulates the same
     runs as the numpy one: tests/benchmarks/test_slow_backend.py)."""
     local_hash, local_counters, _ = campaign(LocalExecutor)
-    ray_hash, counters, (*lanes, pool) = campaign(lambda spec: RayExecutor(spec, 2), SLOW)
+    ray_hash, counters, (*lanes, pool) = campaign(lambda spec: RayExecutor(spec, 2).start(), SLOW)
     assert ray_hash == local_hash and counters.committed == local_counters.committed
     assert pool["held_back"] > 0  # chunks waited in the pool for an actor with room
     assert counters.runs_replaced > 0
@@ -104,7 +104,7 @@ def _on_eight_slow_actors():
     cfg = config_mod.normalize(SLOW_20MS)
     sim = build_simulator(spec_of(cfg))
     algo = build_algorithm(cfg, sim)
-    executor = RayExecutor(spec_of(cfg), 8)
+    executor = RayExecutor(spec_of(cfg), 8).start()
     try:
         ray_campaign = build_campaign(cfg, algo, sim, executor)
         counters = ray_campaign.run()
@@ -117,18 +117,18 @@ def _on_eight_slow_actors():
 def test_runs_launched_while_a_change_waits_on_ray_give_the_in_process_result(ray_local):
     """8 actors of ~20 ms runs: the head passes replacements not back and waits for them at
     changes; meanwhile the runs each change will call for are launched, worked out on a
-    copy of the algorithm (coordinator/campaign.py ``_launch_past_holds``), and their
+    copy of the algorithm (coordinator/driver/campaign.py ``LookAhead.past_holds``), and their
     chunks read ahead without waiting. The result is the in-process one."""
     (ray_campaign, counters, ray_hash), (local_hash, local_counters) = _on_eight_slow_actors()
-    assert ray_campaign.launched_past_holds > 0
+    assert ray_campaign.look_ahead.launched_past_holds > 0
     assert ray_hash == local_hash and counters.committed == local_counters.committed
 
 
 def test_changes_applied_past_holds_on_ray_give_the_in_process_result(ray_local, monkeypatch):
     """The same 8 actors, with changes applied past the holds before them (for runs of
-    20 ms here; by default from 0.2 s, coordinator/speculation.py): a change undone sends
+    20 ms here; by default from 0.2 s, coordinator/driver/speculation.py): a change undone sends
     the actors the restored coverage whole, and the result is the in-process one."""
-    import coordinator.speculation as speculation_mod
+    import coordinator.driver.speculation as speculation_mod
 
     monkeypatch.setattr(speculation_mod, "RUN_S", 0.005)
     (ray_campaign, counters, ray_hash), (local_hash, local_counters) = _on_eight_slow_actors()

@@ -48,7 +48,7 @@ def make(kind, **kwargs):
         return LocalExecutor(SPEC, **kwargs)
     from farm.ray_runtime.executor import RayExecutor
 
-    return RayExecutor(SPEC, 2, "local", **kwargs)
+    return RayExecutor(SPEC, 2, "local", **kwargs).start()
 
 
 @pytest.fixture(params=["local", "ray"])

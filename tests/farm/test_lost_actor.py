@@ -25,7 +25,7 @@ def test_a_call_a_poll_took_off_its_dead_actor_is_sent_again(ray_local):
     import ray
 
     marker = Path(os.environ[HANG_MARKER])
-    ex = RayExecutor(SPEC, 2, "local", max_retries=3, pipeline_depth=2)
+    ex = RayExecutor(SPEC, 2, "local", max_retries=3, pipeline_depth=2).start()
     try:
         pids = dict(zip(map(id, ex.pool.slots), ray.get([s.handle.pid.remote() for s in ex.pool.slots])))
         ex.sizer.ran(64, 0.01)  # measured: no one-run probe first (it would hang, waited for)

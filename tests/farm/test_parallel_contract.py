@@ -120,10 +120,10 @@ def test_n_eps_rule_is_exact_in_the_committed_record(reference, tmp_path):
 
 @pytest.mark.soak  # CI: tests/conformance/test_executors.py kills a Ray worker mid-campaign
 def test_a_killed_worker_costs_time_not_results(ray_local, reference, tmp_path, monkeypatch):
-    from farm.jobs import side_campaign as facet_campaign
+    from farm.jobs import side_campaign
 
     killed = []
-    make = facet_campaign.make_executor
+    make = side_campaign.make_executor
 
     def make_and_arm(*a, **k):
         ex = make(*a, **k)
@@ -140,7 +140,7 @@ def test_a_killed_worker_costs_time_not_results(ray_local, reference, tmp_path, 
         ex.result = result_then_kill
         return ex
 
-    monkeypatch.setattr(facet_campaign, "make_executor", make_and_arm)
+    monkeypatch.setattr(side_campaign, "make_executor", make_and_arm)
     summary = run(contract_config("ray", 2), tmp_path / "c", resume=False)
     assert killed
     assert summary["result_hash"] == reference["result_hash"]
@@ -152,7 +152,7 @@ def test_an_exception_in_a_scenario_names_the_sample_and_does_not_hang(ray_local
     from scenarios.simulator import SimSpec
 
     spec = SimSpec({"name": "user_scenarios:Raising", "sv_policy": "none"}, {"mode": "uniform"}, 10, 0)
-    ex = RayExecutor(spec, 2, "local", max_retries=1)
+    ex = RayExecutor(spec, 2, "local", max_retries=1).start()
     try:
         starts = np.tile([[0.2, 0.2]], (64, 1))
         starts[37] = [0.9, 0.9]
@@ -177,9 +177,9 @@ def test_batches_are_cut_by_the_measured_run_time(ray_local, monkeypatch):
                                 "scenario": {"name": "lead-follow", "sv_policy": "idm",
                                              "backend": "slow_backend:SlowBackend",
                                              "slow_backend:SlowBackend": {"step_cost_s": 4e-4}}})
-    from farm.jobs.campaign_setup import spec_of
+    from farm.execution.process import spec_of
 
-    ex = RayExecutor(spec_of(cfg), 2, pipeline_depth=2)
+    ex = RayExecutor(spec_of(cfg), 2, pipeline_depth=2).start()
     try:
         starts = np.tile([10.0, 10.0, 40.0], (400, 1))  # a quiet run: every step of the horizon
         chunks = [ex.result(h) for h in ex.submit(0, starts)]
@@ -202,7 +202,7 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
     snapshot), and each screening is made at the coverage as it was submitted."""
     from coordinator.coverage import Coverage, Insert
     from farm.ray_runtime import executor as ray_executor
-    from farm.jobs.campaign_setup import spec_of
+    from farm.execution.process import spec_of
     from farm.ray_runtime.executor import RayExecutor
 
     from farm.execution.chunking import ChunkSizer
@@ -212,7 +212,7 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
     lower, upper = np.array([0.0, 0.0, 0.0]), np.array([100.0, 30.0, 30.0])
     cov = Coverage(3, 2.0, lower, bounds=(lower, upper))
     rng = np.random.default_rng(0)
-    ex = RayExecutor(spec_of(cfg), 4)
+    ex = RayExecutor(spec_of(cfg), 4).start()
     ex.sizer.ran(20, 0.001)  # as if measured: no one-run probe first
     try:
         for step in range(8):
@@ -259,9 +259,9 @@ def test_a_dropped_chunk_is_left_to_finish_and_the_actor_goes_on(ray_local):
     reorder timeout. A chunk queued behind a running one is dropped; it still runs (the
     actor counts 3 tasks, 2 had it been cancelled), and the next chunk comes back."""
     from farm.ray_runtime import executor as ray_executor
-    from farm.jobs.campaign_setup import spec_of
+    from farm.execution.process import spec_of
 
-    ex = ray_executor.RayExecutor(spec_of(contract_config("ray", 1)), 1)
+    ex = ray_executor.RayExecutor(spec_of(contract_config("ray", 1)), 1).start()
     ex.sizer.ran(20_000, 0.02)  # as if measured: each batch one chunk, no one-run probe first
     try:
         starts = np.tile([10.0, 10.0, 40.0], (20_000, 1))

@@ -39,7 +39,7 @@ def test_a_local_ray_returns_chunk_summaries_inline_and_keeps_visited_states_in_
         # Ray's own default (100 KB) would put the first in the store
         print("sized", inline(payload.remote(limit - 4096)), inline(payload.remote(2 * limit)))
         spec = SimSpec({"name": "lead-follow", "sv_policy": "idm"}, {"mode": "uniform"}, 50, 0)
-        ex = ray_executor.RayExecutor(spec, 1)
+        ex = ray_executor.RayExecutor(spec, 1).start()
         ex.sizer.ran(1024, 0.01)  # as if measured: the batch is one chunk, no one-run probe first
         (handle,) = ex.submit(0, np.tile([10.0, 10.0, 40.0], (1024, 1)))
         part = ex._jobs[handle]

@@ -69,7 +69,7 @@ def test_status_reports_a_killed_campaign_as_stopped(tmp_path):
 
 
 def test_progress_lines_when_not_a_terminal_and_silence_when_quiet():
-    from coordinator.campaign import Campaign, CampaignSettings
+    from coordinator.driver import Campaign, CampaignSettings
     from coordinator.spe import SPE, SPESettings
     from scenarios import make_scenario
 

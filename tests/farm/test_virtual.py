@@ -3,6 +3,7 @@ Its results are a real run's (the same result_hash and committed runs as in-proc
 on Ray), only time is modelled; summary.json then says the simulated time to the result
 and the workers' utilisation."""
 
+import dataclasses
 import json
 
 import numpy as np
@@ -57,19 +58,22 @@ def test_a_bad_virtual_setting_is_named(tmp_path, field, value):
                  out=tmp_path / "bad", force=True)
 
 
-def _virtual_campaign(workers: int, run_time: float):
-    """A two-round campaign on ``workers`` virtual workers: (config, algorithm, executor, campaign)."""
-    from farm.jobs.campaign_setup import build_algorithm, build_campaign, spec_of
+def _virtual_campaign(workers: int, run_time: float, **switches):
+    """A two-round campaign on ``workers`` virtual workers: (config, algorithm, executor,
+    campaign); ``switches``: CampaignSettings' result-neutral ones (look_ahead, speculate)."""
+    from coordinator.driver import Campaign
+    from farm.jobs.campaign_setup import build_algorithm, campaign_settings
+    from farm.execution.process import build_simulator, spec_of
     from farm.config import parse
     from farm.execution.factory import make_executor
-    from farm.execution.process import build_simulator
 
     cfg = parse(lead_follow_toml(executor="virtual", delta_min=1.0,
                                  farm_extra=f"workers = {workers}\n[farm.virtual]\nrun_time = {run_time}"))
     simulator = build_simulator(spec_of(cfg))
     algorithm = build_algorithm(cfg, simulator)
     executor = make_executor(cfg.farm, spec_of(cfg))
-    return cfg, algorithm, executor, build_campaign(cfg, algorithm, simulator, executor)
+    settings = dataclasses.replace(campaign_settings(cfg), **switches)
+    return cfg, algorithm, executor, Campaign(algorithm, executor, settings)
 
 
 def test_the_virtual_farm_says_what_the_head_waited_for():
@@ -117,22 +121,18 @@ def test_many_workers_keep_no_more_in_flight_than_a_rounds_quiet_runs():
     assert max(wanted) > max(quiet for _, quiet in batches)  # the workers alone would have asked for more
 
 
-def test_runs_launched_for_a_change_waiting_for_holds_change_no_result(monkeypatch):
+def test_runs_launched_before_the_head_asks_change_no_result():
     # at a change the head waits for the replacements it passed; the runs the change will
-    # call for are launched meanwhile, worked out on a copy of the algorithm: a run is used
+    # call for are launched meanwhile, worked out on a copy of the algorithm, and draws in
+    # flight that a change moved are replaced before the head gets there: a run is used
     # only if its stream draws its start when the head needs it, so the committed sequence
-    # is the same with or without them (coordinator/campaign.py ``_launch_past_holds``)
-    import coordinator.campaign as campaign_mod
-    import coordinator.speculation as speculation_mod
-
-    monkeypatch.setattr(speculation_mod, "ENABLED", False)  # the changes wait for their holds
-    _, algorithm, _, campaign = _virtual_campaign(300, 1.0)
+    # is the same with or without them (coordinator/driver/lookahead.py)
+    _, algorithm, _, campaign = _virtual_campaign(300, 1.0, speculate=False)  # changes wait for their holds
     with_them = campaign.run()
-    assert campaign.launched_past_holds > 0
-    monkeypatch.setattr(campaign_mod, "WHAT_IF", False)
-    _, algorithm_without, _, campaign_without = _virtual_campaign(300, 1.0)
+    assert campaign.look_ahead.launched_past_holds > 0
+    _, algorithm_without, _, campaign_without = _virtual_campaign(300, 1.0, speculate=False, look_ahead=False)
     without = campaign_without.run()
-    assert campaign_without.launched_past_holds == 0
+    assert campaign_without.look_ahead.launched_past_holds == 0
     assert algorithm.result().result_hash == algorithm_without.result().result_hash
     assert (with_them.committed, with_them.changes) == (without.committed, without.changes)
 
@@ -144,18 +144,15 @@ def _used_rows(log) -> dict:
     return {name: column[used] for name, column in rows.items()}
 
 
-def test_changes_applied_past_holds_change_no_result(monkeypatch):
+def test_changes_applied_past_holds_change_no_result():
     # with slow runs a change does not wait for the holds before it: it is applied on a
     # copy's promise, and undone if a hold, judged at the state the head passed it,
-    # changes the state (coordinator/speculation.py). The committed sequence, ledger row
+    # changes the state (coordinator/driver/speculation.py). The committed sequence, ledger row
     # by row, is the one of changes that wait
-    import coordinator.speculation as speculation_mod
-
     _, algorithm, executor, campaign = _virtual_campaign(300, 1.0)
     ahead = campaign.run()
     assert campaign.speculations.applied > 0 and campaign.speculations.restored > 0  # both ways taken
-    monkeypatch.setattr(speculation_mod, "ENABLED", False)
-    _, algorithm_waiting, executor_waiting, waiting = _virtual_campaign(300, 1.0)
+    _, algorithm_waiting, executor_waiting, waiting = _virtual_campaign(300, 1.0, speculate=False)
     waited = waiting.run()
     assert waiting.speculations.applied == 0
     assert algorithm.result().result_hash == algorithm_waiting.result().result_hash
@@ -172,13 +169,13 @@ def test_a_campaign_stopped_while_changes_are_applied_past_holds_resumes_to_the_
     # reaches the result of one never stopped
     from farm.directory import checkpoint
     from farm.config import parse
-    from farm.jobs.side_campaign import FacetCampaign, Stopped
+    from farm.jobs.side_campaign import SideCampaign, Stopped
     from farm.jobs.quantification import run
 
     cfg = parse(lead_follow_toml(executor="virtual", delta_min=1.0,
                                  farm_extra="workers = 300\n[farm.virtual]\nrun_time = 1.0"))
     whole = run(cfg, tmp_path / "whole")
-    observer = FacetCampaign._observer
+    observer = SideCampaign._observer
     stopped_past_holds = []
 
     def stop_past_holds(self, progress, status):
@@ -188,7 +185,7 @@ def test_a_campaign_stopped_while_changes_are_applied_past_holds_resumes_to_the_
             observe(campaign)
             if campaign.speculations and not stopped_past_holds:
                 stopped_past_holds.append(campaign.counters.committed)
-                checkpoint.save(self)  # a checkpoint now, and the one the stop takes
+                self.save()  # a checkpoint now, and the one the stop takes
                 campaign.stop()
 
         return then_stop
@@ -196,17 +193,17 @@ def test_a_campaign_stopped_while_changes_are_applied_past_holds_resumes_to_the_
     save = checkpoint.save
     saved_past_holds = []
 
-    def save_and_say(facet):
-        saved_past_holds.append(bool(facet.campaign.speculations))
-        save(facet)
+    def save_and_say(campaign, *args):
+        saved_past_holds.append(bool(campaign.speculations))
+        save(campaign, *args)
 
-    monkeypatch.setattr(FacetCampaign, "_observer", stop_past_holds)
+    monkeypatch.setattr(SideCampaign, "_observer", stop_past_holds)
     monkeypatch.setattr(checkpoint, "save", save_and_say)
     with pytest.raises(Stopped):
         run(cfg, tmp_path / "stopped")
     assert stopped_past_holds and saved_past_holds[-1]  # the checkpoint kept is one taken past holds
     monkeypatch.setattr(checkpoint, "save", save)
-    monkeypatch.setattr(FacetCampaign, "_observer", observer)
+    monkeypatch.setattr(SideCampaign, "_observer", observer)
     resumed = run(cfg, tmp_path / "stopped", resume=True)
     for key in ("result_hash", "runs_committed", "boxes", "rounds"):
         assert resumed[key] == whole[key], key

@@ -35,9 +35,11 @@ from farm.reports.plots.campaign import draw  # noqa: E402
 from farm.reports.plots.explored import explored_boxes  # noqa: E402
 from farm.reports.plots.failures import draw_failures, failures_figure  # noqa: E402
 from farm.reports.plots.overlay import draw_overlay, overlay_figure  # noqa: E402
+from farm.reports.plots.plan import draw_plan  # noqa: E402
+from farm.reports.plots.reference import draw_reference  # noqa: E402
 from farm.reports.plots.slices import slices_figure  # noqa: E402
 from farm.reports.plots.style import NEVER_COLOUR, OUTSIDE_COLOUR, PRUNED_COLOUR, SAFE_COLOUR  # noqa: E402
 from farm.reports.plots.surface import surface_figure  # noqa: E402
 
-__all__ = ["draw", "draw_failures", "draw_overlay", "explored_boxes", "failures_figure", "overlay_figure",
+__all__ = ["draw", "draw_failures", "draw_overlay", "draw_plan", "draw_reference", "explored_boxes", "failures_figure", "overlay_figure",
            "slices_figure", "surface_figure", "NEVER_COLOUR", "OUTSIDE_COLOUR", "PRUNED_COLOUR", "SAFE_COLOUR"]

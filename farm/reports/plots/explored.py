@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
+
+from farm.directory.journal import Journal
+from farm.directory.storage import read_ledger
 
 
 def explored_boxes(directory, state_names) -> tuple[np.ndarray, np.ndarray] | None:
@@ -23,15 +27,11 @@ def explored_boxes(directory, state_names) -> tuple[np.ndarray, np.ndarray] | No
     names = list(state_names)
     points, widths = [], []
     if any((directory / "ledger").glob("segment-*.parquet")):
-        from farm.directory.storage import read_ledger
-
         table = read_ledger(directory, columns=["delta", *names])
         if table.num_rows:
             points.append(np.column_stack([table.column(c).to_numpy() for c in names]).astype(float))
             widths.append(table.column("delta").to_numpy().astype(float))
     if (directory / "checkpoint.npz").exists():
-        from farm.directory.journal import Journal
-
         state, _ = Journal(directory).read(["algo.scalars", "algo.vertices.points", "algo.graph.parent",
                                             "algo.failures.points"])
         delta = float(state["algo.scalars"][0]) if "algo.scalars" in state else 0.0
@@ -55,8 +55,6 @@ def explored_boxes(directory, state_names) -> tuple[np.ndarray, np.ndarray] | No
 
 def _delta0(directory: Path, default: float) -> float:
     """quantify.delta0 of the campaign's frozen config (a side campaign: its parent's)."""
-    import json
-
     for folder in (directory, *directory.parents[:3]):
         try:
             return float(json.loads((folder / "config.json").read_text())["config"]["quantify"]["delta0"])

@@ -1,7 +1,7 @@
 """Changes applied before the holds ahead of them are back.
 
 Under sequential counting a run that changes the state waits for the replacements the
-head passed before it (holds, coordinator/replacements.py): one of them may change the
+head passed before it (holds, coordinator/driver/holds.py): one of them may change the
 state first. With slow runs these waits chain: a change moves a draw a few indices on,
 its replacement is a whole run, and the next change waits for it (docs/benchmarks.md
 measures what that costs on many workers). Instead the driver keeps a copy of the
@@ -13,7 +13,7 @@ the state anyway. Most holds come back quiet, so most changes wait for nothing. 
 never depend on it: the committed sequence is the one-run-at-a-time campaign's.
 
 A change applied so is a ``Speculation``: its index, the copy, and the counters the holds
-do not keep (coordinator/replacements.py ``HELD_COUNTS`` has the others). They are kept in
+do not keep (coordinator/driver/holds.py ``HELD_COUNTS`` has the others). They are kept in
 index order; the first is dropped once no hold before its change is left. A checkpoint
 taken meanwhile is the state as the head passed the first hold: the first copy's.
 """
@@ -24,9 +24,8 @@ from collections import deque
 from dataclasses import dataclass
 
 from coordinator.algorithm import Algorithm
-from coordinator.replacements import Held
+from coordinator.driver.holds import Held
 
-ENABLED = True  # (a switch for measuring what it gives)
 RUN_S = 0.08  # [s] runs at least this long (as measured): a copy costs the driver milliseconds
 # (below it the copies cost about what they save; docs/benchmarks.md, "2026-11-26, late")
 # changes applied past holds at once, a copy of the algorithm each: more cost the driver
@@ -49,7 +48,8 @@ class Speculation:
 class Speculations:
     """The changes applied past holds, oldest first."""
 
-    def __init__(self):
+    def __init__(self, enabled: bool = True):
+        self.enabled = enabled  # (CampaignSettings.speculate: off, changes wait for their holds)
         self._items: deque[Speculation] = deque()
         self.applied = 0  # changes applied past holds (a statistic)
         self.restored = 0  # ... of which a hold before them changed the state (the algorithm went back)
@@ -61,13 +61,14 @@ class Speculations:
     def first(self) -> Speculation:
         return self._items[0]
 
-    def allowed(self, algorithm: Algorithm, run_s: float | None, lag: int) -> bool:
+    def allowed(self, algorithm: Algorithm, run_s: float | None, lag: int, settled: bool) -> bool:
         """May a change be applied past holds now? Only under sequential counting (lag 0),
         for slow runs, an algorithm that can go back, a state small enough to copy, and not
-        while certification enumerates or checks (a change there ends the check)."""
-        return (ENABLED and lag == 0 and algorithm.restorable and run_s is not None and run_s >= RUN_S
+        while the set is ``settled`` (certification enumerates or checks: a change there
+        ends the check, coordinator/driver/phase.py)."""
+        return (self.enabled and lag == 0 and algorithm.restorable and run_s is not None and run_s >= RUN_S
                 and len(self._items) < MAX_OUTSTANDING and algorithm.vertices.count <= MAX_VERTICES
-                and not algorithm.enumerates and not (algorithm.certifying and not algorithm.closing))
+                and not settled)
 
     def take(self, index: int, algorithm: Algorithm, counters) -> None:
         """The change at ``index`` is applied next, with holds before it out."""

@@ -1,9 +1,5 @@
-"""Replacement runs under coupled counting, and the runs the head commits past one that
-is not back yet (shared/spec/scaling.md; coordinator/campaign.py drives them).
-
-A mispredicted run is discarded unseen and replaced: the current draw, the same index and
-streams (``Replacement``), applied before the head commits index ``due`` + 1. Replacements
-sent together travel as one executor batch (``ReplacementGroup``).
+"""The replacements the head commits past before they are back (holds), and what it did
+past them (shared/spec/scaling.md; coordinator/driver/campaign.py drives them).
 
 The head does not wait for a replacement that is due but not back (a *hold*): it commits
 on, past it, the runs a one-run-at-a-time campaign would commit next *if the replacement
@@ -26,60 +22,20 @@ workers' timing: the hold only hides the replacement's latency.
 
 from __future__ import annotations
 
-import bisect
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Callable
-
-import numpy as np
-
-from coordinator.executor import Chunk
-from coordinator.stable_sampler import Draws
+from typing import Any, Callable
 
 # the counters a hold records, and restores if its replacement changes the state
 HELD_COUNTS = ("committed", "quiet", "escaped_in_streak", "runs_discarded", "runs_replaced")
 STREAK_COUNTS = ("quiet", "escaped_in_streak")  # of the streak: a change starts them again
 
 
-class ReplacementGroup:
-    """Replacements submitted together, as one batch: the chunks they travel in (in the
-    batch's order), fetched on demand."""
-
-    def __init__(self, handles: list):
-        self.handles = list(handles)  # not fetched yet, in order
-        self.chunks: list[Chunk] = []
-        self.ends: list[int] = []  # positions in the batch after each fetched chunk
-
-    def fetched(self, chunk: Chunk) -> None:
-        self.chunks.append(chunk)
-        self.ends.append((self.ends[-1] if self.ends else 0) + len(chunk))
-
-    def find(self, position: int) -> tuple[Chunk, int] | None:
-        """The chunk and row of the batch's ``position``-th run, if fetched."""
-        at = bisect.bisect_right(self.ends, position)
-        if at == len(self.chunks):
-            return None
-        return self.chunks[at], position - (self.ends[at - 1] if at else 0)
-
-
-@dataclass
-class Replacement:
-    """The run that replaces a mispredicted one: index ``index``, drawn as ``draws``
-    (one draw), applied before the head commits index ``due`` + 1."""
-
-    index: int
-    draws: Draws
-    start: np.ndarray
-    due: int
-    group: ReplacementGroup | None = None
-    position: int = 0  # its row in its group's batch
-
-
 @dataclass
 class Hold:
     """A due replacement the head passed before its run was back."""
 
-    replacement: Replacement
+    replacement: Any  # a coordinator.driver.replacements.Replacement
     counts: dict  # HELD_COUNTS as they stood when the head passed its due index
     queue: list  # the replacements queued then (not yet due)
     effects: int  # held effects that come before its own
@@ -101,7 +57,7 @@ class Held:
     def first(self) -> Hold:
         return self.holds[0]
 
-    def hold(self, replacement: Replacement, counters, queue) -> None:
+    def hold(self, replacement, counters, queue) -> None:
         """The head passes ``replacement`` (due, not back)."""
         counts = {name: getattr(counters, name) for name in HELD_COUNTS}
         self.holds.append(Hold(replacement, counts, list(queue), len(self.effects)))
@@ -118,7 +74,7 @@ class Held:
         """The first hold's replacement was applied and left the state as it was: the later
         holds' records gain what it added (``gained``: counter -> amount), and the effects
         up to the next hold take place. ``streak_until``: a change at that index was
-        applied past the hold (coordinator/speculation.py): holds due from there on are of
+        applied past the hold (coordinator/driver/speculation.py): holds due from there on are of
         a later streak, whose counts it does not add to."""
         self.holds.popleft()
         for later in self.holds:
@@ -133,7 +89,7 @@ class Held:
         for apply in ready:
             apply()
 
-    def rewind(self, counters) -> tuple[Hold, list[Replacement]]:
+    def rewind(self, counters) -> tuple[Hold, list]:
         """The first hold's replacement changes the state: the counters go back to how they
         stood when the head passed it, every later effect and hold is dropped. Returns the
         hold and the replacements of the later holds (drawn for indices the head will

@@ -1,0 +1,129 @@
+"""The batches drawn ahead of the commit head, and their chunks as they come back.
+
+Batch ``b``'s starts are drawn from the state as it is when the batch is drawn (the
+parallel contract, shared/spec/algorithms.md point 2), ``pipeline_depth`` batches ahead of
+the head; each goes to the executor as it is drawn and comes back as chunks, fetched in
+index order. A batch is kept until every run of it is committed for good: the head may go
+back into it (a held replacement that changes the state, coordinator/driver/holds.py).
+"""
+
+from __future__ import annotations
+
+import bisect
+from collections import deque
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from coordinator.executor import Chunk
+from coordinator.stable_sampler import Draws
+
+
+@dataclass
+class Pending:
+    """A batch of draws from ``first_index`` on, and its chunks fetched so far."""
+
+    first_index: int
+    draws: Draws
+    starts: np.ndarray
+    handles: list = field(default_factory=list)
+    next_handle: int = 0
+    chunks: list = field(default_factory=list)  # fetched, in index order (contiguous)
+    ends: list = field(default_factory=list)  # each fetched chunk's end index
+
+    def __len__(self) -> int:
+        return len(self.draws)
+
+    @property
+    def end(self) -> int:
+        return self.first_index + len(self.draws)
+
+    def done(self, head: int) -> int:
+        """Its runs before index ``head``."""
+        return min(max(head - self.first_index, 0), len(self.draws))
+
+    def chunk_at(self, index: int) -> Chunk | None:
+        """The fetched chunk that holds run ``index``, if fetched."""
+        at = bisect.bisect_right(self.ends, index)
+        return self.chunks[at] if at < len(self.chunks) else None
+
+    def fetched(self, chunk: Chunk) -> None:
+        self.chunks.append(chunk)
+        self.ends.append(chunk.first_index + len(chunk))
+
+
+class Pipeline:
+    """The batches in flight, oldest first: drawn, sent, fetched in order, released once
+    committed for good, or dropped at a round end."""
+
+    def __init__(self, launcher, pending=()):
+        self.launcher = launcher  # coordinator/driver/launcher.py: the executor's side
+        self.batches: deque[Pending] = deque(pending)
+
+    def __iter__(self):
+        return iter(self.batches)
+
+    def __bool__(self) -> bool:
+        return bool(self.batches)
+
+    def fill(self, head: int, batch: int, depth: int, budget: int, draw) -> None:
+        """Keep ``depth`` batches of ``batch`` runs drawn (``draw(indices) -> Draws``) and
+        sent ahead of ``head`` (fewer when the budget ends); batches the head has passed
+        but may go back into do not count."""
+        ahead = sum(1 for p in self.batches if p.end > head)
+        while ahead < depth:
+            first = self.batches[-1].end if self.batches else head
+            size = min(batch, budget - first)
+            if size <= 0:
+                break
+            draws = draw(np.arange(first, first + size))
+            self.batches.append(Pending(first, draws, self.launcher.starts(draws.ids)))  # may be < size
+            ahead += 1
+        for p in self.batches:
+            if not p.handles and not p.chunks:
+                done = p.done(head)
+                p.handles = self.launcher.submit(p.first_index + done, p.starts[done:])
+
+    def holding(self, index: int) -> Pending | None:
+        """The batch that holds run ``index``, if drawn."""
+        return next((p for p in self.batches if p.first_index <= index < p.end), None)
+
+    def locate(self, head: int) -> tuple[Pending, Chunk] | None:
+        """The batch and fetched chunk that hold the head's run (fetching, in order, the
+        chunks up to it); None when no batch is drawn there (the budget is spent)."""
+        p = self.holding(head)
+        if p is None:
+            return None
+        chunk = p.chunk_at(head)
+        while chunk is None:
+            chunk = self.fetch_next(p)
+            if not chunk.first_index <= head < chunk.first_index + len(chunk):
+                chunk = None
+        return p, chunk
+
+    def fetch_next(self, p: Pending) -> Chunk:
+        """Fetch batch ``p``'s next chunk (waiting for it), in index order."""
+        chunk = self.launcher.fetch(p.handles[p.next_handle])
+        p.next_handle += 1
+        p.fetched(chunk)
+        return chunk
+
+    def next_ready(self, p: Pending) -> bool:
+        """Is batch ``p``'s next chunk back (fetched without waiting for a worker)?"""
+        return p.next_handle < len(p.handles) and self.launcher.ready(p.handles[p.next_handle])
+
+    def release(self, final: int) -> None:
+        """Drop the batches whose every run is committed for good (they end before ``final``)."""
+        while self.batches and self.batches[0].end <= final:
+            self.batches.popleft()
+
+    def drop(self) -> None:
+        """Cancel and forget every batch (a round end: their indices are drawn again)."""
+        for p in self.batches:
+            for handle in p.handles[p.next_handle :]:
+                self.launcher.cancel(handle)
+        self.batches.clear()
+
+    def open(self, head: int) -> list[Pending]:
+        """The batches with runs from ``head`` on (what a checkpoint keeps)."""
+        return [p for p in self.batches if p.end > head]
