@@ -14,7 +14,7 @@
   lattice of delta-coverings (``lattice.py``); the exploration graph (``graph.py``);
   experience replay (``experience_replay.py``); prioritized sampling (``sampler.py``,
   ``priorities.py``); certification (``certification.py``: closing rounds and checks)
-  and its bookkeeping (``certificates.py``, ``enumeration.py``); coupled counting's
+  and its bookkeeping (``checked_centres.py``, ``enumeration.py``); coupled counting's
   stable draws (``stable_sampler.py``); boxes of
   mixed sizes (``levels.py``, ``level_grid.py``, ``refinement.py``); a growable array
   (``buffers.py``).

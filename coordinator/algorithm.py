@@ -36,7 +36,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from coordinator.coverage import Coverage, Rescreen
+from coordinator.coverage import Coverage
+from coordinator.rescreen import Rescreen
 from coordinator.safe_set import SafeSet
 from coordinator.stable_sampler import Draws
 from scenarios.base import FAILURE, Scenario
@@ -159,7 +160,7 @@ class Algorithm(ABC):
         return False
 
     def closing_share(self) -> float:
-        """The closing rounds' band: its share of the alive centres."""
+        """The closing rounds' edge: its share of the alive centres."""
         return 1.0
 
     def begin_check(self) -> None:

@@ -14,7 +14,7 @@ The scheme alternates two kinds of round, both strict:
 
 - a *closing* round changes the set as SPE does (a failure prunes, a new state is
   explored, a run that leaves only toward known failures prunes its start's tree) and
-  spends no beta. It draws uniformly over the *band*: the alive centres within
+  spends no beta. It draws uniformly over the *edge*: the alive centres within
   sigma-bar + delta of the set's failure-side boundary (Theorem 3: only their runs can
   leave the set in one step; SPE's ``_near_boundary``), where the violations are. It ends
   after ``closing_quiet`` runs in a row that change nothing.
@@ -29,9 +29,9 @@ beta; the closing rounds choose which set is checked and when, which the union b
 over checks allows.
 
 The closing round's length is chosen so that a check usually passes at its first try: a
-violation rate p_band over the band is, if only the band can violate, a rate
-share x p_band over all centres (share: the band's share of the centres), so
-N_eps(eps / (margin x share)) quiet band runs say about as much as N_eps(eps / margin)
+violation rate p_edge over the edge is, if only the edge can violate, a rate
+share x p_edge over all centres (share: the edge's share of the centres), so
+N_eps(eps / (margin x share)) quiet edge runs say about as much as N_eps(eps / margin)
 uniform runs would, and the check (N_eps at eps) then fails with probability about
 1 - (1 - eps / margin)^N_eps (the margin's choice: docs/certification.md).
 
@@ -45,12 +45,12 @@ from coordinator.sample_size import n_eps, n_eps_attempt
 
 CLOSING, CHECK = "closing", "check"
 MARGIN = 4.0  # quantify.certify_margin's default (docs/certification.md)
-MAX_CLOSING_EPSILON = 0.5  # a tiny band: a few runs (N_eps at 0.5) still close it
+MAX_CLOSING_EPSILON = 0.5  # a tiny edge: a few runs (N_eps at 0.5) still close it
 
 
 def closing_quiet(epsilon: float, beta: float, margin: float, share: float) -> int:
-    """Quiet band runs in a row that end a closing round: N_eps at eps / (margin x share),
-    ``share`` the band's share of the alive centres (1: the band is the whole set)."""
+    """Quiet edge runs in a row that end a closing round: N_eps at eps / (margin x share),
+    ``share`` the edge's share of the alive centres (1: the edge is the whole set)."""
     return n_eps(min(epsilon / (margin * max(share, 1e-12)), MAX_CLOSING_EPSILON), beta)
 
 

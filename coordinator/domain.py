@@ -1,7 +1,7 @@
 """The claimed domain Phi of a validation: a box inside Sigma, optionally cut by linear
 constraints a . sigma <= b, or a set written by quantification (union of l-inf boxes).
 
-Sampling is i.i.d. uniform in Phi (or in its boundary band, Theorem 3), drawn from each
+Sampling is i.i.d. uniform in Phi (or in its boundary set, Theorem 3), drawn from each
 run's own stream by rejection, so the sample of run i depends on (seed, i) alone.
 """
 
@@ -116,7 +116,7 @@ class Domain:
                                     f"{type(exc).__name__} on {int(inside.sum())} states: {exc}") from None
         return inside
 
-    def band_distance(self, points: np.ndarray) -> np.ndarray:
+    def boundary_distance(self, points: np.ndarray) -> np.ndarray:
         """l-inf distance to the part of the boundary of Phi a trajectory can leave through
         without ending quietly: faces on a truncating facet of Sigma are left out, since
         leaving there is a truncation, not a violation."""
@@ -159,12 +159,12 @@ class Domain:
         axes = [lo + (np.arange(k) + 0.5) * (e / k) for lo, e, k in zip(self.lo, extent, counts.astype(int))]
         return np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(axes))
 
-    def lattice(self, delta: float, band: float | None = None) -> np.ndarray:
+    def lattice(self, delta: float, reach: float | None = None) -> np.ndarray:
         """delta-covering centres of Phi (Definition 1). A set domain's own box centres
         (its covering is the one it was built on: Definition 1 asks only that *some*
         delta-covering works, and delta at least every box's half-width makes them
         one); otherwise the tiling of the bounding box, kept where the centre lies in
-        Phi (and in the band, if given)."""
+        Phi (and in the boundary set within ``reach``, if given)."""
         if self.is_set:
             # a set of mixed sizes (boundary refinement) is its own covering: each box at
             # its own half-width or delta, whichever is larger (``covering``)
@@ -176,8 +176,8 @@ class Domain:
             return np.asarray(self.safe_set.centres)
         centres = Lattice.tiling(self.lo, self.hi, delta).box_centres(delta)
         keep = self.contains(centres)
-        if band is not None:
-            keep &= self.band_distance(centres) <= band
+        if reach is not None:
+            keep &= self.boundary_distance(centres) <= reach
         return centres[keep]
 
     def covering(self, delta: float) -> SafeSet | None:
@@ -188,8 +188,8 @@ class Domain:
         return SafeSet(self.safe_set.centres, np.maximum(self.safe_set.half_widths, delta), self.safe_set.state_names)
 
     # -- sampling ---------------------------------------------------------------------------
-    def sample(self, streams: RunStreams, band: float | None = None) -> np.ndarray:
-        """i.i.d. uniform in Phi (or its band): rejection from the bounding box, attempt k
+    def sample(self, streams: RunStreams, reach: float | None = None) -> np.ndarray:
+        """i.i.d. uniform in Phi (or its boundary set): rejection from the bounding box, attempt k
         of run i using draw k of its start stream. For a set domain a box is picked with
         probability proportional to its volume (uniformly, when the boxes share one size)
         and a point in it accepted with probability 1/(boxes covering it), which is
@@ -211,11 +211,11 @@ class Domain:
                 u = sub.uniform(attempt, PURPOSE_START, n)
                 pts = self.lo + (self.hi - self.lo) * u
                 ok = self.contains(pts)
-                if band is not None:
-                    ok &= self.band_distance(pts) <= band
+                if reach is not None:
+                    ok &= self.boundary_distance(pts) <= reach
             out[todo[ok]] = pts[ok]
             todo = todo[~ok]
-        raise DomainError("validate.domain: rejection sampling accepts too rarely (the domain or its band is "
+        raise DomainError("validate.domain: rejection sampling accepts too rarely (the domain or its boundary set is "
                           "a tiny part of its bounding box); enlarge it or drop validate.boundary")
 
     def _pick_box(self, u: np.ndarray) -> np.ndarray:

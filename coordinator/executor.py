@@ -168,20 +168,34 @@ class Executor(ABC):
         return None
 
 
-def summarize(batch: RunBatch, screen) -> tuple[dict, tuple[np.ndarray, np.ndarray]]:
-    """What a worker sends back for a simulated batch: a small per-run summary (with the
-    screen's verdicts) and, separately, the visited states."""
-    states, offsets = batch.visited()
-    screening = None if screen is None else screen.screen(states, offsets, batch.outcomes)
-    summary = {"first_index": int(batch.indices[0]) if len(batch) else 0, "lengths": batch.lengths,
-               "outcomes": batch.outcomes, "last": batch.last_states(), "screening": screening,
-               "indices": batch.indices.astype(np.int64), "exits": batch.exits}
-    return summary, (states, offsets)
+@dataclass(eq=False)
+class ChunkSummary:
+    """What a worker sends back for a simulated chunk: per run, what the coordinator needs
+    (the visited states travel apart, on demand: ``visited`` of ``of``)."""
 
+    first_index: int  # the sample index of its first run
+    lengths: np.ndarray  # (k,) states per run, start included
+    outcomes: np.ndarray  # (k,) FAILURE / TRUNCATED / HORIZON
+    last: np.ndarray  # (k, n) terminal states
+    screening: Any  # what the screen returned for these runs (None: not screened)
+    indices: np.ndarray  # (k,) int64 sample indices
+    exits: np.ndarray | None  # (k,) int8 facet left through (RunBatch.exits)
+    busy_s: float = 0.0  # [s] the worker's time on it (the chunk sizes follow it: farm/execution/chunking.py)
 
-def chunk_of(summary: dict, fetch_visited: Callable, keep: Callable) -> Chunk:
-    return Chunk(summary["first_index"], summary["lengths"], summary["outcomes"], summary["last"],
-                 summary["screening"], fetch_visited, keep, indices=summary["indices"], exits=summary["exits"])
+    @classmethod
+    def of(cls, batch: RunBatch, screen) -> tuple["ChunkSummary", tuple[np.ndarray, np.ndarray]]:
+        """A simulated batch screened against ``screen``: its summary and its visited states."""
+        states, offsets = batch.visited()
+        screening = None if screen is None else screen.screen(states, offsets, batch.outcomes)
+        summary = cls(int(batch.indices[0]) if len(batch) else 0, batch.lengths, batch.outcomes, batch.last_states(),
+                      screening, batch.indices.astype(np.int64), batch.exits)
+        return summary, (states, offsets)
+
+    def chunk(self, fetch_visited: Callable, keep: Callable) -> Chunk:
+        """The chunk for the driver: its visited states fetched by ``fetch_visited()``,
+        kept for experience replay by ``keep(rows, takes)``."""
+        return Chunk(self.first_index, self.lengths, self.outcomes, self.last, self.screening, fetch_visited, keep,
+                     indices=self.indices, exits=self.exits)
 
 
 def screen_piece(simulator, source, piece, coverage) -> tuple[np.ndarray, np.ndarray]:

@@ -33,7 +33,8 @@ import itertools
 
 import numpy as np
 
-from coordinator.spatial import LINK, TOLERANCE, PointIndex, box_cells, flat_index
+from coordinator.cell_grid import box_cells, flat_index
+from coordinator.spatial import LINK, TOLERANCE, PointIndex
 
 MAX_LEVELS = 8  # the bits of ``reach`` (uint8)
 SLAB = 1 << 20  # finest cells recomputed per pass: temporaries stay ~50 MB

@@ -20,7 +20,8 @@ from __future__ import annotations
 import numpy as np
 
 from coordinator.level_grid import NestedGrid
-from coordinator.spatial import AlivePoints, PointIndex
+from coordinator.spatial import PointIndex
+from coordinator.alive_points import AlivePoints
 
 
 class LeveledIndex(AlivePoints):

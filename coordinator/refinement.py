@@ -83,6 +83,26 @@ class Band:
                 rows = rows[~hit]
         return near
 
+    def split(self, spe, new_delta: float) -> tuple[np.ndarray, np.ndarray]:
+        """A round end: (the alive centres near the boundary, the centres at
+        ``new_delta`` tiling their boxes)."""
+        ids = spe.vertices.alive_ids()
+        near = ids[self.near(spe, ids, spe.delta)]
+        return near, self.children(spe, near, new_delta) if len(near) else np.empty((0, self.scenario.n))
+
+    def children(self, spe, ids: np.ndarray, delta: float) -> np.ndarray:
+        """The centres at ``delta`` tiling the boxes of centres ``ids`` (at their own
+        half-widths), but for those within ``delta`` of a failure."""
+        centres = spe.vertices.points[ids]
+        widths = spe.coverage.half_widths(ids)
+        parts = [spe.lattice.children(centres[widths == w], float(w), delta) for w in np.unique(widths)]
+        if not parts:
+            return np.empty((0, self.scenario.n))
+        children = np.unique(np.concatenate(parts), axis=0) if len(parts) > 1 else parts[0]
+        if len(children) and spe.failures.count:
+            children = children[~spe.failures.any_within(children, delta)]
+        return children
+
     # -- persistence -------------------------------------------------------------------------
     def state(self) -> dict:
         ids = np.concatenate(self._replaced) if self._replaced else np.zeros(0, dtype=np.int64)

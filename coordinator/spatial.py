@@ -20,10 +20,12 @@ are chained per dense cell. The hash chains serve indices without a dense grid.
 
 from __future__ import annotations
 
-import functools
 import itertools
 
 import numpy as np
+
+from coordinator.alive_points import AlivePoints
+from coordinator.cell_grid import SMALL_MATMUL, box_cells, flat_index
 
 _P = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
                0xD6E8FEB86659FD93, 0xFF51AFD7ED558CCD, 0xC4CEB9FE1A85EC53,
@@ -32,96 +34,12 @@ TOLERANCE = 1e-9  # closed boxes, decided as exact arithmetic would on grid boun
 DENSE_LIMIT = 1 << 25  # cells; 32 Mi int32 counters = 128 MiB at most
 SMALL_PUSH = 8  # points pushed one by one: ~12 array operations cost more below this
 MISS_BLOCK = 1 << 15  # queries whose touched cells are enumerated at once (2^n cells each)
-SMALL_MATMUL = 1024  # cells up to which a (k, n) integer product beats n 1-D operations
 SMALL_ROWS = 256  # point-query pairs up to which (k, n) comparisons beat n 1-D ones
-REACH_TABLE = 729  # offsets (3^6) up to which which-offsets-an-extent-reaches is a table
 # point ids and dense cell numbers in the chains and the dense grid: both < 2^31 (a dense
 # grid has at most DENSE_LIMIT cells; ``insert`` refuses the 2^31st point). Half of int64:
 # ~0.1 GB at delta_min 0.125 (1.8 M points, 7 M dense cells, in the centres' and the
 # failures' index alike). Queries still answer int64 ids.
 LINK = np.int32
-
-
-def flat_index(cells: np.ndarray, strides: np.ndarray) -> np.ndarray:
-    """(k, n) int64 cells (in the grid) -> (k,) flat indexes: a few as one integer product
-    (fewer array operations), many per axis (numpy has no fast integer matmul)."""
-    if len(cells) <= SMALL_MATMUL:
-        return cells @ strides
-    flat = cells[:, 0] * strides[0]
-    for axis in range(1, cells.shape[1]):
-        flat += cells[:, axis] * strides[axis]
-    return flat
-
-
-def box_cells(lo: np.ndarray, hi: np.ndarray, span: int) -> tuple[np.ndarray, np.ndarray]:
-    """The integer cells lo + o of each row (0 <= o < span and lo + o <= hi per axis;
-    hi - lo < span): (m,) the row of each, (m, n) the cells, row by row, each row's in
-    ``itertools.product`` order of o. Every row has at least its cell lo."""
-    offsets, reaches, radix = _offset_tables(span, lo.shape[1])
-    if reaches is not None:  # which offsets each row's extent reaches, by the extent's number
-        row_of, cell_of = np.nonzero(reaches[(hi - lo) @ radix])
-    else:
-        row_of, cell_of = np.nonzero((offsets[None] <= (hi - lo)[:, None, :]).all(axis=2))
-    return row_of, lo[row_of] + offsets[cell_of]
-
-
-@functools.lru_cache(maxsize=64)
-def _offset_tables(span: int, n: int) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
-    """The offsets 0..span-1 per axis, (span^n, n) int64 in ``itertools.product`` order;
-    (span^n, span^n) bool: offset o lies within extent e (o <= e per axis), by e's number
-    (None past REACH_TABLE offsets); (n,) int64: an extent's number (e @ radix, e in the
-    offsets' order)."""
-    offsets = np.array(list(itertools.product(range(span), repeat=n)), dtype=np.int64).reshape(-1, n)
-    radix = span ** np.arange(n - 1, -1, -1, dtype=np.int64)
-    reaches = None
-    if len(offsets) <= REACH_TABLE:
-        reaches = (offsets[None, :, :] <= offsets[:, None, :]).all(axis=2)
-    for table in (offsets, radix, reaches):
-        if table is not None:
-            table.flags.writeable = False  # shared by every index
-    return offsets, reaches, radix
-
-
-class AlivePoints:
-    """What the point indexes share (this one and ``coordinator.levels.LeveledIndex``):
-    ``points`` (count, n) with ``alive`` flags, and the common part of their snapshot."""
-
-    def alive_ids(self) -> np.ndarray:
-        return np.nonzero(self.alive[: self.count])[0]
-
-    @property
-    def alive_count(self) -> int:
-        return int(self.alive[: self.count].sum())
-
-    def alive_points(self) -> np.ndarray:
-        return self.points[self.alive_ids()]
-
-    def _snapshot(self) -> dict:
-        out = {"points": self.points[: self.count].copy(), "alive": self.alive[: self.count].copy(),
-               "cell": np.array(self.cell), "origin": self.origin.copy()}
-        if self.bounds is not None:
-            out["bounds"] = np.stack(self.bounds)
-        return out
-
-    @classmethod
-    def _empty_for(cls, state: dict):
-        """An empty index with the cell, origin and bounds of snapshot ``state``, room for its points."""
-        pts, bounds = state["points"], state.get("bounds")
-        return cls(pts.shape[1], float(state["cell"]), state["origin"], capacity=2 * len(pts) + 16,
-                   bounds=None if bounds is None else (bounds[0], bounds[1]))
-
-
-class FrozenPoints(AlivePoints):
-    """The points, alive flags and half-widths of an index whose campaign is done: what
-    its result still reads, without the index structures (the bulk of its memory)."""
-
-    def __init__(self, index: AlivePoints, half_width: np.ndarray | None):
-        """``half_width``: one per point (mixed sizes), or None."""
-        self.n, self.cell, self.origin, self.bounds = index.n, index.cell, index.origin, index.bounds
-        self.count = index.count
-        self.points = index.points[: index.count].copy()
-        self.alive = index.alive[: index.count].copy()
-        self.half_width = None if half_width is None else half_width[: index.count].copy()
 
 
 class PointIndex(AlivePoints):

@@ -10,7 +10,7 @@ PhiBar) or visits a state sigma' with d(sigma', Phi_delta) > delta and d(sigma',
 Certification (the last round, at delta_min: ``begin_certification``): the final set is checked
 the way ``validate`` checks a set: a run must neither fail nor leave Phi_delta, near a
 known failure or not. A deterministic system runs every final centre once (VAL^delta);
-otherwise closing rounds (drawn over the band near the failure-side boundary) and checks
+otherwise closing rounds (drawn over the edge: the centres near the failure-side boundary) and checks
 (drawn uniformly over the final centres, VAL^eps-delta) alternate as
 coordinator/certification.py describes. A run that fails or leaves the set re-opens SPE:
 a failure prunes as usual, a new state is explored as usual, and a run that leaves only
@@ -22,16 +22,17 @@ on a new state instead of exploring it peels the whole set away (docs/benchmarks
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
 
 from coordinator.algorithm import Algorithm, EmptySetError, Event, greedy_uncovered
+from coordinator.algorithm_settings import SPESettings
+from coordinator.spe_certification import SPECertification
 from coordinator.buffers import Appendable
 from coordinator.certification import CHECK, CLOSING
-from coordinator.certificates import Certificates
-from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell, Resize, Strict
+from coordinator.checked_centres import CheckedCentres
+from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell, Resize
 from coordinator.lattice import Lattice
 from coordinator.safe_set import SafeSet
 from coordinator.enumeration import Enumeration
@@ -53,29 +54,12 @@ def _cumulative_index(ids: np.ndarray, cdf: np.ndarray, u: np.ndarray) -> np.nda
     return ids[np.minimum(np.searchsorted(cdf, u * cdf[-1], side="right"), len(ids) - 1)]
 
 
-@dataclass(frozen=True)
-class SPESettings:
-    """The algorithm's parameters (the config's [quantify] section carries the same
-    names and takes its defaults from here)."""
-
-    delta0: float = 2.0
-    gamma: float = 0.5
-    delta_min: float = 0.5
-    prioritized: bool = True
-    alpha: str = "identity"
-    replay: bool = True
-    replay_capacity: int = 20_000_000
-    reachable: str = "undirected"
-    boundary: bool = False
-    refine: str = "all"  # "band": a round end re-tiles only the boxes near the boundary (Theorem 3)
-
-
-class SPE(Algorithm):
+class SPE(SPECertification, Algorithm):
     name = "spe"
     decays = True
     certifies = True
     restorable = True
-    # certificates' entries too: the bulk of a certified campaign's state
+    # the checked centres' entries too: the bulk of a certified campaign's state
     append_only = ("vertices.points", "failures.points", "graph.parent", "replay.index", "replay.take",
                    "replay.parent", "replay.start", "cert.vertex", "cert.offsets", "cert.witness", "holes.ids")
 
@@ -101,7 +85,7 @@ class SPE(Algorithm):
         self.phase = CHECK  # while certifying a sampled system: CLOSING or CHECK
         self.hole_ids = Appendable(np.int64)  # centres pruned in the last round or since: holes in the set
         self.enumeration = Enumeration()  # deterministic certification: the passes over the centres
-        self.certificates = Certificates()  # deterministic certification: centres checked
+        self.checked = CheckedCentres()  # deterministic certification: centres checked
 
     @property
     def failures(self):
@@ -117,9 +101,9 @@ class SPE(Algorithm):
         self._stable = StableSampler()
         self._law_cache: tuple | None = None
         self._law_kind: tuple | None = None
-        self._band: tuple[int, np.ndarray] | None = None  # (version, mask): the closing law's candidates
+        self._edge: tuple[int, np.ndarray] | None = None  # (version, mask): the closing law's candidates
         self._holes = FailureDistances(self.scenario.lower, self.scenario.upper)  # d(vertex, hole)
-        self._band_share: tuple[int, float] | None = None  # (version, its share of the alive centres)
+        self._edge_share: tuple[int, float] | None = None  # (version, its share of the alive centres)
 
     def _add_roots(self, centres: np.ndarray) -> None:
         self._insert(centres)
@@ -160,65 +144,16 @@ class SPE(Algorithm):
         return near
 
     def _candidate(self, ids: np.ndarray) -> np.ndarray:
-        """May centre ``ids`` be drawn (prioritized sampling): alive, and in the band
-        near the boundary when ``boundary`` is on."""
+        """May centre ``ids`` be drawn (prioritized sampling): alive, and in the boundary
+        set (Theorem 3) when ``boundary`` is on."""
         ok = self.vertices.alive[ids]
         if self.settings.boundary:
             ok[ok] = self._near_boundary(ids[ok])
         return ok
 
-    @property
-    def closing(self) -> bool:
-        """In a closing round of a sampled certification (coordinator/certification.py)."""
-        return self.certifying and self.phase == CLOSING
-
-    def _band_mask(self) -> np.ndarray:
-        """(count,) bool, per version: the closing law's candidates, the alive centres
-        within sigma-bar + delta of the set's boundary toward failure (``_near_boundary``)
-        or of a hole in it: a centre of the last round pruned since (its box is outside
-        the set now, and runs that reach it leave the set; measured: a third of the
-        violations checks found came from such centres when the band ignored them). The
-        whole set when the band is empty. Ids whose membership changed since the last
-        mask are touched: their slots move draws."""
-        if self._band is not None and self._band[0] == self.version:
-            return self._band[1]
-        count = self.vertices.count
-        ids = self.vertices.alive_ids()
-        near = self._near_boundary(ids)
-        if self.hole_ids.size:
-            holes = self.vertices.points[self.hole_ids.view]
-            near |= self._holes.update(self.vertices.points, count, holes, len(holes))[ids] <= \
-                self.scenario.step_bound() + 2 * self.delta
-        mask = np.zeros(count, dtype=bool)
-        mask[ids[near]] = True
-        if not mask.any():
-            mask[ids] = True
-        if self._band is not None:
-            old = self._band[1]
-            self._stable.touch(np.flatnonzero(mask[: len(old)] != old), self.version)
-        self._band = (self.version, mask)
-        return mask
-
-    def closing_share(self) -> float:
-        """The band's share of the alive centres (closing rounds: coordinator/certification.py)."""
-        mask = self._band_mask()
-        if self._band_share is None or self._band_share[0] != self.version:
-            self._band_share = (self.version, float(np.count_nonzero(mask)) / max(self.vertices.alive_count, 1))
-        return self._band_share[1]
-
-    def begin_check(self) -> None:
-        """A closing round ended: check the set (uniform over the final centres)."""
-        self.version += 1
-        self.phase = CHECK
-
-    def begin_closing(self) -> None:
-        """A check found a violation (already applied): close the set again."""
-        self.version += 1
-        self.phase = CLOSING
-
     def sampling_description(self) -> str:
         if self.closing:
-            return "start states uniform over the alive centres near the failure-side boundary (closing round)"
+            return "start states uniform over the alive centres near the failure-side boundary (closing round: the edge)"
         if self.certifying:
             return ("every final box centre once (VAL^delta)" if self.deterministic
                     else "start states uniform over the final box centres (VAL^eps-delta)")
@@ -238,7 +173,7 @@ class SPE(Algorithm):
         """The sampling law of the state as it is now (cached per version): start states
         are drawn from it by each run's own stream (coordinator/stable_sampler.py). What
         changed since the last law is stamped for ``moved``: distances that fell move
-        their slots, a new law as a whole (d*, the band emptied, a switch between
+        their slots, a new law as a whole (d*, the boundary set emptied, a switch between
         uniform and weighted) moves every draw."""
         if self._law_cache is not None and self._law_cache[0] == self.version:
             return self._law_cache[1]
@@ -262,12 +197,12 @@ class SPE(Algorithm):
     def _make_law(self, count: int) -> tuple[Law, tuple]:
         """-> the law and what identifies it as a whole (a change of it moves every draw).
 
-        Candidates: the alive centres, within the boundary band when ``boundary`` is on
-        and the band holds any. Prioritized, once a failure is known: rho = alpha(d* - d)
+        Candidates: the alive centres, within the boundary set when ``boundary`` is on
+        and it holds any. Prioritized, once a failure is known: rho = alpha(d* - d)
         over the candidates (d* their largest distance), kept up to date where the state
         changed (coordinator/sampler.py); uniform when every weight is zero."""
         if self.closing:
-            mask = self._band_mask()
+            mask = self._edge_mask()
             return UniformLaw(count, mask.__getitem__, lambda: np.flatnonzero(mask)), ("closing",)
         if self.certifying:
             return UniformLaw(count, self._alive, self.vertices.alive_ids), ("certification",)
@@ -278,13 +213,13 @@ class SPE(Algorithm):
                 weight = partial(self._weight, d_star, self._failure_distances())
                 return WeightedLaw(count, weight, self._sampler.draw, float(alpha(d_star))), ("weighted", d_star)
         ids = self.vertices.alive_ids()
-        band = False
+        in_set = False  # the boundary set (Theorem 3) holds any centre
         if self.settings.boundary:
             near = self._near_boundary(ids)
-            band = bool(near.any())
-            ids = ids[near] if band else ids
-        candidate = self._candidate if band else self._alive
-        if self.settings.prioritized and self.failures.count:  # rare: every band weight zero, or no band
+            in_set = bool(near.any())
+            ids = ids[near] if in_set else ids
+        candidate = self._candidate if in_set else self._alive
+        if self.settings.prioritized and self.failures.count:  # rare: every weight zero, or no boundary set
             dist = self._failure_distances()
             weights = np.zeros(count)
             weights[ids] = alpha(dist[ids].max() - dist[ids])
@@ -292,7 +227,7 @@ class SPE(Algorithm):
                 cdf = np.cumsum(weights[ids])
                 return (WeightedLaw(count, weights.__getitem__, partial(_cumulative_index, ids, cdf),
                                     float(weights.max())), ("explicit", self.version))
-        return UniformLaw(count, candidate, lambda: ids), ("uniform", band)
+        return UniformLaw(count, candidate, lambda: ids), ("uniform", in_set)
 
     def _weight(self, d_star: float, dist: np.ndarray, ids: np.ndarray) -> np.ndarray:
         """rho = alpha(d* - d) of candidates ``ids``, zero for the others."""
@@ -303,7 +238,7 @@ class SPE(Algorithm):
 
     def draw(self, streams: RunStreams) -> Draws:
         if self.certifying and self.deterministic:
-            chosen = self.enumeration.next(self.vertices, self.certificates, len(streams))
+            chosen = self.enumeration.next(self.vertices, self.checked, len(streams))
             return Draws.fixed_at(chosen, self.version)
         return self._stable.draw(streams, self._law(), self.version)
 
@@ -314,26 +249,6 @@ class SPE(Algorithm):
         if draws.fixed:
             return np.zeros(len(draws), dtype=bool)
         return self._stable.moved(draws, self._law(), self.version)  # the law first: it stamps what changed
-
-    def certify_runs(self, start_ids: np.ndarray, witnesses) -> int:
-        """Deterministic certification: quiet runs from alive centres among ``start_ids``
-        certify them (``Algorithm.certify_runs``); a run from a pruned centre certifies
-        nothing, and its witnesses are not asked for. Returns the position of the run
-        after which every alive centre is certified, or -1."""
-        sel = np.flatnonzero(self.vertices.alive[start_ids])
-        if len(sel) == 0:
-            return -1
-        offsets, ids = witnesses(sel)
-        reached = self.enumeration.record(self.vertices, self.certificates, start_ids[sel], offsets, ids)
-        return int(sel[reached]) if reached >= 0 else -1  # the run that certified the last centre
-
-    def begin_certification(self) -> None:
-        """Check the final set the way validate will (see the module docstring)."""
-        self.version += 1
-        self.certifying = True
-        self.phase = CHECK if self.deterministic else CLOSING
-        self.coverage.apply(Strict(True), self.version)
-        self._stable.restart(self.vertices.count, self.version)
 
     # -- tell ---------------------------------------------------------------------------
     def apply(self, event: Event) -> str:
@@ -368,28 +283,15 @@ class SPE(Algorithm):
         coarse = self.band.coarse(self, ids) if self.band is not None else None
         if self.final_round:
             self.hole_ids.extend(ids[self.vertices.alive[ids]])
-        self.enumeration.before_prune(self.vertices, self.certificates, ids)
+        self.enumeration.before_prune(self.vertices, self.checked, ids)
         self.coverage.apply(Kill(ids), self.version)
         self._stable.touch(ids, self.version)
         if self.settings.prioritized:  # the sampler's blocks holding them are summed again
             self._sampler.touch(ids)
-        self.enumeration.reopened(self.certificates.invalidate(ids))
+        self.enumeration.reopened(self.checked.invalidate(ids))
         if coarse is not None and len(coarse):
             self.band.replaced(coarse)
-            self._add_roots(self._children(coarse, self.delta))
-
-    def _children(self, ids: np.ndarray, delta: float) -> np.ndarray:
-        """The centres at ``delta`` tiling the boxes of centres ``ids`` (at their own
-        half-widths), but for those within ``delta`` of a failure."""
-        centres = self.vertices.points[ids]
-        widths = self.coverage.half_widths(ids)
-        parts = [self.lattice.children(centres[widths == w], float(w), delta) for w in np.unique(widths)]
-        if not parts:
-            return np.empty((0, self.scenario.n))
-        children = np.unique(np.concatenate(parts), axis=0) if len(parts) > 1 else parts[0]
-        if len(children) and self.failures.count:
-            children = children[~self.failures.any_within(children, delta)]
-        return children
+            self._add_roots(self.band.children(self, coarse, self.delta))
 
     def record(self, chunk, rows: np.ndarray, start_ids: np.ndarray, starts: np.ndarray) -> None:
         """Keep committed, non-failing runs for experience replay (coordinator/experience_replay.py).
@@ -415,7 +317,7 @@ class SPE(Algorithm):
             children = self.lattice.children(centres, self.delta, new_delta)
             self.version += 1
             self.coverage.apply(Recell(new_delta), self.version)
-            self._sampler.invalidate()  # the boundary band's reach moves with delta
+            self._sampler.invalidate()  # the boundary set's reach moves with delta
             if len(children):
                 children = children[~self.failures.any_within(children, new_delta)]
             self._add_roots(children)
@@ -428,13 +330,11 @@ class SPE(Algorithm):
         the set's failure-side boundary split into their children at ``new_delta`` (and
         become boxes of ``new_delta`` themselves, as every box does under "all"); the
         others keep their size: no run of theirs can leave the set in one step."""
-        ids = self.vertices.alive_ids()
-        near = ids[self.band.near(self, ids, self.delta)]
-        children = self._children(near, new_delta) if len(near) else np.empty((0, self.scenario.n))
+        near, children = self.band.split(self, new_delta)
         self.version += 1
         self.coverage.apply(Recell(new_delta), self.version)
         self.coverage.apply(Resize(near, new_delta), self.version)
-        self._sampler.invalidate()  # the boundary band's reach moves with delta
+        self._sampler.invalidate()  # the boundary set's reach moves with delta
         self._add_roots(children)
 
     def replay_pieces(self) -> list:
@@ -465,10 +365,10 @@ class SPE(Algorithm):
         return added
 
     def stop_committing(self) -> None:
-        self.certificates.release_index()  # the reverse index: large, and only prunes use it
+        self.checked.release_index()  # the reverse index: large, and only prunes use it
 
     def release(self) -> None:
-        self.certificates.release()  # its entries
+        self.checked.release()  # its entries
         self.coverage.freeze()  # the spatial indexes: most of a finished campaign's memory
         self.graph = ExplorationForest()
         self._fresh_samplers()
@@ -486,7 +386,7 @@ class SPE(Algorithm):
                "failures": self.failures.count, "delta": self.delta, "round": self.round}
         if self.enumerates:
             alive = self.vertices.alive[: self.vertices.count]
-            out["certified"] = int(np.count_nonzero(self.certificates.certified(self.vertices.count) & alive))
+            out["certified"] = int(np.count_nonzero(self.checked.certified(self.vertices.count) & alive))
         return out
 
     # -- persistence --------------------------------------------------------------------
@@ -497,7 +397,7 @@ class SPE(Algorithm):
         out["certification"] = np.array([self.certifying, self.phase == CLOSING], dtype=np.int64)
         out["certification.drawn"] = np.flatnonzero(self.enumeration.drawn)
         out["holes.ids"] = self.hole_ids.view.copy()
-        out.update(self.certificates.state())
+        out.update(self.checked.state())
         out.update(self.replay.state())
         out.update(self._stable.state())
         if self.band is not None:
@@ -516,7 +416,7 @@ class SPE(Algorithm):
         drawn[state["certification.drawn"]] = True
         self.enumeration = Enumeration(drawn)
         self.hole_ids = Appendable(np.int64, state.get("holes.ids", ()))
-        self.certificates = Certificates.from_state(state)
+        self.checked = CheckedCentres.from_state(state)
         self.replay.load_state(state)
         self._fresh_samplers()
         self._stable.load_state(state, self.vertices.count, self.version)

@@ -1,5 +1,5 @@
 """Safety validation (paper Sec. 3): VAL^delta (Alg. 2), VAL^eps (Alg. 3) and
-VAL^eps-delta (Alg. 4), with the boundary band (Thm. 3) and Gamma* (Def. 7) options.
+VAL^eps-delta (Alg. 4), with the boundary set (Thm. 3) and Gamma* (Def. 7) options.
 
 Runs are simulated in batches on any executor, checked on the workers (``Checker`` is
 the screen every chunk is sent with), and committed in sample-index order, so the
@@ -46,18 +46,18 @@ class ValidationPlan:
     algorithm: str  # delta | eps | eps-delta
     n_required: int
     centres: np.ndarray | None  # the delta-covering centres (delta, eps-delta)
-    band: float | None  # sigma-bar, if sampling the boundary band only
+    reach: float | None  # sigma-bar, if sampling the boundary set only (Theorem 3)
     description: str  # what the sampled distribution is
 
 
 def validation_plan(domain: Domain, algorithm: str, epsilon: float, beta: float, delta: float, boundary: bool,
          deterministic: bool) -> ValidationPlan:
     sc = domain.scenario
-    band = sc.step_bound() if boundary else None
-    where = f"the {band:g}-boundary band of Phi" if boundary else "Phi"
+    reach = sc.step_bound() if boundary else None
+    where = f"the {reach:g}-boundary set of Phi" if boundary else "Phi"
     if algorithm == "eps":
-        return ValidationPlan("eps", n_eps(epsilon, beta), None, band, f"start states i.i.d. uniform in {where}")
-    centres = domain.lattice(delta, band)
+        return ValidationPlan("eps", n_eps(epsilon, beta), None, reach, f"start states i.i.d. uniform in {where}")
+    centres = domain.lattice(delta, reach)
     if len(centres) == 0:
         raise ConfigError(f"validate.delta: no {delta:g}-covering centre lies in {where}; use a smaller delta")
     if algorithm == "delta":
@@ -68,16 +68,16 @@ def validation_plan(domain: Domain, algorithm: str, epsilon: float, beta: float,
         needed = covering_size(domain.volume(), delta, sc.n) if domain.covering(delta) is None else len(centres)
         what = (f"every {delta:g}-covering centre of {where} once" if domain.covering(delta) is None else
                 f"every box centre of the set once (its own covering: each box at max(its half-width, {delta:g}))")
-        return ValidationPlan("delta", max(len(centres), needed if not boundary else len(centres)), centres, band,
+        return ValidationPlan("delta", max(len(centres), needed if not boundary else len(centres)), centres, reach,
                               what)
     over = (f"the {len(centres)} {delta:g}-covering centres of {where}" if domain.covering(delta) is None else
             f"the set's {len(centres)} box centres (its own covering: each box at max(its half-width, {delta:g}))")
-    return ValidationPlan("eps-delta", n_eps(epsilon, beta), centres, band, f"start states i.i.d. uniform over {over}")
+    return ValidationPlan("eps-delta", n_eps(epsilon, beta), centres, reach, f"start states i.i.d. uniform over {over}")
 
 
 def draw_starts(domain: Domain, p: ValidationPlan, streams: RunStreams) -> np.ndarray:
     if p.algorithm == "eps":
-        return domain.sample(streams, p.band)
+        return domain.sample(streams, p.reach)
     if p.algorithm == "delta":  # each centre once, in order (index i -> centre i mod M)
         return p.centres[(streams.indices % np.uint64(len(p.centres))).astype(np.int64)]
     u = streams.uniform(0, PURPOSE_START, 1)[:, 0]

@@ -1,44 +1,26 @@
 """The batch driver of a quantification campaign: the parallel contract
-(shared/spec/algorithms.md, shared/spec/scaling.md) in one place.
+(shared/spec/algorithms.md, shared/spec/scaling.md) in one loop over named parts
+(coordinator/driver/__init__.py lists them).
 
-- Runs go out in batches of consecutive global sample indices (coordinator/driver/pipeline.py);
-  run i's randomness, its start included, comes from the stream (seed, i) alone: its start
-  is what its stream draws from the algorithm's state (coordinator/stable_sampler.py).
-- Results are committed strictly in sample-index order, chunk by chunk as they arrive.
-  Workers screen their runs against a mirror of the coverage (coordinator/coverage.py);
-  the driver takes a screening as it is when nothing changed since, and otherwise
-  re-decides each run at the current version from its witnesses.
-- Coupled counting. At commit a run is *exact* when its start is still the draw its
-  stream makes at the current state (coordinator/driver/exact.py); an exact run is what
-  the one-run-at-a-time campaign runs at that index, and is used as it would use it. A
-  *mispredicted* run is discarded unseen and replaced: the current draw, the same index
-  and streams, applied ``lag`` indices later (``counting = "sequential"``: lag 0, waited
-  for at the head, so the committed sequence is the sequential campaign's at any window;
-  ``"deferred"``: lag = the window, batch_size x pipeline_depth). A replacement that a
-  later change moves is replaced again (coordinator/driver/replacements.py).
-- The head does not wait for a due replacement that is not back: it commits on past it
-  (a hold, coordinator/driver/holds.py) as long as nothing changes the state, and goes back
-  if the replacement, once applied, does. With slow runs a change does not wait for the
-  holds before it: it is applied, a copy of the state before it kept, and undone if a
-  hold, judged at that state, changes it (coordinator/driver/speculation.py). Runs the head
-  will likely need are launched before it asks (coordinator/driver/lookahead.py). Results
-  never depend on any of it.
-- The streak is the index range after the last change. A round ends when N_eps
-  consecutive indices of it are resolved (exact or replaced) and quiet: the head stops
-  at its end and waits for the streak's replacements. Batches in flight and replacements
-  of indices before the streak are then dropped, their indices re-used: the committed
-  sequence depends on the config and seed alone.
-- At a round end the driver decays the algorithm's resolution and runs experience
-  replay: the algorithm names its stored runs, the executor screens them where they are,
-  the algorithm applies what is new. With ``certify`` the last round is certification
-  (coordinator/driver/phase.py says which round is which).
+- Runs go out in batches of consecutive global sample indices; run i's randomness, its
+  start included, comes from the stream (seed, i) alone (coordinator/stable_sampler.py).
+- Results are committed strictly in sample-index order, chunk by chunk as they arrive,
+  each run re-decided at the current coverage where it changed since its screening.
+- Coupled counting: a run whose start is still its stream's draw at commit is *exact*
+  (coordinator/driver/exact.py) and used as the one-run-at-a-time campaign would use it;
+  any other is discarded unseen and replaced, applied ``lag`` indices later (sequential
+  counting: lag 0, so the committed sequence is the sequential campaign's at any window).
+  The head commits on past a replacement that is not back (a hold) and goes back if it
+  changes the state; results never depend on holds, speculation or the look-ahead.
+- A round ends after N_eps consecutive indices resolved and quiet after the last change;
+  what is in flight is dropped and its indices re-used, so the committed sequence
+  depends on the config and seed alone. Then delta decays and experience replay runs;
+  with ``certify`` the last round is certification (coordinator/driver/phase.py).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import time
-from dataclasses import dataclass
 from typing import Callable, Iterable
 from weakref import WeakKeyDictionary
 
@@ -46,13 +28,13 @@ import numpy as np
 
 from coordinator.adversary import AdversarySearch
 from coordinator.algorithm import Algorithm, Event
-from coordinator.coverage import Rescreen
-from coordinator.driver.commit_log import CommitLog
+from coordinator.rescreen import Rescreen
+from coordinator.driver.commit_log import ChunkRows, CommitLog
 from coordinator.driver.exact import verify
 from coordinator.driver.launcher import Launcher
 from coordinator.driver.lookahead import LookAhead
 from coordinator.driver.phase import After, Phase
-from coordinator.driver.pipeline import Pending, Pipeline
+from coordinator.driver.pipeline import Pending, Pipeline, batch_shape
 from coordinator.driver.recordings import Recordings
 from coordinator.driver.replacements import Replacement, ReplacementQueue
 from coordinator.driver.settings import CampaignSettings
@@ -62,39 +44,8 @@ from coordinator.executor import Chunk, Executor
 
 VERIFY_BLOCK = 64  # runs checked for exactness at once after a change (then 4x more each time)
 MAX_VERIFY_BLOCK = 1 << 16
-# A deterministic system's certification (every centre once) draws, batch by batch, the
-# next centres not drawn yet at the state the batch is drawn at: the order follows the
-# batches. Under sequential counting they are these (the default window), whatever
-# farm.batch_size and pipeline_depth say, so that those change no result there either.
-ENUMERATION_BATCH = 1024
-ENUMERATION_DEPTH = 2
 
 Observer = Callable[["Campaign"], None]
-
-
-@dataclass
-class ChunkRows:
-    """What the head decided for the runs of one chunk, logged in the order committed."""
-
-    chunk: Chunk
-    starts: np.ndarray  # (k, n)
-    ids: np.ndarray  # (k,) their start vertices
-    rescreen: Rescreen
-    at: int  # the chunk's first row in its batch
-    logged: int  # rows before this one are logged
-    kind: np.ndarray  # (k,) int8 CommitLog.EXACT / DISCARDED
-    changed: np.ndarray  # (k,) bool
-    counted: np.ndarray  # (k,) bool: toward the round's quiet runs
-
-    @classmethod
-    def of(cls, p: Pending, chunk: Chunk, rescreen: Rescreen, head: int) -> "ChunkRows":
-        at, k = chunk.first_index - p.first_index, len(chunk)
-        return cls(chunk, p.starts[at : at + k], p.draws.ids[at : at + k], rescreen, at, head - chunk.first_index,
-                   np.zeros(k, dtype=np.int8), np.zeros(k, dtype=bool), np.zeros(k, dtype=bool))
-
-    def event(self, row: int) -> Event:
-        return Event.of_run(self.chunk.first_index + row, self.chunk, row, self.starts[row], self.ids[row],
-                            self.rescreen)
 
 
 class Campaign:
@@ -192,19 +143,11 @@ class Campaign:
         return c
 
     def _fill(self) -> None:
-        """Keep ``pipeline_depth`` batches drawn and sent ahead of the head
-        (``ENUMERATION_DEPTH`` of ``ENUMERATION_BATCH`` while a deterministic
-        certification enumerates), and launch the replacements the head will need."""
+        """Keep the batches drawn and sent ahead of the head, and launch the replacements
+        the head will need."""
         s = self.settings
-        batch, depth = s.batch_size, s.pipeline_depth
-        if s.lag == 0 and self.phase.enumerating:  # fixed batches, never the workers
-            batch, depth = ENUMERATION_BATCH, ENUMERATION_DEPTH
-        elif s.lag == 0:
-            # sequential counting: the batch size changes no sampled run, so it follows the
-            # workers (but no more than the round's quiet runs: runs in flight past a round's
-            # end are dropped, and each is a draw a change can move; docs/benchmarks.md,
-            # "2026-11-26, morning": many workers of short runs)
-            batch = min(self.executor.batch_size(s.batch_size), max(s.batch_size, self.quiet_needed()))
+        batch, depth = batch_shape(s, self.phase.enumerating, lambda: self.executor.batch_size(s.batch_size),
+                                   self.quiet_needed)
         self.pipeline.fill(self.counters.committed, batch, depth, s.budget, self.launcher.draw)
         self.look_ahead.launch_moved()
         self.replacements.send()
@@ -505,11 +448,7 @@ class Campaign:
         return self.recordings.take(self.speculations.first.index if self.speculations else None)
 
     def state(self) -> tuple[dict[str, np.ndarray], dict]:
-        """The driver's state (coordinator/driver/state.py): with holds, as the head passed
-        the first of them (what follows it is not committed for good)."""
-        counts, replacements = self.replacements.committed_for_good()
-        counters = self.counters
-        if counts:
-            counters = dataclasses.replace(counters, **counts, **self.speculations.committed_counts())
-        state = DriverState(counters, self.pipeline.open(counters.committed), replacements, self.final_distribution)
+        """The driver's state as a checkpoint keeps it (coordinator/driver/state.py)."""
+        state = DriverState.of(self.counters, self.pipeline, self.replacements, self.speculations,
+                               self.final_distribution)
         return state.write(self.algorithm.coverage.n)

@@ -3,9 +3,13 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
+from coordinator.algorithm import Event
 from coordinator.executor import Chunk
+from coordinator.rescreen import Rescreen
 
 
 class CommitLog:
@@ -55,3 +59,29 @@ class CommitLog:
             out[name] = np.concatenate(pieces)
             pieces.clear()
         return {name: out[name] for name in self.COLUMNS}
+
+
+@dataclass
+class ChunkRows:
+    """What the head decided for the runs of one chunk, logged in the order committed."""
+
+    chunk: Chunk
+    starts: np.ndarray  # (k, n)
+    ids: np.ndarray  # (k,) their start vertices
+    rescreen: Rescreen
+    at: int  # the chunk's first row in its batch
+    logged: int  # rows before this one are logged
+    kind: np.ndarray  # (k,) int8 CommitLog.EXACT / DISCARDED
+    changed: np.ndarray  # (k,) bool
+    counted: np.ndarray  # (k,) bool: toward the round's quiet runs
+
+    @classmethod
+    def of(cls, p, chunk: Chunk, rescreen: Rescreen, head: int) -> "ChunkRows":
+        """The runs of ``chunk`` of batch ``p`` (coordinator/driver/pipeline.py), from the head on."""
+        at, k = chunk.first_index - p.first_index, len(chunk)
+        return cls(chunk, p.starts[at : at + k], p.draws.ids[at : at + k], rescreen, at, head - chunk.first_index,
+                   np.zeros(k, dtype=np.int8), np.zeros(k, dtype=bool), np.zeros(k, dtype=bool))
+
+    def event(self, row: int) -> Event:
+        return Event.of_run(self.chunk.first_index + row, self.chunk, row, self.starts[row], self.ids[row],
+                            self.rescreen)

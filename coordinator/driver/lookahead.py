@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from coordinator.algorithm import Algorithm, Event
-from coordinator.coverage import Rescreen
+from coordinator.rescreen import Rescreen
 from coordinator.driver.exact import redraw
 from coordinator.stable_sampler import Draws
 

@@ -64,7 +64,7 @@ class Phase:
         A deterministic system runs every final centre once (VAL^delta): exact, so the
         N_eps rule's epsilon-almost statement, and the runs spent on it, would add nothing.
         A sampled system starts with a closing round: it prunes and explores as the
-        algorithm's last round would, but strictly and over the band where the violations
+        algorithm's last round would, but strictly and over the edge where the violations
         are, so the set is not first settled by the lenient rule and then settled again
         (the runs that saves: docs/certification.md). Only the checks certify
         (docs/guarantee.md). Called as the last round begins (for a campaign of one round:

@@ -18,6 +18,27 @@ import numpy as np
 from coordinator.executor import Chunk
 from coordinator.stable_sampler import Draws
 
+# A deterministic system's certification (every centre once) draws, batch by batch, the
+# next centres not drawn yet at the state the batch is drawn at: the order follows the
+# batches. Under sequential counting they are these (the default window), whatever
+# farm.batch_size and pipeline_depth say, so that those change no result there either.
+ENUMERATION_BATCH = 1024
+ENUMERATION_DEPTH = 2
+
+
+def batch_shape(settings, enumerating: bool, workers_batch, quiet_needed) -> tuple[int, int]:
+    """(runs per batch, batches ahead): the settings' (deferred counting), fixed ones while
+    a deterministic certification enumerates, and under sequential counting (where the
+    batch size changes no sampled run) as many as keep the workers busy
+    (``workers_batch()``), but no more than the round's quiet runs (``quiet_needed()``): runs in flight past a
+    round's end are dropped, and each is a draw a change can move (docs/benchmarks.md,
+    "2026-11-26, morning": many workers of short runs)."""
+    if settings.lag:
+        return settings.batch_size, settings.pipeline_depth
+    if enumerating:
+        return ENUMERATION_BATCH, ENUMERATION_DEPTH
+    return min(workers_batch(), max(settings.batch_size, quiet_needed())), settings.pipeline_depth
+
 
 @dataclass
 class Pending:

@@ -52,5 +52,5 @@ class CampaignSettings:
         return certification.check_quiet(self.epsilon, self.beta, attempt)
 
     def closing_quiet(self, share: float) -> int:
-        """Quiet runs in a row that end a closing round over a band of ``share`` of the centres."""
+        """Quiet runs in a row that end a closing round over an edge of ``share`` of the centres."""
         return certification.closing_quiet(self.epsilon, self.beta, self.certify_margin, share)

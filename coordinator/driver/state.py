@@ -3,6 +3,7 @@ replacements a resumed campaign simulates again, to and from a checkpoint's arra
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -80,6 +81,15 @@ class DriverState:
     pending: list[Pending]
     replacements: list[Replacement]
     final_distribution: str = ""
+
+    @classmethod
+    def of(cls, counters: Counters, pipeline, replacements, speculations, final_distribution: str) -> "DriverState":
+        """A running driver's state as committed for good: with holds, as the head passed
+        the first of them (what follows it may be undone; coordinator/driver/holds.py)."""
+        counts, queued = replacements.committed_for_good()
+        if counts:
+            counters = dataclasses.replace(counters, **counts, **speculations.committed_counts())
+        return cls(counters, pipeline.open(counters.committed), queued, final_distribution)
 
     def write(self, n: int) -> tuple[dict[str, np.ndarray], dict]:
         """-> arrays (``n``: the state's dimension) and JSON-able metadata."""

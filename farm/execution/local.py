@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from coordinator.executor import Chunk, Executor, chunk_of, screen_piece, summarize
+from coordinator.executor import Chunk, ChunkSummary, Executor, screen_piece
 from coordinator.experience_replay import select
 from farm.execution.chunking import ChunkSizer
 from farm.execution.process import build_simulator
@@ -65,13 +65,13 @@ class LocalExecutor(Executor):
         def work():
             t0 = time.perf_counter()
             batch = self.simulator.simulate(first_index, starts, indices=indices, actions=actions)
-            done = summarize(batch, screen)
+            done = ChunkSummary.of(batch, screen)
             self.sizer.ran(len(starts), time.perf_counter() - t0)
             return done
 
         what = name_runs(self._scenario, first_index, starts, indices)
         summary, visited = self._thread.run(work, self.sizer.limit(len(starts)), what)
-        return chunk_of(summary, lambda: visited, lambda rows, takes: _compact(visited, rows, takes))
+        return summary.chunk(lambda: visited, lambda rows, takes: _compact(visited, rows, takes))
 
     def screen_stored(self, pieces, screen):
         def work():

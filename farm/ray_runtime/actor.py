@@ -12,7 +12,7 @@ import time
 import numpy as np
 
 from coordinator.coverage import Coverage
-from coordinator.executor import screen_piece, summarize
+from coordinator.executor import ChunkSummary, screen_piece
 from farm import lazy
 from farm.execution.process import build_simulator
 from scenarios.simulator import SimSpec
@@ -44,9 +44,9 @@ def actor_class():
             if screen is RESYNC:
                 return RESYNC, None
             batch = self.simulator.simulate(first_index, starts, indices=indices, actions=actions)
-            summary, visited = summarize(batch, screen)
+            summary, visited = ChunkSummary.of(batch, screen)
             busy = time.perf_counter() - t0
-            summary["busy_s"] = busy  # the chunk sizes follow it (farm/execution/chunking.py)
+            summary.busy_s = busy
             self.busy_s += busy
             self.tasks += 1
             self.runs += len(starts)

@@ -31,7 +31,7 @@ from typing import Callable
 
 import numpy as np
 
-from coordinator.executor import Chunk, Executor, chunk_of
+from coordinator.executor import Chunk, ChunkSummary, Executor
 from coordinator.experience_replay import Stored
 from farm import lazy
 from farm.execution.chunking import ChunkSizer, fast_lanes
@@ -61,7 +61,7 @@ class _Job(Call):
     visited_ref: object = None
     sent: tuple | None = None  # the coverage (id, epoch, seq) its message brings the actor to
     fresh: bool = False  # send a whole snapshot (the actor lost its mirror)
-    summary: dict | None = None
+    summary: ChunkSummary | None = None
 
 
 class RayExecutor(Executor):
@@ -256,7 +256,7 @@ class RayExecutor(Executor):
         job = self._jobs.pop(handle)
         summary = self._read(job)
         visited_ref = job.visited_ref
-        return chunk_of(summary, lambda: self._visited(job), lambda rows, takes: visited_ref)
+        return summary.chunk(lambda: self._visited(job), lambda rows, takes: visited_ref)
 
     def _visited(self, job: _Job):
         """A chunk's visited states from its node's object store, or simulated again on a
@@ -298,7 +298,7 @@ class RayExecutor(Executor):
             self.pool.finished(call)
             return value
 
-    def _read(self, job: _Job) -> dict:
+    def _read(self, job: _Job) -> ChunkSummary:
         """The chunk's summary (once: it is kept), sent again where its actor was restarted
         without its mirror; the chunk sizes learn from its time."""
         while job.summary is None:
@@ -312,7 +312,7 @@ class RayExecutor(Executor):
                 known = slot.confirmed
                 if known is None or known[:2] != job.sent[:2] or known[2] < job.sent[2]:
                     slot.confirmed = job.sent
-            self.sizer.ran(job.runs, summary.pop("busy_s"))
+            self.sizer.ran(job.runs, summary.busy_s)
             self.sizer.called(job.call_s)
             job.summary = summary
         return job.summary

@@ -10,6 +10,8 @@ shared by every actor that needs the same range). farm/ray_runtime/actor.py appl
 
 from __future__ import annotations
 
+import numpy as np
+
 from coordinator.coverage import Coverage, Reset
 
 INLINE_BYTES = 1 << 16  # change blocks up to this size travel inside the task call

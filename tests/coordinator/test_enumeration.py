@@ -1,13 +1,13 @@
 """Deterministic certification's passes (coordinator/enumeration.py) against the plain
 computation they replace: scan every centre at each batch, count every uncertified
 centre at each chunk. Same centres drawn, same end, through inserts, prunes (lost
-certificates), short batches, new passes and a checkpoint round trip."""
+checked centres), short batches, new passes and a checkpoint round trip."""
 
 import numpy as np
 import pytest
 
 from coordinator.algorithm import EmptySetError
-from coordinator.certificates import Certificates
+from coordinator.checked_centres import CheckedCentres
 from coordinator.enumeration import Enumeration
 from coordinator.spatial import PointIndex
 
@@ -18,13 +18,13 @@ class Plain:
     def __init__(self):
         self.drawn = np.zeros(0, dtype=bool)
 
-    def next(self, vertices, certificates, k):
+    def next(self, vertices, checked, k):
         alive = vertices.alive_ids()
         if len(alive) == 0:
             raise EmptySetError("empty")
         if len(self.drawn) < vertices.count:
             self.drawn = np.concatenate([self.drawn, np.zeros(vertices.count - len(self.drawn), bool)])
-        open_ = ~certificates.certified(vertices.count)[alive]
+        open_ = ~checked.certified(vertices.count)[alive]
         pending = alive[open_ & ~self.drawn[alive]]
         if len(pending) == 0:
             self.drawn[:] = False
@@ -33,9 +33,9 @@ class Plain:
         self.drawn[chosen] = True
         return chosen
 
-    def record(self, vertices, certificates, starts, offsets, witnesses):
-        before = certificates.certified(vertices.count)
-        certificates.add(starts, offsets, witnesses)
+    def record(self, vertices, checked, starts, offsets, witnesses):
+        before = checked.certified(vertices.count)
+        checked.add(starts, offsets, witnesses)
         missing = int((vertices.alive[: vertices.count] & ~before).sum())
         fresh = np.zeros(len(starts), dtype=bool)
         first = np.unique(starts, return_index=True)[1]
@@ -47,7 +47,7 @@ class Plain:
 def _world(rng, n):
     vertices = PointIndex(2, 1.0, np.zeros(2))
     vertices.insert(rng.uniform(0, 50, size=(n, 2)))
-    return vertices, Certificates()
+    return vertices, CheckedCentres()
 
 
 @pytest.mark.parametrize("seed", range(5))
@@ -81,7 +81,7 @@ def test_passes_draw_and_end_as_the_plain_scan(seed, monkeypatch):
             a = fast.record(*worlds[0], starts, offsets, witnesses)
             assert a == plain.record(*worlds[1], starts, offsets, witnesses)
             ends += a >= 0
-        elif op < 0.95:  # a prune: centres die, certificates naming them are lost
+        elif op < 0.95:  # a prune: centres die, checks naming them are lost
             alive = worlds[0][0].alive_ids()
             if rng.random() < 0.5:  # the last uncertified ones, sometimes: the end comes by a prune
                 open_ = alive[~worlds[0][1].certified_at(alive)]

@@ -3,7 +3,7 @@ counts and the failure points answer as before, from the points alone."""
 
 import numpy as np
 
-from coordinator.spatial import FrozenPoints
+from coordinator.alive_points import FrozenPoints
 from coordinator.spe import SPE, SPESettings
 from coordinator.coverage import AddFailures
 from scenarios.registry import make_scenario

@@ -5,7 +5,8 @@ coverage as it is now."""
 import numpy as np
 import pytest
 
-from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Rescreen, Strict
+from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Strict
+from coordinator.rescreen import Rescreen
 from scenarios.base import FAILURE
 
 DELTA = 0.5

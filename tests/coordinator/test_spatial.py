@@ -2,7 +2,8 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from coordinator.spatial import REACH_TABLE, PointIndex, box_cells
+from coordinator.cell_grid import REACH_TABLE, box_cells
+from coordinator.spatial import PointIndex
 
 
 @pytest.mark.parametrize("n", [2, 3, 5])

@@ -48,7 +48,7 @@ def _check_ledger(summary, ledger, sequential=True):
 @pytest.mark.parametrize("mode", ["uniform", "adversarial", pytest.param("search", marks=pytest.mark.soak)])
 def test_sequential_counting_commits_the_same_runs_at_any_window(tmp_path, mode):
     """Adversarial: a deterministic system, whose certification runs every centre once,
-    handed out batch by batch (fixed batches: coordinator/driver/campaign.py ENUMERATION_BATCH)."""
+    handed out batch by batch (fixed batches: coordinator/driver/pipeline.py ENUMERATION_BATCH)."""
     got = {}
     for batch, depth in WINDOWS:
         summary, ledger = _campaign(tmp_path, f"{mode}-{batch}x{depth}", batch, depth, "sequential", mode)

@@ -34,7 +34,7 @@ def quantify(config, out, *extra):
 @pytest.fixture(scope="module", autouse=True)
 def checkpoint_at_every_chunk():
     """Many checkpoints, so that the signals land between many of them (the CLI's floor
-    of 1 s between checkpoints lifted, as farm/config.py allows)."""
+    of 1 s between checkpoints lifted, as farm/config/sections.py allows)."""
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("SCENARIO_FARM_MIN_CHECKPOINT_S", "0")
         yield

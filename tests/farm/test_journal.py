@@ -53,7 +53,7 @@ def test_reading_leaves_unlisted_segments_loading_removes_them(tmp_path):
 def test_a_finished_certified_campaign_checkpoints_its_whole_certificates_then_lets_them_go(tmp_path, monkeypatch):
     # the reverse index goes before the last checkpoint, the entries after it: the
     # checkpoint still holds every entry, and certifies every alive centre of the result
-    from coordinator.certificates import Certificates
+    from coordinator.checked_centres import CheckedCentres
     from farm import config as config_mod
     from farm.jobs import quantification
 
@@ -71,8 +71,8 @@ def test_a_finished_certified_campaign_checkpoints_its_whole_certificates_then_l
     assert state["algo.cert.offsets"][-1] == len(state["algo.cert.witness"]) > 0
     assert len(state["algo.cert.vertex"]) == len(state["algo.cert.valid"]) == len(state["algo.cert.offsets"]) - 1
     alive = state["algo.vertices.alive"].astype(bool)
-    saved = Certificates.from_state({k[len("algo."):]: v for k, v in state.items() if k.startswith("algo.cert.")})
+    saved = CheckedCentres.from_state({k[len("algo."):]: v for k, v in state.items() if k.startswith("algo.cert.")})
     assert saved.certified(len(alive))[alive].all()
-    assert np.array_equal(algo.certificates.certified(len(alive)), saved.certified(len(alive)))
+    assert np.array_equal(algo.checked.certified(len(alive)), saved.certified(len(alive)))
     with pytest.raises(RuntimeError, match="released"):
         algo.state()

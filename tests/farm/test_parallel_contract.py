@@ -66,7 +66,6 @@ def test_any_chunking_gives_the_same_result(ray_local, reference, tmp_path, monk
 def test_change_blocks_put_in_the_object_store_give_the_same_result(ray_local, reference, tmp_path, monkeypatch):
     """Small change blocks travel inside the task call; large ones are put in the object
     store once. Every block put there: the same result."""
-    from farm.ray_runtime import executor as ray_executor
 
     monkeypatch.setattr(ray_executor, "INLINE_BYTES", -1)
     puts = []
@@ -201,7 +200,6 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
     coordinator still forgets the changes it has applied (the unused actors would get a
     snapshot), and each screening is made at the coverage as it was submitted."""
     from coordinator.coverage import Coverage, Insert
-    from farm.ray_runtime import executor as ray_executor
     from farm.execution.process import spec_of
     from farm.ray_runtime.executor import RayExecutor
 
@@ -258,7 +256,6 @@ def test_a_dropped_chunk_is_left_to_finish_and_the_actor_goes_on(ray_local):
     leave a gap in the actor's sequence numbers that stalls its next tasks for Ray's 30 s
     reorder timeout. A chunk queued behind a running one is dropped; it still runs (the
     actor counts 3 tasks, 2 had it been cancelled), and the next chunk comes back."""
-    from farm.ray_runtime import executor as ray_executor
     from farm.execution.process import spec_of
 
     ex = ray_executor.RayExecutor(spec_of(contract_config("ray", 1)), 1).start()

@@ -156,7 +156,7 @@ class _StopInCertification(_Stopper):
 def test_a_deterministic_certification_stopped_then_resumed_with_another_window_gives_the_same_result(tmp_path):
     """Gamma*: certification runs every centre once, handed out batch by batch; with
     sequential counting farm.batch_size and pipeline_depth may change on resume and
-    change no result (coordinator/driver/campaign.py ENUMERATION_BATCH)."""
+    change no result (coordinator/driver/pipeline.py ENUMERATION_BATCH)."""
     from farm import config as config_mod
     from farm.jobs.quantification import Stopped, run
 

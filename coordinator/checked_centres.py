@@ -24,7 +24,7 @@ import numpy as np
 from coordinator.buffers import Appendable
 
 
-class Certificates:
+class CheckedCentres:
     def __init__(self):
         # vertex ids as int32 (``add`` refuses ids >= 2^31): ~83 M witnesses at delta_min
         # 0.125, 0.33 GB less than int64
@@ -64,7 +64,7 @@ class Certificates:
         if len(vertices) == 0:
             return
         if int(vertices.max()) >= 2**31 or (len(witnesses) and int(witnesses.max()) >= 2**31):
-            raise OverflowError("certificates: more than 2^31 centres")
+            raise OverflowError("checked centres: more than 2^31 centres")
         self._vertex.extend(vertices)
         self._offsets.extend(self._offsets.view[-1] + witness_offsets[1:])
         self._witness.extend(witnesses)
@@ -123,7 +123,7 @@ class Certificates:
 
     def _entries(self) -> None:
         if self._witness is None:
-            raise RuntimeError("certificates: the entries were released (the campaign is done)")
+            raise RuntimeError("checked centres: the entries were released (the campaign is done)")
 
     # -- persistence ----------------------------------------------------------------------
     def state(self) -> dict[str, np.ndarray]:
@@ -132,7 +132,7 @@ class Certificates:
                 "cert.witness": self._witness.view, "cert.valid": self._valid.view}
 
     @classmethod
-    def from_state(cls, state: dict) -> "Certificates":
+    def from_state(cls, state: dict) -> "CheckedCentres":
         out = cls()
         if "cert.vertex" in state and len(state["cert.vertex"]):
             out._vertex = Appendable(np.int32, state["cert.vertex"])
@@ -177,7 +177,7 @@ class _SortedRuns:
         if len(keys) == 0:
             return
         if max(int(keys.max()), int(values.max())) >= 2**31:
-            raise OverflowError("certificates: more than 2^31 centres or entries")
+            raise OverflowError("checked centres: more than 2^31 centres or entries")
         pairs = (np.asarray(keys, dtype=np.int64) << 32) | np.asarray(values, dtype=np.int64)
         pairs.sort(kind="stable")
         self._append(pairs, 0)

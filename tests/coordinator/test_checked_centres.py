@@ -5,7 +5,7 @@ a checkpoint round trip and a released reverse index keep all of it."""
 import numpy as np
 import pytest
 
-from coordinator.certificates import Certificates, _compress, _merge, _SortedRuns
+from coordinator.checked_centres import CheckedCentres, _compress, _merge, _SortedRuns
 
 
 @pytest.mark.parametrize("final_size", [_SortedRuns.FINAL_SIZE, 500])
@@ -14,7 +14,7 @@ def test_certificates_match_a_brute_force_model_through_adds_kills_and_a_round_t
     monkeypatch.setattr(_SortedRuns, "FINAL_SIZE", final_size)
     rng = np.random.default_rng(4)
     frozen = 0
-    cert = Certificates()
+    cert = CheckedCentres()
     model: list[tuple[int, set[int], bool]] = []  # (vertex, witnesses, valid)
     vertices = 3000
     for step in range(400):
@@ -33,7 +33,7 @@ def test_certificates_match_a_brute_force_model_through_adds_kills_and_a_round_t
             dead = set(killed.tolist())
             model = [(v, w, ok and not (w & dead)) for v, w, ok in model]
         if step % 50 == 49:  # a checkpoint and resume (the reverse index is built when first needed)
-            cert = Certificates.from_state({k: v.copy() for k, v in cert.state().items()})
+            cert = CheckedCentres.from_state({k: v.copy() for k, v in cert.state().items()})
         if cert._reverse is not None:
             frozen = max(frozen, cert._reverse.tiers.count(_SortedRuns.FINAL))
         if step % 70 == 69:  # a finished campaign drops the reverse index; it comes back if needed
@@ -73,7 +73,7 @@ def test_reverse_index_finds_every_value_of_every_key(final_size, monkeypatch):
 
 def test_released_certificates_still_say_which_centres_are_certified_and_refuse_the_rest():
     rng = np.random.default_rng(11)
-    cert = Certificates()
+    cert = CheckedCentres()
     for _ in range(30):
         k = int(rng.integers(1, 30))
         counts = rng.integers(1, 8, k)
