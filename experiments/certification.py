@@ -16,7 +16,6 @@ not depend on the executor).
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 import numpy as np

@@ -66,10 +66,11 @@ def test_any_chunking_gives_the_same_result(ray_local, reference, tmp_path, monk
 def test_change_blocks_put_in_the_object_store_give_the_same_result(ray_local, reference, tmp_path, monkeypatch):
     """Small change blocks travel inside the task call; large ones are put in the object
     store once. Every block put there: the same result."""
+    from farm.ray_runtime import mirror
 
-    monkeypatch.setattr(ray_executor, "INLINE_BYTES", -1)
+    monkeypatch.setattr(mirror, "INLINE_BYTES", -1)
     puts = []
-    original = ray_executor.RayExecutor._message
+    original = mirror.Mirrors.message
 
     def counting(self, actor, screen, fresh=False):
         message = original(self, actor, screen, fresh)
@@ -78,7 +79,7 @@ def test_change_blocks_put_in_the_object_store_give_the_same_result(ray_local, r
             puts.extend(b for b in blocks if not isinstance(b, list))
         return message
 
-    monkeypatch.setattr(ray_executor.RayExecutor, "_message", counting)
+    monkeypatch.setattr(mirror.Mirrors, "message", counting)
     summary = run(contract_config("ray", 2), tmp_path / "c", resume=False)
     assert puts  # the object-store path was taken
     assert summary["result_hash"] == reference["result_hash"]
@@ -257,8 +258,9 @@ def test_a_dropped_chunk_is_left_to_finish_and_the_actor_goes_on(ray_local):
     reorder timeout. A chunk queued behind a running one is dropped; it still runs (the
     actor counts 3 tasks, 2 had it been cancelled), and the next chunk comes back."""
     from farm.execution.process import spec_of
+    from farm.ray_runtime.executor import RayExecutor
 
-    ex = ray_executor.RayExecutor(spec_of(contract_config("ray", 1)), 1).start()
+    ex = RayExecutor(spec_of(contract_config("ray", 1)), 1).start()
     ex.sizer.ran(20_000, 0.02)  # as if measured: each batch one chunk, no one-run probe first
     try:
         starts = np.tile([10.0, 10.0, 40.0], (20_000, 1))
