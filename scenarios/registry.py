@@ -29,6 +29,7 @@ from scenarios.errors import ConfigError, FarmError, ScenarioError
 SCENARIOS: dict[str, str | type] = {
     "lead-follow": "scenarios.lead_follow:LeadFollow",
     "fleet3": "scenarios.fleet3:Fleet3",
+    "lead-follow-params": "scenarios.lead_follow_params:LeadFollowParams",
     "toy": "scenarios.toy:Toy",
 }
 BACKENDS: dict[str, str | type] = {
