@@ -57,10 +57,10 @@ class QuantifyResult:
         directory = Path(directory)
         CampaignDir(directory).open("quantify")
         summary = Summary.read(directory)
-        from scenarios.registry import scenario_class
+        from scenarios.registry import scenario_state_names
 
         cfg = CampaignDir(directory).frozen_config()
-        names = scenario_class(cfg.scenario.name).state_names
+        names = scenario_state_names(cfg.scenario.model_dump())  # a platoon's depend on its k
         path = directory / (f"safe_set_{side}_side.parquet" if side else "safe_set.parquet")
         return cls(directory, summary, SafeSet.from_parquet(path, names))
 

@@ -75,6 +75,11 @@ class ScenarioConfig(Section):
                                                        "the scenario's first")] = None
     disturbance: Annotated[float, Field(ge=0.0, le=100.0, description="bound w [m/s^2]")] = 0.0
     failure_facets: list[str] | None = None
+    # options of scenarios that take them (platoon); unset keys leave existing hashes alone
+    vehicles: Annotated[int | None, Field(ge=3, le=8, description="platoon: cars k (2k - 1 state variables)",
+                                          json_schema_extra={"hashed_when_unset": False})] = None
+    followers: Annotated[int | None, Field(ge=1, le=6, description="platoon: followers r behind the SV",
+                                           json_schema_extra={"hashed_when_unset": False})] = None
     sumo: Annotated[dict | None, Field(description="[scenario.sumo]: the SUMO back end's options")] = None
 
     @model_validator(mode="after")

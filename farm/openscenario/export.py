@@ -100,11 +100,12 @@ def describe(result: dict) -> str:
 def _scenario(cfg):
     """The scenario object of a frozen config, without starting its back end (SUMO)."""
     from scenarios.base import EXTERNAL_SV
-    from scenarios.registry import backend_class, make_scenario
+    from scenarios.registry import backend_class, make_scenario, scenario_options
 
     sc = cfg.scenario
     external = getattr(backend_class(sc.backend), "external_sv", None)
-    scenario = make_scenario(sc.name, EXTERNAL_SV if external else sc.sv_policy, sc.failure_facets, sc.disturbance)
+    scenario = make_scenario(sc.name, EXTERNAL_SV if external else sc.sv_policy, sc.failure_facets, sc.disturbance,
+                             scenario_options(sc.model_dump()))
     return scenario, external or scenario.sv_policy_name
 
 
