@@ -69,7 +69,7 @@ class ScenarioConfig(Section):
     """[scenario]: the system under test."""
 
     model_config = ConfigDict(extra="allow", strict=True, frozen=True, allow_inf_nan=False)
-    name: Annotated[str, Field(min_length=1, description="lead-follow | fleet3 | toy | 'package.module:Class'")]
+    name: Annotated[str, Field(min_length=1, description="lead-follow | fleet3 | platoon | lead-follow-params | toy | 'package.module:Class'")]
     backend: Annotated[str, Field(min_length=1, description="numpy | sumo | a registered back end")] = "numpy"
     sv_policy: Annotated[str | None, Field(description="the SV policy (brake | idm; sumo: 'sumo'); default: "
                                                        "the scenario's first")] = None
