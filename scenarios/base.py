@@ -86,6 +86,14 @@ class Scenario(ABC):
       sides           named sub-studies: side name -> the failure facets that count
                       (e.g. fleet3's {"lead": ("p10",), "rear": ("p20",)}); quantified
                       alongside the total and reported as volume_<side>_side
+      parameter_names state variables that are parameters of the domain (a friction
+                      coefficient, a controller's time headway): constant during a run.
+                      ``step`` keeps them (the generic ``step_into`` copies them through;
+                      a scenario writing its own calls ``hold_parameters``), their step
+                      bound is 0 and they cannot be failure facets: a run never leaves
+                      Sigma through a parameter's facet.
+      config_options  keyword options of the constructor that a config may set as
+                      ``scenario.<option>`` (e.g. platoon's "vehicles", "followers")
     """
 
     name: str = ""
@@ -106,6 +114,8 @@ class Scenario(ABC):
     action_units: dict[str, str] = {}
     failure_words: str = "fail"
     sides: dict[str, tuple[str, ...]] = {}
+    parameter_names: tuple[str, ...] = ()
+    config_options: tuple[str, ...] = ()
 
     def __init__(self, sv_policy: str | None = None, failure_facets: tuple[str, ...] | None = None,
                  disturbance: float = 0.0):
@@ -146,6 +156,7 @@ class Scenario(ABC):
         self.action_span = self.action_upper - self.action_lower
         self.adversarial_actions = np.atleast_2d(np.asarray(self.adversarial_actions, dtype=float))
         self._check_boxes()
+        self.parameter_axes = self._parameter_axes()
         self._below = (self.lower - FACET_TOLERANCE).tolist()  # crossing thresholds
         self._above = (self.upper + FACET_TOLERANCE).tolist()
         self._failure_mask_lower = np.zeros(self.n, dtype=bool)
@@ -170,6 +181,14 @@ class Scenario(ABC):
                 i = bad[0]
                 raise ScenarioError(f"scenario {self.name!r}: {what} must be a finite box; {names[i]} has bounds "
                                     f"[{lo[i]:g}, {hi[i]:g}], allowed finite lower < upper")
+
+    def _parameter_axes(self) -> tuple[int, ...]:
+        """The axes of ``parameter_names``: state variables, none of them a failure facet."""
+        wrong = [p for p in self.parameter_names if p not in self.state_names or p in self.failure_sides]
+        if wrong:
+            raise ScenarioError(f"scenario {self.name!r}: parameter {wrong[0]!r} must be a state variable and no "
+                                f"failure facet (a parameter never changes, so it never crosses a facet)")
+        return tuple(self.state_names.index(p) for p in self.parameter_names)
 
     @property
     def external_sv(self) -> bool:
@@ -233,8 +252,11 @@ class Scenario(ABC):
     def step_bounds(self) -> np.ndarray:
         """sigma-bar per axis: (n,) upper bounds on |sigma_a(t+1) - sigma_a(t)| (speeds
         move at most a_max dt, positions at most v_max dt). Boundary refinement's band is
-        that thin along each axis. The default is ``step_bound()`` on every axis."""
-        return np.full(self.n, self.step_bound())
+        that thin along each axis. The default is ``step_bound()`` on every axis but the
+        parameters' (0: they never change)."""
+        bounds = np.full(self.n, self.step_bound())
+        bounds[list(self.parameter_axes)] = 0.0
+        return bounds
 
     # -- dynamics ------------------------------------------------------------------------
     @abstractmethod
@@ -253,6 +275,13 @@ class Scenario(ABC):
         if nxt.shape != states.shape:
             raise ScenarioError(f"scenario {self.name!r} step returned shape {nxt.shape}, expected {states.shape}")
         out[...] = nxt.T
+        self.hold_parameters(states, out)
+
+    def hold_parameters(self, states: np.ndarray, out: np.ndarray) -> None:
+        """Copy the parameters of ``states`` (B, n) into the next states ``out`` (n, B):
+        a parameter of the domain never changes during a run."""
+        for axis in self.parameter_axes:
+            out[axis] = states[:, axis]
 
     def _require_sv_policy(self) -> None:
         """A functional step needs the SV's policy; a simulator back end brings its own."""

@@ -29,6 +29,8 @@ from scenarios.errors import ConfigError, FarmError, ScenarioError
 SCENARIOS: dict[str, str | type] = {
     "lead-follow": "scenarios.lead_follow:LeadFollow",
     "fleet3": "scenarios.fleet3:Fleet3",
+    "platoon": "scenarios.platoon:Platoon",
+    "lead-follow-params": "scenarios.lead_follow_params:LeadFollowParams",
     "toy": "scenarios.toy:Toy",
 }
 BACKENDS: dict[str, str | type] = {
@@ -36,6 +38,8 @@ BACKENDS: dict[str, str | type] = {
     "sumo": "scenarios.sumo.backend:SumoBackend",
 }
 _GROUPS = {"scenario": "scenario_farm.scenarios", "backend": "scenario_farm.backends"}
+# [scenario] keys that are options of the scenario's constructor (``Scenario.config_options``)
+SCENARIO_OPTION_KEYS = ("vehicles", "followers")
 
 
 def register_scenario(name: str, target: str | type) -> None:
@@ -102,10 +106,24 @@ def backend_class(name: str) -> type:
     return cls
 
 
-def make_scenario(name: str, sv_policy: str | None = None, failure_facets=None, disturbance: float = 0.0) -> Scenario:
+def scenario_options(section: dict) -> dict:
+    """The constructor options a ``[scenario]`` section sets (unset keys left out)."""
+    return {key: section[key] for key in SCENARIO_OPTION_KEYS if section.get(key) is not None}
+
+
+def make_scenario(name: str, sv_policy: str | None = None, failure_facets=None, disturbance: float = 0.0,
+                  options: dict | None = None) -> Scenario:
+    """``options``: the scenario's own constructor options (``scenario_options``); one it
+    does not take is a one-line ConfigError naming the key."""
     cls = scenario_class(name)
+    options = dict(options or {})
+    for key in options:
+        if key not in cls.config_options:
+            allowed = ", ".join(f"scenario.{k}" for k in cls.config_options) or "none"
+            raise ConfigError(f"scenario.{key}: scenario {name!r} takes no option {key!r}; leave it unset "
+                              f"(its options: {allowed})")
     try:
-        return cls(sv_policy=sv_policy, failure_facets=failure_facets, disturbance=disturbance)
+        return cls(sv_policy=sv_policy, failure_facets=failure_facets, disturbance=disturbance, **options)
     except FarmError:
         raise
     except TypeError as exc:
@@ -114,6 +132,12 @@ def make_scenario(name: str, sv_policy: str | None = None, failure_facets=None, 
             from None
     except Exception as exc:  # noqa: BLE001 - the user's scenario class: its attributes or __init__
         raise ScenarioError(f"scenario.name: constructing {name!r} raised {type(exc).__name__}: {exc}") from None
+
+
+def scenario_state_names(scenario: dict) -> tuple[str, ...]:
+    """The state variables of a ``[scenario]`` section's scenario (its options count: a
+    platoon's k), without building the back end (no SUMO started to read a result)."""
+    return make_scenario(scenario["name"], options=scenario_options(scenario)).state_names
 
 
 def make_backend(scenario: dict):
@@ -129,7 +153,8 @@ def make_backend(scenario: dict):
             raise ConfigError(f"scenario.sv_policy: the {name} back end's SV is the simulator's own model; "
                               f"allowed: {external} (got {sv_policy!r})")
         sv_policy = EXTERNAL_SV
-    sc = make_scenario(scenario["name"], sv_policy, scenario.get("failure_facets"), scenario.get("disturbance", 0.0))
+    sc = make_scenario(scenario["name"], sv_policy, scenario.get("failure_facets"), scenario.get("disturbance", 0.0),
+                       scenario_options(scenario))
     if external is not None:
         sc.sv_policy_name = external
     try:

@@ -16,6 +16,8 @@ What the farm relies on, and what each check tests:
   with an error naming the scenario.
 - ``check_outcomes``: a failed run ends beyond a failure facet, a truncated one beyond
   a truncating facet, and the rest run the full horizon inside Sigma.
+- ``check_parameters_held``: the parameters of the domain (``parameter_names``) keep
+  their start values through every run.
 """
 
 from __future__ import annotations
@@ -54,6 +56,11 @@ def check_declarations(scenario) -> None:
     assert set(scenario.failure_sides) <= set(scenario.state_names), f"{name}: failure facets must be state names"
     assert set(scenario.units) <= set(scenario.state_names), f"{name}: units name unknown states"
     assert scenario.step_bound() > 0, f"{name}: step_bound() must be positive"
+    params = list(scenario.parameter_axes)
+    assert set(scenario.parameter_names) <= set(scenario.state_names) - set(scenario.failure_sides), \
+        f"{name}: parameters must be state names and no failure facets"
+    assert np.all(np.asarray(scenario.step_bounds(), dtype=float)[params] == 0), \
+        f"{name}: step_bounds() must be 0 on the parameters {scenario.parameter_names}"
 
 
 def check_key_only(backend, runs: int = 64, policy=None) -> None:
@@ -88,7 +95,10 @@ def check_step_bound(backend, runs: int = 512) -> float:
     boundary refinement's band uses), whose largest is ``step_bound()``."""
     sc = backend.scenario
     per_axis = np.asarray(sc.step_bounds(), dtype=float)
-    assert per_axis.shape == (sc.n,) and (per_axis > 0).all(), f"{sc.name}: step_bounds() must be (n,) positive"
+    moving = np.ones(sc.n, dtype=bool)
+    moving[list(sc.parameter_axes)] = False  # a parameter's bound is 0: it never changes
+    assert per_axis.shape == (sc.n,) and (per_axis[moving] > 0).all() and (per_axis[~moving] == 0).all(), \
+        f"{sc.name}: step_bounds() must be (n,), positive but 0 on the parameters"
     assert per_axis.max() <= sc.step_bound() * (1 + 1e-12), f"{sc.name}: step_bounds() exceed step_bound()"
     batch = _run(backend, _starts(sc, runs), np.arange(runs), check_step_bound=True)
     largest = np.zeros(sc.n)
@@ -120,6 +130,18 @@ def check_outcomes(backend, runs: int = 512) -> None:
             assert len(t) == HORIZON, f"{sc.name}: sample index {r} ended early ({len(t)} states) without a reason"
 
 
+def check_parameters_held(backend, runs: int = 256) -> None:
+    sc = backend.scenario
+    if not sc.parameter_axes:
+        return
+    axes = list(sc.parameter_axes)
+    batch = _run(backend, _starts(sc, runs), np.arange(runs))
+    for r in range(runs):
+        t = batch.trajectory(r)
+        assert np.array_equal(t[:, axes], np.broadcast_to(t[0, axes], (len(t), len(axes)))), \
+            f"{sc.name}: sample index {r} changed a parameter {sc.parameter_names} during its run"
+
+
 def check_backend(backend) -> None:
     """Every check, for a back end (a bare Scenario runs on its numpy dynamics)."""
     from scenarios.backend import NumpyBackend
@@ -132,6 +154,7 @@ def check_backend(backend) -> None:
     check_finite(backend)
     check_step_bound(backend)
     check_outcomes(backend)
+    check_parameters_held(backend)
 
 
 def check_action_policy(policy, scenario, runs: int = 256, steps: int = HORIZON) -> None:

@@ -46,12 +46,18 @@ class ScenarioConfig(Section):
     """[scenario]: the system under test."""
 
     model_config = ConfigDict(extra="allow", strict=True, frozen=True, allow_inf_nan=False)
-    name: Annotated[str, Field(min_length=1, description="lead-follow | fleet3 | toy | 'package.module:Class'")]
+    name: Annotated[str, Field(min_length=1, description="lead-follow | fleet3 | platoon | lead-follow-params | toy | "
+                                                         "'package.module:Class'")]
     backend: Annotated[str, Field(min_length=1, description="numpy | sumo | a registered back end")] = "numpy"
     sv_policy: Annotated[str | None, Field(description="the SV policy (brake | idm; sumo: 'sumo'); default: "
                                                        "the scenario's first")] = None
     disturbance: Annotated[float, Field(ge=0.0, le=100.0, description="bound w [m/s^2]")] = 0.0
     failure_facets: list[str] | None = None
+    # options of scenarios that take them (platoon); unset keys leave existing hashes alone
+    vehicles: Annotated[int | None, Field(ge=3, le=8, description="platoon: cars k (2k - 1 state variables)",
+                                          json_schema_extra={"hashed_when_unset": False})] = None
+    followers: Annotated[int | None, Field(ge=1, le=6, description="platoon: followers r behind the SV",
+                                           json_schema_extra={"hashed_when_unset": False})] = None
     sumo: Annotated[dict | None, Field(description="[scenario.sumo]: the SUMO back end's options")] = None
 
     @model_validator(mode="after")

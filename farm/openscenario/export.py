@@ -34,7 +34,7 @@ from farm.directory.storage import CampaignDir, CampaignError
 from farm.reports.summary import Summary
 from scenarios.base import EXTERNAL_SV
 from scenarios.errors import ConfigError, DataError
-from scenarios.registry import backend_class, make_scenario
+from scenarios.registry import backend_class, make_scenario, scenario_options
 
 SUBDIR = "openscenario"
 ROAD, LOGICAL = "road.xodr", "logical_scenario.xosc"
@@ -106,7 +106,8 @@ def _scenario(cfg):
     """The scenario object of a frozen config, without starting its back end (SUMO)."""
     sc = cfg.scenario
     external = getattr(backend_class(sc.backend), "external_sv", None)
-    scenario = make_scenario(sc.name, EXTERNAL_SV if external else sc.sv_policy, sc.failure_facets, sc.disturbance)
+    scenario = make_scenario(sc.name, EXTERNAL_SV if external else sc.sv_policy, sc.failure_facets, sc.disturbance,
+                             scenario_options(sc.model_dump()))
     return scenario, external or scenario.sv_policy_name
 
 

@@ -16,7 +16,7 @@ from farm.directory.storage import CampaignDir, CampaignError
 from farm.execution.process import spec_of
 from farm.reports.summary import Summary
 from scenarios.errors import DataError
-from scenarios.registry import make_backend, scenario_class
+from scenarios.registry import make_backend, scenario_state_names
 
 
 @dataclass(frozen=True)
@@ -35,7 +35,7 @@ class QuantifyResult:
         CampaignDir(directory).open("quantify")
         summary = Summary.read(directory)
         cfg = CampaignDir(directory).frozen_config()
-        names = scenario_class(cfg.scenario.name).state_names
+        names = scenario_state_names(cfg.scenario.model_dump())  # a platoon's depend on its k
         path = directory / (f"safe_set_{side}_side.parquet" if side else "safe_set.parquet")
         return cls(directory, summary, SafeSet.from_parquet(path, names))
 

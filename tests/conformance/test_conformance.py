@@ -19,6 +19,10 @@ BACKENDS = {
     "lead-follow/brake": {"name": "lead-follow", "sv_policy": "brake"},
     "lead-follow/idm+disturbance": {"name": "lead-follow", "sv_policy": "idm", "disturbance": 0.3},
     "fleet3/idm": {"name": "fleet3", "sv_policy": "idm"},
+    "platoon/idm k=4": {"name": "platoon", "sv_policy": "idm", "vehicles": 4},
+    "platoon/brake k=5 r=2+disturbance": {"name": "platoon", "sv_policy": "brake", "vehicles": 5, "followers": 2,
+                                          "disturbance": 0.3},
+    "lead-follow-params/idm": {"name": "lead-follow-params", "sv_policy": "idm"},
     "toy": {"name": "toy"},
     "guide:approach": {"name": "approach:Approach"},
     "sumo:lead-follow": {"name": "lead-follow", "backend": "sumo", "sv_policy": "sumo"},
@@ -72,6 +76,10 @@ def test_step_bound_bounds_every_observed_step(backend):
 
 def test_outcomes_match_where_runs_end(backend):
     testing.check_outcomes(backend)
+
+
+def test_parameters_of_the_domain_keep_their_start_values(backend):
+    testing.check_parameters_held(backend)
 
 
 def test_a_wrong_step_bound_is_an_error_naming_the_scenario(monkeypatch):
