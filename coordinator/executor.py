@@ -56,6 +56,7 @@ class Chunk:
     _visited: tuple | None = field(default=None, repr=False)
     exits: np.ndarray | None = field(default=None, repr=False)  # (k,) int8 facet left through (RunBatch.exits)
     indices: np.ndarray | None = None  # (k,) sample indices, when not first_index + row
+    margins: np.ndarray | None = field(default=None, repr=False)  # (k,) float64 (RunBatch.margins)
 
     def __post_init__(self):
         if self.indices is None:
@@ -95,7 +96,8 @@ class Chunk:
 
         keep = None if self.keep is None else (lambda rows, takes: self.keep(rows + lo, takes))
         return Chunk(int(self.indices[lo]), self.lengths[lo:hi], self.outcomes[lo:hi], self.last[lo:hi], sc, visited,
-                     keep, indices=self.indices[lo:hi], exits=None if self.exits is None else self.exits[lo:hi])
+                     keep, indices=self.indices[lo:hi], exits=None if self.exits is None else self.exits[lo:hi],
+                     margins=None if self.margins is None else self.margins[lo:hi])
 
     def trajectory(self, row: int, start: np.ndarray) -> np.ndarray:
         """(length, n) every state of run ``row``: its start, its visited states and
@@ -180,6 +182,7 @@ class ChunkSummary:
     screening: Any  # what the screen returned for these runs (None: not screened)
     indices: np.ndarray  # (k,) int64 sample indices
     exits: np.ndarray | None  # (k,) int8 facet left through (RunBatch.exits)
+    margins: np.ndarray | None = None  # (k,) float64 (RunBatch.margins)
     busy_s: float = 0.0  # [s] the worker's time on it (the chunk sizes follow it: farm/execution/chunking.py)
 
     @classmethod
@@ -188,14 +191,14 @@ class ChunkSummary:
         states, offsets = batch.visited()
         screening = None if screen is None else screen.screen(states, offsets, batch.outcomes)
         summary = cls(int(batch.indices[0]) if len(batch) else 0, batch.lengths, batch.outcomes, batch.last_states(),
-                      screening, batch.indices.astype(np.int64), batch.exits)
+                      screening, batch.indices.astype(np.int64), batch.exits, batch.margins)
         return summary, (states, offsets)
 
     def chunk(self, fetch_visited: Callable, keep: Callable) -> Chunk:
         """The chunk for the driver: its visited states fetched by ``fetch_visited()``,
         kept for experience replay by ``keep(rows, takes)``."""
         return Chunk(self.first_index, self.lengths, self.outcomes, self.last, self.screening, fetch_visited, keep,
-                     indices=self.indices, exits=self.exits)
+                     indices=self.indices, exits=self.exits, margins=self.margins)
 
 
 def screen_piece(simulator, source, piece, coverage) -> tuple[np.ndarray, np.ndarray]:

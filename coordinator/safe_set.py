@@ -1,9 +1,11 @@
-"""A quantified safe set: the union of closed l-inf boxes centre +- half-width.
+"""A quantified safe set: the union of closed axis-aligned boxes centre +- half-width.
 
-Each box has its own half-width (a set refined only near its boundary mixes sizes); a
-set whose boxes share one half-width is *uniform*. The set's identity is ``result_hash``
-(order-independent); its file is ``safe_set.parquet`` (a public interface: one row per
-box, one column per state variable holding the centre, and ``half_width``).
+Each box has its own half-width (a set refined only near its boundary mixes sizes), and
+may have one per axis (margin refinement splits a box only along some axes: an
+*anisotropic* set); a set whose boxes share one half-width is *uniform*. The set's
+identity is ``result_hash`` (order-independent); its file is ``safe_set.parquet`` (a
+public interface: one row per box, one column per state variable holding the centre,
+``half_width_<state>`` per state variable, and ``half_width``, the largest of them).
 """
 
 from __future__ import annotations
@@ -16,13 +18,18 @@ from typing import Iterator
 
 import numpy as np
 
+from coordinator.box_index import BoxIndex
 from coordinator.spatial import PointIndex
 from coordinator.volume import hull_volume, union_volume
+from coordinator.volume_estimate import VolumeEstimate, disjoint_volume, hull_volume_estimate, union_volume_estimate
 from scenarios.errors import DataError
 from scenarios.version import __version__
 
-HALF_WIDTH = "half_width"  # the column of each box's half-width in safe_set.parquet
+HALF_WIDTH = "half_width"  # the column of each box's (largest) half-width in safe_set.parquet
+AXIS_HALF_WIDTH = "half_width_{}"  # the columns of each box's half-width along a state variable
 MIXED_HASH_TAG = b"scenario-farm safe set, per-box half-widths\n"
+AXES_HASH_TAG = b"scenario-farm safe set, per-axis half-widths\n"
+EXACT_MAX_DIM = 5  # above it an exact union or hull costs 2^n per box: estimated instead
 
 
 class SafeSetError(DataError):
@@ -32,13 +39,16 @@ class SafeSetError(DataError):
 
 @dataclass(frozen=True, eq=False)
 class SafeSet:
-    """``centres`` (M, n), ``half_widths`` (M,) and the scenario's ``state_names`` (n).
-    Arrays are read-only views; build a uniform set with ``SafeSet.uniform``."""
+    """``centres`` (M, n), ``half_widths`` (M,), or (M, n) for a half-width per axis, and
+    the scenario's ``state_names`` (n). ``disjoint``: the boxes meet only on faces (a
+    partition's), so the union's volume is exact in any dimension. Arrays are read-only
+    views; build a uniform set with ``SafeSet.uniform``."""
 
     centres: np.ndarray
     half_widths: np.ndarray
     state_names: tuple[str, ...]
     metadata: dict = field(default_factory=dict)  # the Parquet file's key-value metadata, when read from one
+    disjoint: bool = False
 
     def __post_init__(self):
         names = tuple(str(s) for s in self.state_names)
@@ -47,8 +57,11 @@ class SafeSet:
         widths = np.asarray(self.half_widths, dtype=np.float64)
         if centres.ndim != 2 or centres.shape[1] != len(names):
             raise SafeSetError(f"safe set: centres of shape {centres.shape} for {len(names)} state variables")
-        if widths.shape != (len(centres),):
-            raise SafeSetError(f"safe set: {widths.shape} half-widths for {len(centres)} boxes; need one per box")
+        if widths.ndim == 2 and widths.shape == centres.shape and (widths == widths[:, :1]).all():
+            widths = widths[:, 0].copy()  # the same on every axis: one per box, as every set before
+        if widths.shape not in ((len(centres),), centres.shape):
+            raise SafeSetError(f"safe set: {widths.shape} half-widths for {len(centres)} boxes; need one per box "
+                               f"or one per box and axis")
         for name, value in (("centres", centres), ("half_widths", widths)):
             view = value.view()
             view.flags.writeable = False  # the caller's array stays writable; the set's view does not
@@ -69,10 +82,35 @@ class SafeSet:
     def n(self) -> int:
         return len(self.state_names)
 
+    @property
+    def anisotropic(self) -> bool:
+        """The boxes have a half-width per axis."""
+        return self.half_widths.ndim == 2
+
+    @cached_property
+    def axis_half_widths(self) -> np.ndarray:
+        """(M, n) each box's half-width along each axis."""
+        if self.anisotropic:
+            return self.half_widths
+        return np.repeat(self.half_widths[:, None], self.n, axis=1)
+
+    @property
+    def largest_half_widths(self) -> np.ndarray:
+        """(M,) each box's largest half-width (safe_set.parquet's ``half_width``)."""
+        return self.half_widths.max(axis=1) if self.anisotropic else self.half_widths
+
+    @property
+    def lower(self) -> np.ndarray:
+        return self.centres - self.axis_half_widths
+
+    @property
+    def upper(self) -> np.ndarray:
+        return self.centres + self.axis_half_widths
+
     @cached_property
     def widths(self) -> np.ndarray:
-        """The distinct half-widths, ascending."""
-        hw = self.half_widths
+        """The distinct half-widths, ascending (every axis's, for a set with one per axis)."""
+        hw = self.half_widths.ravel()
         if len(hw) and (hw == hw[0]).all():  # the common case, without a sort
             return hw[:1].copy()
         return np.unique(hw)
@@ -112,13 +150,17 @@ class SafeSet:
             if len(self):
                 yield self.finest, self.centres
             return
+        if self.anisotropic:
+            raise SafeSetError("safe set: its boxes have a half-width per axis; ask axis_half_widths")
         for width in self.widths:
             yield float(width), self.centres[self.half_widths == width]
 
     def sorted(self) -> "SafeSet":
-        """The same set, rows in lexicographic order of (centre, half-width)."""
-        order = np.lexsort((self.half_widths, *self.centres.T[::-1])) if len(self) else np.zeros(0, np.int64)
-        return SafeSet(self.centres[order], self.half_widths[order], self.state_names, dict(self.metadata))
+        """The same set, rows in lexicographic order of (centre, half-widths)."""
+        widths = self.half_widths.T[::-1] if self.anisotropic else (self.half_widths,)
+        order = np.lexsort((*widths, *self.centres.T[::-1])) if len(self) else np.zeros(0, np.int64)
+        return SafeSet(self.centres[order], self.half_widths[order], self.state_names, dict(self.metadata),
+                       self.disjoint)
 
     # -- membership and measures ---------------------------------------------------------------
     def contains(self, states) -> np.ndarray:
@@ -128,10 +170,16 @@ class SafeSet:
         if states.shape[1] != self.n:
             raise SafeSetError(f"contains: states need {self.n} columns ({', '.join(self.state_names)}), "
                                f"got {states.shape[1]}")
+        if self.anisotropic:
+            return self._box_index.contains(states)
         inside = np.zeros(len(states), dtype=bool)
         for width, index in self._indexes:
             inside |= index.any_within(states, width)
         return inside
+
+    @cached_property
+    def _box_index(self) -> BoxIndex:
+        return BoxIndex(self.lower, self.upper)
 
     @cached_property
     def _indexes(self) -> list[tuple[float, PointIndex]]:
@@ -144,12 +192,33 @@ class SafeSet:
         return indexes
 
     def volume_union(self, bounds=None) -> float:
-        """Exact volume of the union (clipped to ``bounds`` = (lo, hi) when given)."""
-        return union_volume(self.centres, self.half_widths, bounds=bounds)
+        """Volume of the union (clipped to ``bounds`` = (lo, hi) when given): exact where
+        that is linear in the boxes, else estimated (``union_estimate`` says which)."""
+        return self.union_estimate(bounds).value
 
     def volume_hull(self, bounds=None) -> float:
-        """Volume of the convex hull of the union (the paper's "cardinality")."""
-        return hull_volume(self.centres, self.half_widths, bounds=bounds)
+        """Volume of the convex hull of the union (the paper's "cardinality"): exact up to
+        5 dimensions, an outer estimate above (``hull_estimate``)."""
+        return self.hull_estimate(bounds).value
+
+    def union_estimate(self, bounds=None) -> VolumeEstimate:
+        if self.disjoint:
+            return disjoint_volume(self.lower, self.upper, bounds)
+        if not self.anisotropic and self.n <= EXACT_MAX_DIM:
+            value = union_volume(self.centres, self.half_widths, bounds=bounds)
+            return VolumeEstimate(value, value, value, True, "exact (the union of the boxes, cell by cell)")
+        return union_volume_estimate(self.contains, self.lower, self.upper, bounds, seed=self._seed)
+
+    def hull_estimate(self, bounds=None) -> VolumeEstimate:
+        if not self.anisotropic and self.n <= EXACT_MAX_DIM:
+            value = hull_volume(self.centres, self.half_widths, bounds=bounds)
+            return VolumeEstimate(value, value, value, True, "exact (qhull over the hull boxes' corners)")
+        return hull_volume_estimate(self.lower, self.upper, bounds, seed=self._seed)
+
+    @property
+    def _seed(self) -> int:
+        """The estimates' seed: the set's own hash, so its files are the same every time."""
+        return int(self.result_hash[:12], 16)
 
     @cached_property
     def result_hash(self) -> str:
@@ -158,7 +227,11 @@ class SafeSet:
         result_hash did; a set of mixed sizes hashes its sorted (centre, half-width)
         rows after a tag of its own, so no mixed set shares a uniform set's hash."""
         digest = hashlib.sha256()
-        if self.is_uniform:
+        if self.anisotropic:
+            rows = np.column_stack([self.centres, self.half_widths])
+            digest.update(AXES_HASH_TAG)
+            digest.update(np.ascontiguousarray(rows[np.lexsort(rows.T[::-1])]).tobytes())
+        elif self.is_uniform:
             centres = np.ascontiguousarray(self.centres)
             order = np.lexsort(centres.T[::-1]) if len(centres) else np.zeros(0, dtype=np.int64)
             digest.update(np.float64(self.finest).tobytes())
@@ -176,8 +249,12 @@ class SafeSet:
         import pyarrow as pa
 
         columns = {name: pa.array(self.centres[:, i], type=pa.float64()) for i, name in enumerate(self.state_names)}
-        columns[HALF_WIDTH] = pa.array(self.half_widths, type=pa.float64())
+        columns[HALF_WIDTH] = pa.array(self.largest_half_widths, type=pa.float64())
+        for i, name in enumerate(self.state_names):
+            columns[AXIS_HALF_WIDTH.format(name)] = pa.array(self.axis_half_widths[:, i], type=pa.float64())
         meta = {**(metadata or {}), "scenario_farm_version": __version__}
+        if self.disjoint:
+            meta["disjoint"] = "true"
         return pa.table(columns).replace_schema_metadata({k: str(v) for k, v in meta.items()})
 
     def to_parquet(self, where, metadata: dict | None = None) -> None:
@@ -204,7 +281,12 @@ class SafeSet:
         missing = [c for c in (*names, HALF_WIDTH) if c not in table.column_names]
         if missing:
             raise SafeSetError(f"{path}: safe set lacks column(s) {', '.join(missing)} for this scenario")
-        extra = [c for c in table.column_names if c not in (*names, HALF_WIDTH)]
+        axis_columns = [AXIS_HALF_WIDTH.format(name) for name in names]
+        per_axis = [c for c in axis_columns if c in table.column_names]
+        if per_axis and len(per_axis) != len(names):
+            raise SafeSetError(f"{path}: safe set has {len(per_axis)} of the {len(names)} half_width_<state> "
+                               f"columns; it needs all or none")
+        extra = [c for c in table.column_names if c not in (*names, HALF_WIDTH, *axis_columns)]
         if extra:  # e.g. a fleet3 set handed to lead-follow: its v0, v1, p10 mean other things
             raise SafeSetError(f"{path}: safe set has column(s) {', '.join(extra)} that are not state variables of "
                                f"this scenario ({', '.join(names)}); it was written for another scenario")
@@ -212,6 +294,9 @@ class SafeSet:
             centres = np.stack([table.column(c).to_numpy().astype(float) for c in names], axis=1) \
                 if table.num_rows else np.empty((0, len(names)))
             widths = table.column(HALF_WIDTH).to_numpy().astype(float)
+            if per_axis:
+                widths = np.stack([table.column(c).to_numpy().astype(float) for c in axis_columns], axis=1) \
+                    if table.num_rows else np.empty((0, len(names)))
         except (TypeError, ValueError, pa.ArrowException) as exc:
             raise SafeSetError(f"{path}: safe-set columns must be numbers ({exc})") from None
         if not (np.isfinite(centres).all() and np.isfinite(widths).all() and (widths > 0).all()):
@@ -219,4 +304,4 @@ class SafeSet:
                                f"allowed half_width > 0")
         metadata = {k.decode(errors="replace"): v.decode(errors="replace")
                     for k, v in (table.schema.metadata or {}).items() if not k.startswith(b"ARROW:")}
-        return cls(centres, widths, names, metadata)
+        return cls(centres, widths, names, metadata, metadata.get("disjoint") == "true")

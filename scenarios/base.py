@@ -92,6 +92,9 @@ class Scenario(ABC):
                       a scenario writing its own calls ``hold_parameters``), their step
                       bound is 0 and they cannot be failure facets: a run never leaves
                       Sigma through a parameter's facet.
+      margin_through_contact  the dynamics stay defined past a failure facet (a
+                      negative gap): a failed run is stepped on to its horizon, without
+                      being classified again, so that its margin says how deep it went
       config_options  keyword options of the constructor that a config may set as
                       ``scenario.<option>`` (e.g. platoon's "vehicles", "followers")
     """
@@ -114,6 +117,9 @@ class Scenario(ABC):
     action_units: dict[str, str] = {}
     failure_words: str = "fail"
     sides: dict[str, tuple[str, ...]] = {}
+    # the rollout may step a failed run on past the facet (its dynamics stay defined there:
+    # a negative gap), so that its margin says how deep it went (``failure_distance``)
+    margin_through_contact: bool = False
     parameter_names: tuple[str, ...] = ()
     config_options: tuple[str, ...] = ()
 
@@ -330,6 +336,18 @@ class Scenario(ABC):
                     return FAILURE
                 verdict = TRUNCATED
         return verdict
+
+    def failure_distance(self, states: np.ndarray) -> np.ndarray:
+        """(..., n) -> (...) the signed distance of each state to the counted failure
+        facets, in the facet's own units: positive inside, negative past one (the smallest
+        over the facets). A run's *margin* is its smallest value over the run. A scenario
+        may override it with a better measure of how close a state is to failing."""
+        out = np.full(states.shape[:-1], np.inf)
+        for axis in np.flatnonzero(self._failure_mask_lower):
+            np.minimum(out, states[..., axis] - self.lower[axis], out=out)
+        for axis in np.flatnonzero(self._failure_mask_upper):
+            np.minimum(out, self.upper[axis] - states[..., axis], out=out)
+        return out
 
     def exits(self, states: np.ndarray) -> np.ndarray:
         """(B, n) states outside Sigma -> (B,) int8: the facet each left through, as an

@@ -29,6 +29,7 @@ class Fleet3(Scenario):
     action_words = {"u1": "the lead vehicle's acceleration", "u2": "the following vehicle's acceleration"}
     action_units = {"u1": "m/s^2", "u2": "m/s^2"}
     failure_words = "collide"
+    margin_through_contact = True  # gaps may go negative: the kinematics and the IDM (s <= 0) stay defined
     sides = {"lead": ("p10",), "rear": ("p20",)}  # the paper's Fig. 4 / Table 2 measures
     sv_policies = SV_POLICIES
     adversary_settle_steps = 400

@@ -28,6 +28,7 @@ class LeadFollow(Scenario):
     action_words = {"u1": "the lead vehicle's acceleration"}
     action_units = {"u1": "m/s^2"}
     failure_words = "collide"
+    margin_through_contact = True  # gaps may go negative: the kinematics and the IDM (s <= 0) stay defined
     adversary_settle_steps = 400  # the lead stops within 4 s, any sane SV within 40 s
     # As vehicles on one lane (for simulator back ends): the SV, then one commanded
     # vehicle per action column; 5 m cars, positions are front bumpers.

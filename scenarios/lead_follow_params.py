@@ -66,6 +66,7 @@ class LeadFollowParams(Scenario):
     action_words = {"u1": "the lead vehicle's commanded acceleration (braking scaled by the road's friction)"}
     action_units = {"u1": "m/s^2"}
     failure_words = "collide"
+    margin_through_contact = True  # gaps may go negative: the kinematics and the IDM (s <= 0) stay defined
     adversary_settle_steps = 400  # as lead-follow: slower braking on a slippery road still ends within 40 s
     sv_accel_bound = abs(BRAKE_ACCEL)  # [m/s^2] |SV acceleration| on the driest road (mu = 1)
 

@@ -60,6 +60,7 @@ class Platoon(Scenario):
                     "uF": "the rear-most following vehicle's acceleration"}
     action_units = {"uL": "m/s^2", "uF": "m/s^2"}
     failure_words = "collide"
+    margin_through_contact = True  # gaps may go negative: the kinematics and the IDM (s <= 0) stay defined
     sv_policies = SV_POLICIES
     adversary_settle_steps = 400  # as fleet3: adversarial rollouts from Sigma end within ~200 steps (k <= 8)
     sv_accel_bound = abs(BRAKE_ACCEL)  # [m/s^2] |SV acceleration| (brake, idm)

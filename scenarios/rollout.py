@@ -31,6 +31,9 @@ class RunBatch:
     outcomes      (B,) int8 FAILURE / TRUNCATED / HORIZON
     exits         (B,) int8 the facet a failed or truncated run left Sigma through, as an
                   index into ``Scenario.facets()``; -1 for a run that ran its horizon
+    margins       (B,) float64 each run's margin: the smallest ``Scenario.failure_distance``
+                  over its states (negative for a failed run; how deep, when the scenario
+                  is stepped on past the facet: ``margin_through_contact``)
     """
 
     indices: np.ndarray
@@ -38,6 +41,7 @@ class RunBatch:
     lengths: np.ndarray
     outcomes: np.ndarray
     exits: np.ndarray
+    margins: np.ndarray
 
     @property
     def starts(self) -> np.ndarray:
@@ -73,11 +77,14 @@ class RunBatch:
 
 
 def run_scenario(backend, starts: np.ndarray, horizon: int, policy, streams: RunStreams, *,
-                 check_step_bound: bool = False) -> RunBatch:
+                 check_step_bound: bool = False, deep_margins: bool = False) -> RunBatch:
     """Run a batch from ``starts`` (B, n) for up to ``horizon`` states each on ``backend``
     (a ``scenarios.backend.Backend``). ``check_step_bound``: verify that no step moves
     farther (l-inf) than the scenario's ``step_bound()`` (Assumption 1), which the
-    boundary-band options rely on; an error names the run that breaks it. A bare
+    boundary-band options rely on; an error names the run that breaks it.
+    ``deep_margins``: a failed run's margin goes as deep as the run would past the facet,
+    where the scenario allows it (``margin_through_contact``; margin refinement asks for
+    it). A bare
     ``Scenario`` runs on its own vectorized dynamics (the numpy back end)."""
     if isinstance(backend, Scenario):
         from scenarios.backend import NumpyBackend
@@ -106,7 +113,10 @@ def run_scenario(backend, starts: np.ndarray, horizon: int, policy, streams: Run
                    store[:, :, lo:hi] if (lo, hi) != (0, batch) else store, lengths[lo:hi], outcomes[lo:hi])
     ended = np.flatnonzero(outcomes != HORIZON)  # the facet each left through, from its last state
     exits[ended] = scenario.exits(store[lengths[ended] - 1, :, ended])
-    return RunBatch(streams.indices, store.transpose(0, 2, 1), lengths, outcomes, exits)
+    margins = _margins(scenario, store, lengths)
+    if deep_margins and scenario.margin_through_contact and getattr(backend, "name", None) == "numpy":
+        _through_contact(scenario, store, lengths, outcomes, margins, horizon, policy, streams)
+    return RunBatch(streams.indices, store.transpose(0, 2, 1), lengths, outcomes, exits, margins)
 
 
 def _run_piece(backend, starts, horizon, policy, streams, check_step_bound, store, lengths, outcomes) -> None:
@@ -160,6 +170,40 @@ def _run_piece(backend, starts, horizon, policy, streams, check_step_bound, stor
             states = nxt
     finally:
         backend.clear()  # also after an error: the next batch must find an empty simulator
+
+
+def _margins(scenario, store, lengths) -> np.ndarray:
+    """(B,) each run's smallest failure distance over its states (the store's entries past
+    a run's length are not its), in one pass over the store."""
+    distance = scenario.failure_distance(store.transpose(0, 2, 1))  # (K, B)
+    distance[np.arange(len(store))[:, None] >= lengths[None, :]] = np.inf
+    return distance.min(axis=0) if len(store) else np.zeros(store.shape[2])
+
+
+def _through_contact(scenario, store, lengths, outcomes, margins, horizon, policy, streams) -> None:
+    """Failed runs stepped on past the facet to their horizon (their states are not kept:
+    the run ended at the facet), so that each margin goes as deep as the run would: a
+    margin then varies smoothly across the boundary instead of stopping at the first
+    state past it. Actions and disturbance come from each run's stream at each step, as
+    if it had gone on."""
+    rows = np.flatnonzero((outcomes == FAILURE) & (lengths < horizon))
+    if len(rows) == 0:
+        return
+    disturbed = scenario.disturbance > 0.0 and scenario.noise_width > 0
+    states = store[lengths[rows] - 1, :, rows]  # (r, n): each run's state past the facet
+    from_step = lengths[rows]
+    out = np.empty((scenario.n, len(rows)))
+    for t in range(int(from_step.min()), horizon):
+        go = np.flatnonzero(from_step <= t)
+        part = streams.subset(rows[go])
+        actions = policy(scenario, states[go], t, part)
+        noise = part.uniform(t, PURPOSE_DISTURBANCE, scenario.noise_width) if disturbed else None
+        scenario.step_into(states[go], actions, noise, out[:, : len(go)])
+        nxt = out[:, : len(go)].T
+        finite = np.isfinite(nxt).all(axis=1)
+        states[go[finite]] = nxt[finite]
+        depth = scenario.failure_distance(nxt[finite])
+        margins[rows[go[finite]]] = np.minimum(margins[rows[go[finite]]], depth)
 
 
 def _check_start(scenario, states, starts, streams) -> None:

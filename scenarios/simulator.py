@@ -23,6 +23,7 @@ class SimSpec:
     actions: dict  # the [actions] config section
     horizon: int
     seed: int
+    deep_margins: bool = False  # failed runs' margins as deep as the runs would go (scenarios/rollout.py)
 
 
 class Simulator:
@@ -61,7 +62,8 @@ class Simulator:
         check = self.check_step_bound or not self._checked
         try:
             batch = run_scenario(self.backend, starts, self.spec.horizon, self.policy,
-                                 RunStreams.of(self.spec.seed, indices), check_step_bound=check)
+                                 RunStreams.of(self.spec.seed, indices), check_step_bound=check,
+                                 deep_margins=self.spec.deep_margins)
         except PolicyError as exc:  # the feedback policy raised: name the run, as for a scenario
             raise self._culprit(indices, starts, exc) from None
         except ScenarioError:
@@ -71,7 +73,7 @@ class Simulator:
         self._checked = True
         keep = int(batch.lengths.max()) if len(batch) else 1  # only the rows some run used
         return RunBatch(batch.indices, np.ascontiguousarray(batch.trajectories[:keep]), batch.lengths,
-                        batch.outcomes, batch.exits)
+                        batch.outcomes, batch.exits, batch.margins)
 
     def _culprit(self, indices, starts, exc) -> ScenarioError:
         """Bisect the batch (runs depend on their own key only) down to the first run that

@@ -19,7 +19,7 @@ class CommitLog:
     expanded at ``take``: a campaign shorter than ``farm.checkpoint_every`` holds the log
     of all its runs, so each row holds only what is its own."""
 
-    COLUMNS = ("sample_index", "round", "delta", "start", "outcome", "steps", "changed", "counted", "kind")
+    COLUMNS = ("sample_index", "round", "delta", "start", "outcome", "steps", "margin", "changed", "counted", "kind")
     EXACT, DISCARDED, REPLACEMENT = 0, 1, 2  # ``kind``: used as drawn, mispredicted (unseen), a replacement
 
     def __init__(self):
@@ -27,6 +27,7 @@ class CommitLog:
         self.start: list[np.ndarray] = []
         self.outcome: list[np.ndarray] = []
         self.steps: list[np.ndarray] = []
+        self.margin: list[np.ndarray] = []
         self.changed: list[np.ndarray] = []
         self.counted: list[np.ndarray] = []
         self.kind: list[np.ndarray] = []
@@ -42,6 +43,7 @@ class CommitLog:
         self.start.append(starts)
         self.outcome.append(chunk.outcomes[rows].astype(np.int8))
         self.steps.append((chunk.lengths[rows] - 1).astype(np.int32))
+        self.margin.append(np.full(len(rows), np.nan) if chunk.margins is None else chunk.margins[rows].astype(float))
         self.changed.append(changed)
         self.counted.append(counted)
         self.kind.append(np.zeros(len(rows), dtype=np.int8) if kind is None else kind.astype(np.int8))

@@ -203,7 +203,8 @@ class CampaignDir:
 
 class Ledger:
     """Committed runs as Parquet segments: sample_index, round, delta, one column per
-    state variable (the start state), outcome, steps, changed, counted, discarded, replacement. Each segment's
+    state variable (the start state), outcome, steps, margin (the run's smallest distance to
+    a failure facet: negative for a failure), changed, counted, discarded, replacement. Each segment's
     sha256 goes into the checkpoint, so a changed or swapped segment is noticed."""
 
     def __init__(self, directory: Path, state_names):
@@ -228,7 +229,7 @@ class Ledger:
         names = pa.array([OUTCOME_NAMES[o] for o in range(1, 4)])
         codes = pa.array(np.asarray(log["outcome"], dtype=np.int8) - 1)
         cols["outcome"] = pa.DictionaryArray.from_arrays(codes, names).cast(pa.string())
-        cols.update(steps=log["steps"], changed=log["changed"], counted=log["counted"],
+        cols.update(steps=log["steps"], margin=log["margin"], changed=log["changed"], counted=log["counted"],
                     discarded=log["kind"] == CommitLog.DISCARDED, replacement=log["kind"] == CommitLog.REPLACEMENT)
         path = self.dir / f"segment-{self.segments:06d}.parquet"
         atomic_write(path, lambda fh: pq.write_table(pa.table(cols), fh))

@@ -3,7 +3,7 @@ on load, passed through to the constructor, refused by scenarios without them.""
 
 import pytest
 
-from farm.campaign_setup import spec_of
+from farm.execution.process import spec_of
 from farm.config import ConfigError, config_hash, load, result_view
 from scenarios.registry import scenario_state_names
 from scenarios.simulator import Simulator

@@ -1,0 +1,269 @@
+"""Margin refinement: the safe set of a deterministic system (one adversarial action, no
+disturbance) found by refining a partition of Sigma only where its boundary lies, along
+only the axes the boundary crosses there (docs/refinement.md, "Margin refinement").
+
+Every box of the partition (coordinator/margin/partition.py) is decided by one run from
+its centre: safe, or failing; the run's *margin* (its smallest distance to a failure
+facet, negative past one: scenarios/rollout.py) says how close it came. Waves of runs
+alternate with decisions: a box is split, along the axes coordinator/margin/split_rule.py
+picks from its own and its face neighbours' margins, when the boundary may cross it and
+its half-width there is above the round's delta; its children form the next wave.
+Rounds lower delta from delta0 by gamma down to delta_min, as SPE's do: a round ends
+when no box wants a split it may make, and the boxes that wanted one but were at the
+round's delta are looked at again in the next round. Boxes far from the boundary keep
+the size they had: the runs go where the boundary is.
+
+The set is then certified without new runs (coordinator/margin/invariance.py): the
+largest set of safe boxes whose centre runs visit only boxes of the set.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from coordinator.algorithm_settings import SPESettings
+from coordinator.margin.invariance import largest_invariant
+from coordinator.margin.partition import Partition
+from coordinator.margin.split_rule import Neighbourhood, choose, wanted_axes
+from coordinator.margin.visits import Visits
+from coordinator.safe_set import SafeSet
+from scenarios.base import FAILURE, Scenario
+
+DECIDE_BLOCK = 1 << 16  # boxes decided at once (their neighbourhoods held together)
+
+
+class MarginRefinement:
+    name = "margin"
+    deterministic = True
+    certifying = False  # (the driver's phases: status and progress ask)
+    enumerates = False
+    closing = False
+    append_only = ("part.lo", "part.hi")  # boxes never change once made
+    state_epoch = 0
+
+    def __init__(self, scenario: Scenario, settings: SPESettings):
+        self.scenario = scenario
+        self.settings = settings
+        self.partition = Partition(scenario.lower, scenario.upper, settings.delta0)
+        self.round = 0
+        self.delta = settings.delta0
+        size = self.partition.size
+        self.margin = np.full(size, np.nan)
+        self.failed = np.zeros(size, dtype=bool)
+        self.index = np.full(size, -1, dtype=np.int64)  # each box's sample index (its run's key)
+        self.wave = np.arange(self.partition.roots)  # boxes to run now
+        self.todo = np.zeros(0, dtype=np.int64)  # boxes to decide once the wave is in
+        self.blocked = np.zeros(0, dtype=np.int64)  # boxes that wanted a split below the round's delta
+        self.finished = False
+        self.kept: np.ndarray | None = None  # the certified boxes
+        self.invariance_rounds = 0
+        self.visits = Visits(scenario.n)
+        self.splits = 0
+
+    # -- the runs ------------------------------------------------------------------------------
+    def starts(self, boxes: np.ndarray) -> np.ndarray:
+        return self.partition.centres(boxes)
+
+    def tell(self, boxes: np.ndarray, indices: np.ndarray, chunk, rows: np.ndarray) -> None:
+        """Runs ``rows`` of ``chunk`` were the runs of ``boxes`` (sample ``indices``)."""
+        self._fit(self.partition.size)
+        self.margin[boxes] = chunk.margins[rows]
+        self.failed[boxes] = chunk.outcomes[rows] == FAILURE
+        self.index[boxes] = indices
+        safe = ~self.failed[boxes]
+        if safe.any():
+            states, offsets = chunk.visited()
+            keep = rows[safe]
+            counts = offsets[keep + 1] - offsets[keep]
+            at = np.repeat(offsets[keep] - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) + \
+                np.arange(counts.sum())
+            self.visits.add(boxes[safe], states[at], np.concatenate([[0], np.cumsum(counts)]))
+
+    def next_wave(self) -> np.ndarray:
+        """The boxes to run next (after the last wave's runs are told); empty when the
+        refinement is done."""
+        self.todo = np.union1d(self.todo, self.wave) if len(self.wave) else self.todo
+        self.wave = np.zeros(0, dtype=np.int64)
+        while not self.finished:
+            children = self._decide(self._near_changes(self.todo))
+            self.todo = np.zeros(0, dtype=np.int64)
+            if len(children):
+                self.wave = children
+                return children
+            if self.delta <= self.settings.delta_min * (1 + 1e-12):
+                self.finished = True
+                break
+            self.round += 1
+            self.delta = max(self.settings.gamma * self.delta, self.settings.delta_min)
+            self.todo, self.blocked = self.blocked, np.zeros(0, dtype=np.int64)
+        return self.wave
+
+    @property
+    def final_round(self) -> bool:
+        return self.delta <= self.settings.delta_min * (1 + 1e-12)
+
+    # -- deciding --------------------------------------------------------------------------------
+    def _near_changes(self, boxes: np.ndarray) -> np.ndarray:
+        """The leaves among ``boxes`` and their face neighbours: where a new run can change
+        a decision."""
+        p = self.partition
+        boxes = boxes[p.is_leaf(boxes)] if len(boxes) else boxes
+        found = [boxes]
+        for axis in range(p.n):
+            for side in (-1, 1):
+                nb = p.neighbours(boxes, axis, side)
+                found.append(nb[nb >= 0])
+        return np.unique(np.concatenate(found))
+
+    def _decide(self, boxes: np.ndarray) -> np.ndarray:
+        """Split the boxes that want it and may; -> the children (the next wave). Every
+        box is decided on the partition as it stands, before any of them splits."""
+        masks = np.zeros(len(boxes), dtype=np.int64)
+        for lo in range(0, len(boxes), DECIDE_BLOCK):
+            part = boxes[lo : lo + DECIDE_BLOCK]
+            wanted, priority = wanted_axes(self._neighbourhood(part), self.settings.delta_min)
+            wanted |= self._on_failure_facets(part)
+            splittable = self.partition.half_widths(part) > self.delta * (1 + 1e-9)
+            masks[lo : lo + DECIDE_BLOCK] = choose(wanted, priority, splittable)
+            waiting = (wanted & ~splittable).any(axis=1) & (masks[lo : lo + DECIDE_BLOCK] == 0)
+            self.blocked = np.union1d(self.blocked, part[waiting])
+        split = masks > 0
+        if not split.any():
+            return np.zeros(0, dtype=np.int64)
+        children = self.partition.split(boxes[split], masks[split])
+        self.visits.drop(boxes[split])
+        self.splits += int(split.sum())
+        self._fit(self.partition.size)
+        return children
+
+    def _on_failure_facets(self, boxes: np.ndarray) -> np.ndarray:
+        """(B, n) bool: the box lies on a failure facet of Sigma along that axis. The
+        safe set's boundary meets the facet, and there the margin, a minimum taken from the
+        start on, says little about the box's far side (Theorem 3 counts the facets as
+        boundary too)."""
+        out = np.zeros((len(boxes), self.partition.n), dtype=bool)
+        lo, hi = self.partition.lo[boxes], self.partition.hi[boxes]
+        for facet, failure in self.scenario.facets():
+            if failure:
+                side = hi[:, facet.axis] >= facet.bound if facet.upper else lo[:, facet.axis] <= facet.bound
+                out[:, facet.axis] |= side
+        return out
+
+    def _neighbourhood(self, boxes: np.ndarray) -> Neighbourhood:
+        p, n = self.partition, self.partition.n
+        exists = np.zeros((len(boxes), n, 2), dtype=bool)
+        at = np.zeros((len(boxes), n, 2))
+        margins = np.zeros((len(boxes), n, 2))
+        labels = np.zeros((len(boxes), n, 2), dtype=bool)
+        for axis in range(n):
+            for s, side in enumerate((-1, 1)):
+                nb = p.neighbours(boxes, axis, side)
+                ok = nb >= 0
+                exists[:, axis, s] = ok
+                at[ok, axis, s] = p.centres(nb[ok])[:, axis]
+                margins[ok, axis, s] = self.margin[nb[ok]]
+                labels[ok, axis, s] = ~self.failed[nb[ok]]
+        return Neighbourhood(p.centres(boxes), p.half_widths(boxes), self.margin[boxes], ~self.failed[boxes],
+                             exists, at, margins, labels)
+
+    def _fit(self, size: int) -> None:
+        grow = size - len(self.margin)
+        if grow > 0:
+            self.margin = np.concatenate([self.margin, np.full(grow, np.nan)])
+            self.failed = np.concatenate([self.failed, np.zeros(grow, dtype=bool)])
+            self.index = np.concatenate([self.index, np.full(grow, -1, dtype=np.int64)])
+
+    # -- certification -----------------------------------------------------------------------------
+    def safe_leaves(self) -> np.ndarray:
+        leaves = self.partition.leaves()
+        return leaves[~self.failed[leaves]]
+
+    def missing_visits(self) -> np.ndarray:
+        """Safe leaves whose run's states are not held (after a resume): to run again."""
+        safe = self.safe_leaves()
+        return safe[np.array([b not in self.visits for b in safe.tolist()], dtype=bool)] if len(safe) else safe
+
+    def certify(self) -> None:
+        """Keep the largest set of safe leaves whose runs visit only leaves of the set."""
+        safe = self.safe_leaves()
+        states, offsets = self.visits.of(safe)
+        boxes = self.partition.locate(states) if len(states) else np.zeros(0, dtype=np.int64)
+        kept, self.invariance_rounds = largest_invariant(safe, boxes, offsets, self.partition.size)
+        self.kept = safe[kept]
+        self.certifying = True
+        self._visited_failures = np.unique(boxes[self.failed[boxes]]) if len(boxes) else boxes
+
+    def cut_visited_failures(self) -> np.ndarray:
+        """Failing leaves that safe runs visit hold safe states: the boundary crosses them.
+        Cut each where its margin, interpolated along the axis it changes most on, crosses
+        zero (not in half: the boundary is there to O(h^2)); -> the two parts, to run."""
+        boxes = self._visited_failures
+        if len(boxes) == 0:
+            return boxes
+        hood = self._neighbourhood(boxes)
+        from coordinator.margin.split_rule import gradient
+        g = gradient(hood)
+        h = hood.half_width
+        axis = np.argmax(np.abs(g) * h, axis=1)
+        rows = np.arange(len(boxes))
+        ga, c = g[rows, axis], hood.centre[rows, axis]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            zero = c - hood.margin / ga
+        lo, hi = c - h[rows, axis], c + h[rows, axis]
+        zero = np.clip(np.nan_to_num(zero, nan=c), lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo))
+        planes = hood.centre.copy()
+        planes[rows, axis] = zero
+        masks = np.left_shift(np.int64(1), axis.astype(np.int64))
+        children = self.partition.split(boxes, masks, planes)
+        self._fit(self.partition.size)
+        self._visited_failures = np.zeros(0, dtype=np.int64)
+        return children
+
+    # -- the result ------------------------------------------------------------------------------
+    def result(self) -> SafeSet:
+        boxes = self.kept if self.kept is not None else self.safe_leaves()
+        p = self.partition
+        return SafeSet(p.centres(boxes), p.half_widths(boxes), self.scenario.state_names, disjoint=True)
+
+    def counts(self) -> dict:
+        leaves = self.partition.leaves()
+        return {"boxes": int(np.count_nonzero(~self.failed[leaves])), "leaves": len(leaves),
+                "failures": int(np.count_nonzero(self.failed[leaves])), "delta": self.delta, "round": self.round,
+                "splits": self.splits}
+
+    def sampling_description(self) -> str:
+        return "the centre of every box of the final partition, once (the system is deterministic)"
+
+    def stop_committing(self) -> None:
+        """(The driver's interface: nothing to drop before the last checkpoint.)"""
+
+    def release(self) -> None:
+        self.visits = Visits(self.scenario.n)
+
+    # -- persistence -----------------------------------------------------------------------------
+    def state(self) -> dict[str, np.ndarray]:
+        out = self.partition.state()
+        size = self.partition.size
+        out.update({"box.margin": self.margin[:size].copy(), "box.failed": self.failed[:size].copy(),
+                    "box.index": self.index[:size].copy(), "wave": self.wave.copy(), "todo": self.todo.copy(),
+                    "blocked": self.blocked.copy(),
+                    "scalars": np.array([self.round, self.delta, self.finished, self.splits], dtype=float)})
+        if self.kept is not None:
+            out["kept"] = self.kept.copy()
+        return out
+
+    def load_state(self, state: dict[str, np.ndarray]) -> None:
+        self.partition.load_state(state)
+        size = self.partition.size
+        for name in ("box.margin", "box.failed", "box.index"):
+            if state[name].shape != (size,):
+                raise ValueError(f"{name}: shape {state[name].shape}, expected ({size},)")
+        self.margin, self.failed = state["box.margin"].astype(float), state["box.failed"].astype(bool)
+        self.index = state["box.index"].astype(np.int64)
+        self.wave, self.todo = state["wave"].astype(np.int64), state["todo"].astype(np.int64)
+        self.blocked = state["blocked"].astype(np.int64)
+        rnd, delta, finished, splits = state["scalars"]
+        self.round, self.delta, self.finished, self.splits = int(rnd), float(delta), bool(finished), int(splits)
+        self.kept = state["kept"].astype(np.int64) if "kept" in state else None
+        self.certifying = self.kept is not None
+        self.visits = Visits(self.scenario.n)
