@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from coordinator.lattice import Lattice
-from coordinator.safe_set import SafeSet
+from coordinator.safe_set import COVERING_MARGIN, SafeSet
 from scenarios.streams import PURPOSE_START, RunStreams
 from scenarios.base import FACET_TOLERANCE, Scenario
 from scenarios.errors import ConfigError, ScenarioError
@@ -43,9 +43,8 @@ class Domain:
             raise DomainError("validate.domain_set: the set holds no boxes")
         if not safe_set.finest > 0:
             raise DomainError(f"validate.domain_set: half_width {safe_set.finest!r} is out of range; allowed (0, inf)")
-        reach = safe_set.half_widths[:, None]
-        return Domain(scenario, np.maximum((safe_set.centres - reach).min(0), scenario.lower),
-                      np.minimum((safe_set.centres + reach).max(0), scenario.upper),
+        return Domain(scenario, np.maximum(safe_set.lower.min(0), scenario.lower),
+                      np.minimum(safe_set.upper.max(0), scenario.upper),
                       np.zeros((0, scenario.n)), np.zeros(0), safe_set)
 
     @staticmethod
@@ -182,10 +181,17 @@ class Domain:
 
     def covering(self, delta: float) -> SafeSet | None:
         """Phi_delta of a set of mixed box sizes: each box at max(its half-width, delta)
-        (None for any other domain: the delta-boxes of ``lattice``'s centres)."""
+        (None for any other domain: the delta-boxes of ``lattice``'s centres). A set with
+        a half-width per axis that says how far past its boxes its covering reaches
+        (margin refinement's ``covering_margin``): each box widened by that, at least to
+        delta, per axis."""
         if not self.is_set or self.safe_set.is_uniform:
             return None
-        return SafeSet(self.safe_set.centres, np.maximum(self.safe_set.half_widths, delta), self.safe_set.state_names)
+        s = self.safe_set
+        if s.anisotropic:
+            margin = float(s.metadata.get(COVERING_MARGIN, 0.0))
+            return SafeSet(s.centres, np.maximum(s.axis_half_widths + margin, delta), s.state_names)
+        return SafeSet(s.centres, np.maximum(s.half_widths, delta), s.state_names)
 
     # -- sampling ---------------------------------------------------------------------------
     def sample(self, streams: RunStreams, reach: float | None = None) -> np.ndarray:
@@ -204,7 +210,7 @@ class Domain:
             if self.is_set:
                 u = sub.uniform(attempt, PURPOSE_START, n + 2)
                 box = self._pick_box(u[:, 0])
-                pts = self.safe_set.centres[box] + self.safe_set.half_widths[box, None] * (2 * u[:, 1 : n + 1] - 1)
+                pts = self.safe_set.centres[box] + self.safe_set.axis_half_widths[box] * (2 * u[:, 1 : n + 1] - 1)
                 pts = np.clip(pts, self.scenario.lower, self.scenario.upper)
                 ok = u[:, n + 1] * self._cover_count(pts) <= 1.0
             else:
@@ -223,11 +229,13 @@ class Domain:
         boxes = len(self.safe_set)
         if self.safe_set.is_uniform:
             return np.minimum((u * boxes).astype(np.int64), boxes - 1)
-        cdf = np.cumsum(self.safe_set.half_widths ** self.scenario.n)
+        cdf = np.cumsum(np.prod(self.safe_set.axis_half_widths, axis=1))
         return np.minimum(np.searchsorted(cdf, u * cdf[-1], side="right"), boxes - 1)
 
     def _cover_count(self, pts: np.ndarray) -> np.ndarray:
         """How many of the set's boxes hold each point (at least 1)."""
+        if self.safe_set.disjoint:  # a partition's boxes meet only on faces
+            return np.ones(len(pts))
         from scipy.spatial import cKDTree
 
         trees = getattr(self, "_trees", None)

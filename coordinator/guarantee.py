@@ -58,6 +58,27 @@ def _covering(delta: float, coarsest: float | None) -> str:
 
 
 # -- quantification -------------------------------------------------------------------------
+def refined(scenario, policy, *, horizon: int, boxes: int, covering: float, finest: float, coarsest: float,
+            converged: bool, budget: int) -> Guarantee:
+    """The guarantee of a set found by margin refinement (coordinator/margin): every box
+    centre was run once, and each run stays within ``covering`` of the set (the set's
+    own boxes, each widened by ``covering`` on every axis: its delta-covering) without
+    failing. Deterministic: each run is the run."""
+    cond, fail, t = _conditions(scenario, policy), scenario.failure_words, _horizon_s(scenario, horizon)
+    if not converged:
+        text = f"No guarantee: the budget of {budget} runs was used up before the refinement's last round."
+        return Guarantee(text, text)
+    plain = (f"Every scenario started at one of the {boxes} box centres of this set, {cond}, does not {fail} and "
+             f"stays within {covering:g} of the set for {t}: each centre was simulated (the system is "
+             f"deterministic). The boxes have a half-width per state variable, from {finest:g} near the set's "
+             f"boundary to {coarsest:g} inside it; a state of a box is claimed safe to within them.")
+    formal = (f"Phi is delta-almost robustly controlled forward invariant w.r.t. Gamma* (Definition 5 with a delta "
+              f"per box and axis: the box's half-widths + {covering:g}, the paper's vector-delta covering) by "
+              f"VAL^delta (Lemma 1) on its own {boxes} box centres: each one's run of K = {horizon} steps stays in "
+              f"Phi_delta without failure ({policy.description}).")
+    return Guarantee(plain, formal)
+
+
 def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, horizon: int, n_eps: int,
                attempts: int, n_final: int, converged: bool, budget: int, enumerated: bool, boxes: int, uniform: bool, distribution: str,
                escaped: int, adversarial: bool, coarsest: float | None = None) -> Guarantee:

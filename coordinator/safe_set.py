@@ -20,16 +20,18 @@ import numpy as np
 
 from coordinator.box_index import BoxIndex
 from coordinator.spatial import PointIndex
-from coordinator.volume import hull_volume, union_volume
+from coordinator.volume import corner_hull_volume, hull_volume, union_volume
 from coordinator.volume_estimate import VolumeEstimate, disjoint_volume, hull_volume_estimate, union_volume_estimate
 from scenarios.errors import DataError
 from scenarios.version import __version__
 
 HALF_WIDTH = "half_width"  # the column of each box's (largest) half-width in safe_set.parquet
 AXIS_HALF_WIDTH = "half_width_{}"  # the columns of each box's half-width along a state variable
+COVERING_MARGIN = "covering_margin"  # metadata: how far past its boxes the set's covering reaches
 MIXED_HASH_TAG = b"scenario-farm safe set, per-box half-widths\n"
 AXES_HASH_TAG = b"scenario-farm safe set, per-axis half-widths\n"
 EXACT_MAX_DIM = 5  # above it an exact union or hull costs 2^n per box: estimated instead
+CORNER_HULL_MAX_DIM = 3  # boxes with a half-width per axis: every corner to qhull up to here
 
 
 class SafeSetError(DataError):
@@ -213,6 +215,9 @@ class SafeSet:
         if not self.anisotropic and self.n <= EXACT_MAX_DIM:
             value = hull_volume(self.centres, self.half_widths, bounds=bounds)
             return VolumeEstimate(value, value, value, True, "exact (qhull over the hull boxes' corners)")
+        if self.n <= CORNER_HULL_MAX_DIM:
+            value = corner_hull_volume(self.lower, self.upper, bounds)
+            return VolumeEstimate(value, value, value, True, "exact (qhull over every box's corners)")
         return hull_volume_estimate(self.lower, self.upper, bounds, seed=self._seed)
 
     @property
@@ -252,7 +257,7 @@ class SafeSet:
         columns[HALF_WIDTH] = pa.array(self.largest_half_widths, type=pa.float64())
         for i, name in enumerate(self.state_names):
             columns[AXIS_HALF_WIDTH.format(name)] = pa.array(self.axis_half_widths[:, i], type=pa.float64())
-        meta = {**(metadata or {}), "scenario_farm_version": __version__}
+        meta = {**self.metadata, **(metadata or {}), "scenario_farm_version": __version__}
         if self.disjoint:
             meta["disjoint"] = "true"
         return pa.table(columns).replace_schema_metadata({k: str(v) for k, v in meta.items()})

@@ -305,6 +305,21 @@ def hull_volume(centres: np.ndarray, half_widths, bounds=None) -> float:
     return float(ConvexHull(points).volume)
 
 
+def corner_hull_volume(lower: np.ndarray, upper: np.ndarray, bounds=None) -> float:
+    """Convex-hull volume of boxes [lower, upper] with a half-width per axis, from every
+    corner (2^n per box: for low dimensions only)."""
+    from scipy.spatial import ConvexHull  # here: scipy.spatial is 0.4 s of every CLI start
+
+    if len(lower) == 0:
+        return 0.0
+    if bounds is not None:
+        lower, upper = np.maximum(lower, bounds[0]), np.minimum(upper, bounds[1])
+    n = lower.shape[1]
+    pick = np.array(list(itertools.product((False, True), repeat=n)))
+    points = np.where(pick[None, :, :], upper[:, None, :], lower[:, None, :]).reshape(-1, n)
+    return float(ConvexHull(np.unique(points, axis=0)).volume)
+
+
 def raster_iou(a, b, lower, upper, points_per_axis: int = 60) -> float:
     """IoU of two safe sets (``coordinator.safe_set.SafeSet``), measured on a regular
     grid of cell midpoints over [lower, upper] (exact membership at each point)."""

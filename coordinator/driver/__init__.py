@@ -15,11 +15,14 @@ One part per job, none of which calls back into the driver:
 - ``speculation.py``: changes applied past holds, and the state before each;
 - ``lookahead.py``: runs launched before the head asks for them (never changes a result);
 - ``commit_log.py``, ``recordings.py``: the ledger rows and the failing runs to record;
-- ``state.py``: the driver's persisted state (``Counters``, ``DriverState``).
+- ``state.py``: the driver's persisted state (``Counters``, ``DriverState``);
+- ``refinement_campaign.py`` (``RefinementCampaign``): the other driver, for margin
+  refinement of a deterministic system (waves decided by their starts; no coupling).
 """
 
 from coordinator.driver.campaign import Campaign, Observer
+from coordinator.driver.refinement_campaign import RefinementCampaign
 from coordinator.driver.settings import CampaignSettings
 from coordinator.driver.state import Counters, DriverState
 
-__all__ = ["Campaign", "CampaignSettings", "Counters", "DriverState", "Observer"]
+__all__ = ["Campaign", "CampaignSettings", "Counters", "DriverState", "Observer", "RefinementCampaign"]

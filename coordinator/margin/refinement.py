@@ -26,7 +26,7 @@ from coordinator.margin.invariance import largest_invariant
 from coordinator.margin.partition import Partition
 from coordinator.margin.split_rule import Neighbourhood, choose, wanted_axes
 from coordinator.margin.visits import Visits
-from coordinator.safe_set import SafeSet
+from coordinator.safe_set import COVERING_MARGIN, SafeSet
 from scenarios.base import FAILURE, Scenario
 
 DECIDE_BLOCK = 1 << 16  # boxes decided at once (their neighbourhoods held together)
@@ -52,6 +52,8 @@ class MarginRefinement:
         self.failed = np.zeros(size, dtype=bool)
         self.index = np.full(size, -1, dtype=np.int64)  # each box's sample index (its run's key)
         self.wave = np.arange(self.partition.roots)  # boxes to run now
+        self.wave_first = 0  # the sample index of the wave's first run
+        self.wave_done = 0  # its runs told so far
         self.todo = np.zeros(0, dtype=np.int64)  # boxes to decide once the wave is in
         self.blocked = np.zeros(0, dtype=np.int64)  # boxes that wanted a split below the round's delta
         self.finished = False
@@ -72,12 +74,15 @@ class MarginRefinement:
         self.index[boxes] = indices
         safe = ~self.failed[boxes]
         if safe.any():
-            states, offsets = chunk.visited()
-            keep = rows[safe]
-            counts = offsets[keep + 1] - offsets[keep]
-            at = np.repeat(offsets[keep] - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) + \
-                np.arange(counts.sum())
-            self.visits.add(boxes[safe], states[at], np.concatenate([[0], np.cumsum(counts)]))
+            self.remember(boxes[safe], chunk, rows[safe])
+
+    def remember(self, boxes: np.ndarray, chunk, rows: np.ndarray | None = None) -> None:
+        """Keep the visited states of runs ``rows`` of ``chunk`` (all: None), the runs of ``boxes``."""
+        states, offsets = chunk.visited()
+        rows = np.arange(len(chunk)) if rows is None else rows
+        counts = offsets[rows + 1] - offsets[rows]
+        at = np.repeat(offsets[rows] - np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) + np.arange(counts.sum())
+        self.visits.add(boxes, states[at], np.concatenate([[0], np.cumsum(counts)]))
 
     def next_wave(self) -> np.ndarray:
         """The boxes to run next (after the last wave's runs are told); empty when the
@@ -183,47 +188,28 @@ class MarginRefinement:
         safe = self.safe_leaves()
         return safe[np.array([b not in self.visits for b in safe.tolist()], dtype=bool)] if len(safe) else safe
 
+    @property
+    def covering(self) -> float:
+        """How far past its boxes a run of the set may go (its delta-covering: each box
+        widened by delta_min on every axis, the paper's Definition 5 with a delta per box)."""
+        return self.settings.delta_min
+
     def certify(self) -> None:
-        """Keep the largest set of safe leaves whose runs visit only leaves of the set."""
+        """Keep the largest set of safe leaves whose runs stay within ``covering`` of the set."""
         safe = self.safe_leaves()
         states, offsets = self.visits.of(safe)
-        boxes = self.partition.locate(states) if len(states) else np.zeros(0, dtype=np.int64)
-        kept, self.invariance_rounds = largest_invariant(safe, boxes, offsets, self.partition.size)
+        p = self.partition
+        kept, self.invariance_rounds = largest_invariant(safe, states, offsets, p.locate, p.size, self.covering,
+                                                         self.scenario.lower, self.scenario.upper)
         self.kept = safe[kept]
         self.certifying = True
-        self._visited_failures = np.unique(boxes[self.failed[boxes]]) if len(boxes) else boxes
-
-    def cut_visited_failures(self) -> np.ndarray:
-        """Failing leaves that safe runs visit hold safe states: the boundary crosses them.
-        Cut each where its margin, interpolated along the axis it changes most on, crosses
-        zero (not in half: the boundary is there to O(h^2)); -> the two parts, to run."""
-        boxes = self._visited_failures
-        if len(boxes) == 0:
-            return boxes
-        hood = self._neighbourhood(boxes)
-        from coordinator.margin.split_rule import gradient
-        g = gradient(hood)
-        h = hood.half_width
-        axis = np.argmax(np.abs(g) * h, axis=1)
-        rows = np.arange(len(boxes))
-        ga, c = g[rows, axis], hood.centre[rows, axis]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            zero = c - hood.margin / ga
-        lo, hi = c - h[rows, axis], c + h[rows, axis]
-        zero = np.clip(np.nan_to_num(zero, nan=c), lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo))
-        planes = hood.centre.copy()
-        planes[rows, axis] = zero
-        masks = np.left_shift(np.int64(1), axis.astype(np.int64))
-        children = self.partition.split(boxes, masks, planes)
-        self._fit(self.partition.size)
-        self._visited_failures = np.zeros(0, dtype=np.int64)
-        return children
 
     # -- the result ------------------------------------------------------------------------------
     def result(self) -> SafeSet:
         boxes = self.kept if self.kept is not None else self.safe_leaves()
         p = self.partition
-        return SafeSet(p.centres(boxes), p.half_widths(boxes), self.scenario.state_names, disjoint=True)
+        return SafeSet(p.centres(boxes), p.half_widths(boxes), self.scenario.state_names,
+                       {COVERING_MARGIN: repr(self.covering)}, disjoint=True)
 
     def counts(self) -> dict:
         leaves = self.partition.leaves()
@@ -247,7 +233,8 @@ class MarginRefinement:
         out.update({"box.margin": self.margin[:size].copy(), "box.failed": self.failed[:size].copy(),
                     "box.index": self.index[:size].copy(), "wave": self.wave.copy(), "todo": self.todo.copy(),
                     "blocked": self.blocked.copy(),
-                    "scalars": np.array([self.round, self.delta, self.finished, self.splits], dtype=float)})
+                    "scalars": np.array([self.round, self.delta, self.finished, self.splits, self.wave_first,
+                                         self.wave_done], dtype=float)})
         if self.kept is not None:
             out["kept"] = self.kept.copy()
         return out
@@ -262,8 +249,9 @@ class MarginRefinement:
         self.index = state["box.index"].astype(np.int64)
         self.wave, self.todo = state["wave"].astype(np.int64), state["todo"].astype(np.int64)
         self.blocked = state["blocked"].astype(np.int64)
-        rnd, delta, finished, splits = state["scalars"]
+        rnd, delta, finished, splits, first, done = state["scalars"]
         self.round, self.delta, self.finished, self.splits = int(rnd), float(delta), bool(finished), int(splits)
+        self.wave_first, self.wave_done = int(first), int(done)
         self.kept = state["kept"].astype(np.int64) if "kept" in state else None
         self.certifying = self.kept is not None
         self.visits = Visits(self.scenario.n)

@@ -59,12 +59,12 @@ def gradient(hood: Neighbourhood) -> np.ndarray:
 def curvature(hood: Neighbourhood) -> np.ndarray:
     """(B, n) the margin's second difference along each axis where both neighbours exist
     (0 elsewhere): how far a straight line through the centre misjudges it."""
-    lo_ok, hi_ok = hood.exists[..., 0] & hood.exists[..., 1], None
+    both = hood.exists[..., 0] & hood.exists[..., 1]
     c, m = hood.centre, hood.margin[:, None]
     d_lo, d_hi = c - hood.at[..., 0], hood.at[..., 1] - c
     with np.errstate(divide="ignore", invalid="ignore"):
         second = 2 * ((hood.margins[..., 1] - m) / d_hi - (m - hood.margins[..., 0]) / d_lo) / (d_lo + d_hi)
-    return np.nan_to_num(np.where(lo_ok, second, 0.0), nan=0.0, posinf=0.0, neginf=0.0)
+    return np.nan_to_num(np.where(both, second, 0.0), nan=0.0, posinf=0.0, neginf=0.0)
 
 
 def wanted_axes(hood: Neighbourhood, finest: float) -> tuple[np.ndarray, np.ndarray]:

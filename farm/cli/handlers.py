@@ -14,6 +14,7 @@ from farm.jobs import quantification
 from farm.reports import status
 from farm.reports.progress import Progress
 from farm.reports.summary import Summary
+from farm.reports.holdout import describe_holdout
 from farm.reports.truncations import lines as truncation_lines
 from scenarios.errors import ConfigError
 
@@ -93,6 +94,8 @@ def _print_summary(out: Path, summary=None) -> None:
 
     for line in truncation_lines(summary):
         print(f"{'truncated':>18}: {line}")
+    if summary.holdout:
+        print(f"{'holdout':>18}: {describe_holdout(summary.holdout)}")
     print(f"{'guarantee':>18}: {summary.guarantee}")
     if summary.guarantee_formal:
         print(f"{'formally':>18}: {summary.guarantee_formal}")

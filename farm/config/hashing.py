@@ -24,6 +24,11 @@ def result_view(cfg: Config) -> dict:
     if cfg.farm.counting == "sequential":
         for key in WINDOW:
             out["farm"].pop(key)
+    # the refinement as it resolves: "all" (the old default) leaves a config's hash as it
+    # was; "auto" resolving to margin refinement changes the result, so the hash too
+    out["quantify"].pop("refine", None)
+    if cfg.refinement() != "all":
+        out["quantify"]["refine"] = cfg.refinement()
     return out
 
 

@@ -29,6 +29,15 @@ with warnings.catch_warnings():
         farm: FarmConfig = FarmConfig()
         record: RecordConfig = RecordConfig()
 
+        def refinement(self) -> str:
+            """quantify.refine with "auto" resolved: margin refinement for SPE on a
+            deterministic system (one adversarial action, no disturbance), else "all"."""
+            q = self.quantify
+            if q.refine != "auto":
+                return q.refine
+            deterministic = self.actions.mode == "adversarial" and self.scenario.disturbance == 0.0
+            return "margin" if deterministic and q.algorithm == "spe" else "all"
+
         def with_overrides(self, overrides: dict[str, Any]) -> "Config":
             """A copy with ``{"farm.workers": 4, ...}`` applied (None values skipped), checked."""
             raw = self.model_dump()

@@ -128,6 +128,9 @@ class _QuantifyBase(Section):
     horizon: Horizon = 50
     budget: Annotated[int, Field(ge=1, le=10**12)] = 2_000_000
     sides: bool | None = None
+    holdout_runs: Annotated[int, Field(ge=0, le=10**8, json_schema_extra={"affects_result": False}, description=(
+        "fresh runs from uniform starts in Sigma against the finished set (summary.json holdout: overclaims "
+        "and misses with Clopper-Pearson intervals); 0: none"))] = 1000
     certify: Annotated[bool, Field(description="end with a certification round (spe): the exported set "
                                                "passes validate")] = True
     certify_margin: Annotated[float, Field(ge=1.0, le=1e6, description=(

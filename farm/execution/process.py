@@ -22,4 +22,5 @@ def spec_of(cfg: Config, failure_facets: list | None = None) -> SimSpec:
     scenario = cfg.scenario.model_dump()
     if failure_facets is not None:
         scenario["failure_facets"] = list(failure_facets)
-    return SimSpec(scenario, cfg.actions.model_dump(), cfg.quantify.horizon, cfg.farm.seed)
+    return SimSpec(scenario, cfg.actions.model_dump(), cfg.quantify.horizon, cfg.farm.seed,
+                   deep_margins=cfg.refinement() == "margin")

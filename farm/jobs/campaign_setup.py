@@ -14,6 +14,8 @@ from coordinator.algorithm import Algorithm
 from coordinator.baselines import make_algorithm
 from coordinator.driver import Campaign, CampaignSettings, Observer
 from coordinator.executor import Executor
+from coordinator.driver.refinement_campaign import RefinementCampaign
+from coordinator.margin.refinement import MarginRefinement
 from farm.config import Config, ConfigError
 from farm.directory.checkpoint import Restored
 from scenarios.search import SearchActions
@@ -27,17 +29,27 @@ def campaign_settings(cfg: Config) -> CampaignSettings:
                             certify_margin=q.certify_margin, record_limit=cfg.record.quantify_runs, counting=farm_cfg.counting)
 
 
-def build_algorithm(cfg: Config, simulator: Simulator) -> Algorithm:
-    """The configured quantification algorithm over the simulator's scenario."""
+def build_algorithm(cfg: Config, simulator: Simulator) -> Algorithm | MarginRefinement:
+    """The configured quantification algorithm over the simulator's scenario (margin
+    refinement where ``quantify.refine`` resolves to it)."""
+    if cfg.refinement() == "margin":
+        if not simulator.deterministic:
+            raise ConfigError("quantify.refine: margin refinement needs a deterministic system (one adversarial "
+                              "action, no disturbance, a deterministic back end); allowed here: all, band")
+        return MarginRefinement(simulator.scenario, cfg.quantify.settings())
     return make_algorithm(cfg.quantify.algorithm, simulator.scenario, cfg.quantify.settings(), cfg.farm.seed,
                           simulator.deterministic)
 
 
-def build_campaign(cfg: Config, algorithm: Algorithm, simulator: Simulator, executor: Executor | None,
-                   observers: Iterable[Observer] = (), restored: Restored | None = None) -> Campaign:
+def build_campaign(cfg: Config, algorithm: Algorithm | MarginRefinement, simulator: Simulator,
+                   executor: Executor | None, observers: Iterable[Observer] = (),
+                   restored: Restored | None = None) -> Campaign | RefinementCampaign:
     """The driver of ``algorithm`` on ``executor``; with actions.mode = "search", the
     adversary search over the simulator's action mixture. ``restored``: where a
     checkpoint left off (farm/directory/checkpoint.py)."""
+    if isinstance(algorithm, MarginRefinement):
+        return RefinementCampaign(algorithm, executor, campaign_settings(cfg), observers,
+                                  restored.driver if restored is not None else None)
     if restored is not None:
         return Campaign(algorithm, executor, campaign_settings(cfg), observers, restored.adversary, restored.driver)
     policy = simulator.policy

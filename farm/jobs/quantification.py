@@ -14,7 +14,8 @@ from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
-from coordinator.guarantee import quantified
+from coordinator.guarantee import quantified, refined
+from coordinator.margin.refinement import MarginRefinement
 from farm import config as config_mod, lazy
 from farm.jobs.campaign_setup import side_facets
 from farm.execution.process import build_simulator, spec_of
@@ -91,6 +92,11 @@ def _refuse_a_changed_config(directory: CampaignDir, cfg: Config) -> None:
 def guarantee_of(cfg: Config, side: SideCampaign, delta: float):
     """The plain and formal guarantee of a finished side's campaign (coordinator/guarantee.py)."""
     q, campaign, algo = cfg.quantify, side.campaign, side.algorithm
+    if isinstance(algo, MarginRefinement):
+        result = algo.result()
+        return refined(side.scenario, side.policy, horizon=q.horizon, boxes=len(result), covering=algo.covering,
+                       finest=result.finest, coarsest=result.coarsest, converged=campaign.counters.converged,
+                       budget=q.budget)
     certified = campaign.certify and algo.certifying
     return quantified(side.scenario, side.policy, epsilon=q.epsilon, beta=q.beta, delta=delta, horizon=q.horizon,
                       n_eps=campaign.n_eps, attempts=campaign.counters.attempts if certified else 0,

@@ -10,7 +10,10 @@ import gc
 import time
 from pathlib import Path
 
+import numpy as np
+
 from coordinator.driver import Campaign
+from coordinator.holdout import holdout_report, holdout_starts
 from farm.directory import checkpoint
 from farm.directory.checkpoint import Stamp
 from farm.jobs.campaign_setup import build_algorithm, build_campaign
@@ -42,6 +45,7 @@ class SideCampaign:
         self.campaign: Campaign | None = None
         self.startup_s = 0.0
         self.virtual = None  # the virtual farm's VirtualClock (farm/execution/virtual.py)
+        self.holdout: dict | None = None  # fresh uniform runs against the set (coordinator/holdout.py)
         self._restored: checkpoint.Restored | None = None
 
     def restore(self) -> None:
@@ -76,6 +80,8 @@ class SideCampaign:
             stop.campaign = self.campaign
             try:
                 self.campaign.run()
+                if self.campaign.counters.done and self.side == "total":
+                    self.holdout = self._holdout(executor, progress)
             except Interrupted:
                 pass  # a wait for a chunk woke for the stop: the campaign is as after its last commit
             finally:
@@ -92,6 +98,19 @@ class SideCampaign:
         gc.collect()  # what reference cycles still hold of the released state, before the heap is trimmed
         release_freed_memory()
         return self.campaign
+
+    def _holdout(self, executor, progress: Progress) -> dict | None:
+        """``quantify.holdout_runs`` fresh runs from uniform starts in Sigma, on the
+        campaign's executor, against the set it found."""
+        runs = self.cfg.quantify.holdout_runs
+        if runs <= 0:
+            return None
+        progress.line(f"holdout: {runs:,} fresh runs from uniform starts against the set")
+        indices, starts = holdout_starts(self.scenario, self.cfg.farm.seed, runs)
+        outcomes = np.concatenate([executor.result(h).outcomes
+                                   for h in executor.submit(0, starts, indices=indices.astype(np.int64))])
+        inside = self.algorithm.result().contains(starts)
+        return holdout_report(inside, outcomes, self.simulator.deterministic)
 
     def save(self) -> None:
         """A checkpoint now (farm/directory/checkpoint.py)."""

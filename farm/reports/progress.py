@@ -108,7 +108,10 @@ def _counter(s: dict) -> str:
 
 
 def _what(s: dict) -> str:
-    """What the quiet-run counter counts toward: a round's N_eps, a closing round's end or a check."""
+    """What the quiet-run counter counts toward: a round's N_eps, a closing round's end, a
+    check, or (margin refinement) the runs of the current wave."""
+    if "splits" in s:
+        return "wave"
     phase = s.get("certification_phase")
     if phase == "closing":
         return "closing"

@@ -60,6 +60,8 @@ def _certification(campaign, counts) -> dict:
     """A deterministic certification counts centres run, not runs in a row; a sampled one
     is in a closing round or a check (its attempt)."""
     algorithm, c = campaign.algorithm, campaign.counters
+    if "splits" in counts:  # margin refinement: its waves, and the boxes it split
+        return {"splits": counts["splits"], "leaves": counts["leaves"]}
     if not algorithm.certifying:
         return {}
     out = {"certification_attempts": c.attempts, "runs_certification": c.runs_certification}

@@ -24,6 +24,9 @@ REQUIRED = ("scenario", "algorithm", "boxes", "result_hash", "guarantee")
 SIDE_KEYS = ("volume", "volume_hull", "result_hash", "guarantee", "guarantee_formal")
 # a virtual farm's only
 VIRTUAL_KEYS = ("virtual_elapsed_s", "utilisation", "virtual_waiting_s", "virtual_coordinator_s")
+# written only where they apply: an estimated volume's interval, margin refinement, a holdout
+OPTIONAL_KEYS = VIRTUAL_KEYS + ("refine", "volume_union_exact", "volume_union_interval", "volume_hull_exact",
+                                "volume_hull_interval", "volume_method", "half_widths_finest", "holdout")
 
 
 @dataclass(frozen=True)
@@ -82,6 +85,19 @@ class Summary(JsonFile):
     volume_union: float = 0.0
     volume_hull: float = 0.0
     volume_sigma: float = 0.0
+    # where a volume is estimated (an exact one costs 2^n per box above 5 dimensions): False
+    # and its 95 % interval [low, high]; how each was computed, in words
+    volume_union_exact: bool | None = None
+    volume_union_interval: list | None = None
+    volume_hull_exact: bool | None = None
+    volume_hull_interval: list | None = None
+    volume_method: dict | None = None
+    # the refinement quantify.refine resolved to ("margin": boxes with a half-width per
+    # axis, whose finest per state variable is half_widths_finest)
+    refine: str | None = None
+    half_widths_finest: dict | None = None
+    # fresh uniform runs against the set: disagreements with Clopper-Pearson intervals
+    holdout: dict | None = None
     seed: int = 0
     config_hash: str = ""
     result_hash: str
@@ -108,7 +124,7 @@ class Summary(JsonFile):
     # -- summary.json ----------------------------------------------------------------------------
     def to_json(self) -> dict:
         """summary.json's object: every key, in the file's order."""
-        out = record_to_json(self, leave_out=("sides", "extra"), omit_none=VIRTUAL_KEYS)
+        out = record_to_json(self, leave_out=("sides", "extra"), omit_none=OPTIONAL_KEYS)
         for label, side in self.sides.items():
             out.update({SideSummary.key(name, label): getattr(side, name) for name in SIDE_KEYS})
         out.update(self.extra)
@@ -170,8 +186,7 @@ def summarize(cfg: Config, sides: dict, safe_sets: dict[str, SafeSet], guarantee
         counting=cfg.farm.counting,
         steps_simulated=sum(k.steps_simulated for k in counters),
         boxes=len(total),
-        volume_union=total.volume_union(bounds),
-        volume_hull=total.volume_hull(bounds),
+        **_volumes(total, bounds),
         volume_sigma=scenario.volume,
         seed=cfg.farm.seed,
         config_hash=config_mod.config_hash(cfg),
@@ -182,6 +197,10 @@ def summarize(cfg: Config, sides: dict, safe_sets: dict[str, SafeSet], guarantee
         guarantee_formal=guarantees["total"].formal,
         actions=main.policy.description,
         failure_facets=list(scenario.failure_facets),
+        refine=cfg.refinement() if cfg.quantify.algorithm == "spe" else None,
+        holdout=main.holdout,
+        half_widths_finest=dict(zip(total.state_names, total.axis_half_widths.min(axis=0).tolist()))
+        if total.anisotropic and len(total) else None,
         round_ends=list(c.round_ends),
         truncations=_truncations(scenario, counters),
         scenario_farm_version=__version__,
@@ -191,6 +210,17 @@ def summarize(cfg: Config, sides: dict, safe_sets: dict[str, SafeSet], guarantee
                                  result_hash=safe_sets[name].result_hash, guarantee=guarantees[name].plain,
                                  guarantee_formal=guarantees[name].formal)
                for name in sides if name != "total"})
+
+
+def _volumes(safe_set: SafeSet, bounds) -> dict:
+    """The union's and the hull's volume; where one is estimated, its interval and how."""
+    union, hull = safe_set.union_estimate(bounds), safe_set.hull_estimate(bounds)
+    out = {"volume_union": union.value, "volume_hull": hull.value}
+    if not (union.exact and hull.exact):
+        out.update(volume_union_exact=union.exact, volume_hull_exact=hull.exact,
+                   volume_union_interval=[union.low, union.high], volume_hull_interval=[hull.low, hull.high],
+                   volume_method={"union": union.method, "hull": hull.method})
+    return out
 
 
 def _truncations(scenario, counters: list) -> dict[str, int]:

@@ -29,7 +29,7 @@ def _projection(scenario, safe_set, x, y):
     """The safe set's shadow on the plane (x, y) as a grid: a run's projected start lies
     in it whatever its other coordinates, which no single slice could promise."""
     lo, hi = scenario.lower[[x, y]], scenario.upper[[x, y]]
-    member = Boxes(safe_set.centres[:, [x, y]], safe_set.half_widths, 2)
+    member = Boxes(safe_set.centres[:, [x, y]], safe_set.axis_half_widths[:, [x, y]], 2)
     xs, ys = _samples(lo[0], hi[0], RESOLUTION), _samples(lo[1], hi[1], RESOLUTION)
     return xs, ys, member.grid({0: xs, 1: ys}, {})
 

@@ -14,11 +14,14 @@ class Boxes:
     of a grid (``grid``)."""
 
     def __init__(self, centres: np.ndarray, half_widths, n: int):
-        """``half_widths``: one per box, or one for all; an empty box (half-width 0) is
-        left out."""
+        """``half_widths``: one per box and axis (M, n), one per box (M,), or one for all;
+        an empty box (a half-width 0) is left out."""
         centres = np.asarray(centres, dtype=float).reshape(-1, n)
-        widths = np.broadcast_to(np.asarray(half_widths, dtype=float), (len(centres),))
-        keep = widths > 0
+        widths = np.asarray(half_widths, dtype=float)
+        if widths.ndim == 1:  # one per box: the same on every axis
+            widths = widths[:, None]
+        widths = np.broadcast_to(widths, (len(centres), n))
+        keep = (widths > 0).all(axis=1)
         self.centres, self.half_widths = centres[keep], widths[keep]
 
     def grid(self, grids: dict[int, np.ndarray], fixed: dict[int, float]) -> np.ndarray:
@@ -38,12 +41,12 @@ class Boxes:
         radii = self.half_widths + TOLERANCE
         near = np.ones(len(centres), dtype=bool)
         for axis, value in fixed.items():  # a cut meets only the boxes near its held values
-            near &= np.abs(centres[:, axis] - float(value)) <= radii
+            near &= np.abs(centres[:, axis] - float(value)) <= radii[:, axis]
         centres, radii = centres[near], radii[near]
         keep = np.ones(len(centres), dtype=bool)
         bounds = []
         for axis, values in grids.items():
-            lo, hi = _covered(np.asarray(values, dtype=float), centres[:, axis], radii)
+            lo, hi = _covered(np.asarray(values, dtype=float), centres[:, axis], radii[:, axis])
             bounds.append((lo, hi))
             keep &= lo < hi
         if not keep.any():
@@ -66,7 +69,7 @@ class Boxes:
 
 def _set_member(scenario, safe_set) -> Boxes:
     """The boxes of a safe set."""
-    return Boxes(safe_set.centres, safe_set.half_widths, scenario.n)
+    return Boxes(safe_set.centres, safe_set.axis_half_widths, scenario.n)
 
 
 def _covered(values: np.ndarray, centres: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
