@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from coordinator.holdout import clopper_pearson
 from scenarios.actions import UniformActions
 from scenarios.base import FAILURE, Scenario
 from scenarios.errors import UserError
@@ -79,6 +80,31 @@ def grid(scenario: Scenario, points_per_axis: int | None = None) -> np.ndarray:
     k = points_per_axis or int(round(1.5e6 ** (1 / scenario.n)))
     axes = [lo + (hi - lo) * (np.arange(k) + 0.5) / k for lo, hi in zip(scenario.lower, scenario.upper)]
     return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, scenario.n)
+
+
+def uniform_points(scenario: Scenario, count: int, seed: int = 0) -> np.ndarray:
+    """``count`` states uniform in Sigma, (count, n), from their own generator: the
+    Monte-Carlo alternative to ``grid`` where a grid is too coarse (k^n points)."""
+    u = np.random.default_rng([seed, 0x636F6D70]).random((count, scenario.n))
+    return scenario.lower + u * (scenario.upper - scenario.lower)
+
+
+def compare_sampled(safe_set, points: np.ndarray, truth: np.ndarray, level: float = 0.95) -> dict:
+    """IoU, precision and recall of ``safe_set`` against the reference membership
+    ``truth`` at ``points`` uniform in Sigma, each with its exact (Clopper-Pearson)
+    ``level`` interval: given a point in the union, in the claimed set or in the
+    reference, the events "in both" are independent Bernoulli draws of IoU, precision
+    and recall. The volumes are shares of Sigma's. No Hausdorff distance: random points
+    do not bound one."""
+    got = safe_set.contains(points)
+    both, union, claimed, safe = (int((got & truth).sum()), int((got | truth).sum()), int(got.sum()),
+                                  int(truth.sum()))
+    out = {"sample_points": int(len(points)), "interval_level": level}
+    for name, k, n in (("iou", both, union), ("precision", both, claimed), ("recall", both, safe)):
+        out[name] = float(k / max(n, 1))
+        out[f"{name}_interval"] = list(clopper_pearson(k, n, level))
+    out["claimed_share"], out["reference_share"] = claimed / len(points), safe / len(points)
+    return out
 
 
 def compare_boxes(backend, safe_set, grid_points_per_axis: int | None = None, truth: np.ndarray | None = None) -> dict:

@@ -104,17 +104,19 @@ def overlay(results, path) -> Path:
 
 
 def compare(target, *, grid: int | None = None, grid_total: int | None = None, estimate_only: bool = False,
-            progress=None) -> dict:
+            progress=None, points: int | None = None) -> dict:
     """A finished campaign (directory or QuantifyResult) against the reference safe set:
     IoU, precision, recall, Hausdorff; writes compare.json and plots/compare.png. The
     reference grid: ``grid`` points per axis or ``grid_total`` points in all (default
-    ~1.5e6 for a model reference, 24^3 for one simulated with a black-box back end).
+    ~1.5e6 for a model reference, 24^3 for one simulated with a black-box back end), or
+    ``points`` states uniform in Sigma (the default, 200,000, above 5 axes): IoU,
+    precision and recall then with exact 95 % intervals (``<name>_interval``).
     ``progress`` (a farm.reports.progress.Progress) is told the runs it will take and the time
     estimated from a first batch before the rest; ``estimate_only`` returns that plan
     ({"reference_runs", "figure_runs", "estimated_s", ...}) and writes nothing."""
     directory = target.directory if isinstance(target, QuantifyResult) else Path(target)
     return lazy.compare.compare(directory, grid=grid, grid_total=grid_total, estimate_only=estimate_only,
-                                progress=progress)
+                                progress=progress, points=points)
 
 
 def export_openscenario(target, *, force: bool = False) -> dict:

@@ -113,6 +113,7 @@ class Scenario(ABC):
     noise_width: int = 0  # how many U[0,1) draws per step the disturbance needs
     adversary_settle_steps: int | None = None  # see reference_safe
     units: dict[str, str] = {}
+    state_words: dict[str, str] = {}  # state name -> what it is, for the figures' key
     action_words: dict[str, str] = {}
     action_units: dict[str, str] = {}
     failure_words: str = "fail"

@@ -25,6 +25,7 @@ class LeadFollow(Scenario):
     noise_width = 2
     sv_policies = SV_POLICIES
     units = {"v0": "m/s", "v1": "m/s", "p10": "m"}
+    state_words = {"v0": "the SV's speed", "v1": "the lead's speed", "p10": "the gap from the SV's front to the lead's rear"}
     action_words = {"u1": "the lead vehicle's acceleration"}
     action_units = {"u1": "m/s^2"}
     failure_words = "collide"

@@ -63,6 +63,8 @@ class LeadFollowParams(Scenario):
     # SV policies here see the parameters too: (v0, v1, gap, headway, friction) -> accel
     sv_policies = {"idm": idm_on_road, "brake": brake_on_road}
     units = {"v0": "m/s", "v1": "m/s", "p10": "m", "T": "s"}  # mu is a ratio
+    state_words = {"v0": "the SV's speed", "v1": "the lead's speed", "p10": "the gap from the SV's front to the lead's rear",
+                   "T": "the SV's IDM time headway", "mu": "the road's friction (scales every braking limit)"}
     action_words = {"u1": "the lead vehicle's commanded acceleration (braking scaled by the road's friction)"}
     action_units = {"u1": "m/s^2"}
     failure_words = "collide"

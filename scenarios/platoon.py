@@ -29,6 +29,11 @@ LEAD_ACTION = (-5.0, 3.0)  # [m/s^2] the front-most lead's acceleration
 REAR_ACTION = (-7.0, -3.0)  # [m/s^2] the rear-most follower's: it never accelerates
 
 
+def _car(i: int, leads: int) -> str:
+    """Car i in words: the SV, lead 1 .. m (1 nearest), follower 1 .. r (1 nearest)."""
+    return "the SV" if i == 0 else (f"lead {i}" if i <= leads else f"follower {i - leads}")
+
+
 def _layout(vehicles: int, followers: int) -> dict:
     """The declarations that depend on k and r, as class attributes would hold them."""
     leads = vehicles - 1 - followers
@@ -45,6 +50,9 @@ def _layout(vehicles: int, followers: int) -> dict:
         "failure_sides": {"p10": False, rear: True},  # p10 < 5 (lead 1), p(m+1)0 > -5 (follower 1)
         "noise_width": vehicles,  # one disturbance draw per car and step
         "units": {**{v: "m/s" for v in speeds}, **{p: "m" for p in gaps}},
+        "state_words": {**{v: f"{_car(i, leads)}'s speed" for i, v in enumerate(speeds)},
+                        **{p: f"{_car(i + 1, leads)}'s minus {_car(partner[i + 1], leads)}'s position"
+                           for i, p in enumerate(gaps)}},
         "sides": {"lead": ("p10",), "rear": (rear,)},
     }
 

@@ -67,6 +67,12 @@ def curvature(hood: Neighbourhood) -> np.ndarray:
     return np.nan_to_num(np.where(both, second, 0.0), nan=0.0, posinf=0.0, neginf=0.0)
 
 
+def first_order_change(hood: Neighbourhood) -> np.ndarray:
+    """(B,) ``R = sum_a |g_a| h_a``: how much the margin may change from the centre to a
+    corner of the box, to first order."""
+    return (np.abs(gradient(hood)) * hood.half_width).sum(axis=1)
+
+
 def wanted_axes(hood: Neighbourhood, finest: float) -> tuple[np.ndarray, np.ndarray]:
     """-> ((B, n) bool: the axes the boundary may cross, (B, n) float: each axis's
     priority, higher first: a differing label beats any share of the change). A box

@@ -102,6 +102,20 @@ def _print_summary(out: Path, summary=None) -> None:
     print(f"{'results':>18}: {out}/summary.json, {out}/safe_set.parquet, {out}/plots/")
 
 
+def parse_hold(items: list[str]) -> dict[str, float]:
+    """``["v1=5", "p10=20"]`` -> {"v1": 5.0, "p10": 20.0}; ConfigError on another form."""
+    hold = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        try:
+            hold[name.strip()] = float(value)
+        except ValueError:
+            sep = ""
+        if not sep or not name.strip():
+            raise ConfigError(f"report --hold: {item!r} is not NAME=VALUE (a state name and a number, e.g. v1=5)")
+    return hold
+
+
 def cmd_report(args) -> int:
     if args.overlay:
         if len(args.dir) < 2:
@@ -109,9 +123,13 @@ def cmd_report(args) -> int:
         path = api.overlay(args.dir, Path(args.dir[0]) / "plots" / "overlay.png")
         print(f"{'overlay':>18}: {path}")
         return EXIT_OK
+    hold = parse_hold(args.hold)
     for directory in args.dir:
         result = api.open_campaign(directory)
-        paths = result.plot()
+        try:
+            paths = result.plot(hold=hold)
+        except ValueError as exc:  # an axis the scenario has not, or a value outside Sigma
+            raise ConfigError(f"report --{exc}") from None
         failures = result.plot_failures()
         _print_summary(Path(directory), result.summary)
         print(f"{'plots':>18}: {', '.join(str(p) for p in paths + ([failures] if failures else []))}")
@@ -143,10 +161,11 @@ def cmd_compare(args) -> int:
     progress = Progress(mode=_mode(args))
     if args.estimate:
 
-        plan = api.compare(args.dir, grid=args.grid, grid_total=args.grid_total, estimate_only=True, progress=progress)
+        plan = api.compare(args.dir, grid=args.grid, grid_total=args.grid_total, estimate_only=True, progress=progress,
+                           points=args.points)
         print(lazy.compare.describe_estimate(Path(args.dir), plan))
         return EXIT_OK
-    metrics = api.compare(args.dir, grid=args.grid, grid_total=args.grid_total, progress=progress)
+    metrics = api.compare(args.dir, grid=args.grid, grid_total=args.grid_total, progress=progress, points=args.points)
     print(lazy.compare.describe(Path(args.dir), metrics))
     return EXIT_OK
 

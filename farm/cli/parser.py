@@ -80,6 +80,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--html", action="store_true", help="also write DIR/report.html (figures, guarantee, rounds)")
     p.add_argument("--graph", action="store_true",
                    help="also write the exploration graph as GraphML (DIR/exploration_graph.graphml)")
+    p.add_argument("--hold", action="append", default=[], metavar="NAME=VALUE",
+                   help="hold a state the figures do not show at VALUE (repeatable; default: mid-range), "
+                        "e.g. --hold v1=5 --hold p10=20")
 
     p = sub.add_parser("status", help="report a running or stopped campaign from its files")
     p.add_argument("dir")
@@ -96,6 +99,9 @@ def build_parser() -> argparse.ArgumentParser:
                                                           "for a model reference, 24^3 for a simulated one)")
     p.add_argument("--grid-total", type=int, default=None, help="reference grid points in all (the most points per "
                                                                 "axis that fit)")
+    p.add_argument("--points", type=int, default=None, help="compare on this many states uniform in Sigma instead "
+                                                            "of a grid, with 95%% intervals (default above 5 axes: "
+                                                            "200000)")
     p.add_argument("--estimate", action="store_true", help="say how many runs the reference takes and how long "
                                                            "(from a timed first batch), then stop")
     _add_output_flags(p)

@@ -2,6 +2,9 @@
 
 Prints IoU, precision, recall and the l-inf Hausdorff distance, writes compare.json and
 plots/compare.png (2-D slices: claimed but unsafe in red, safe but not claimed in blue).
+On a grid of k^n points, or (``points``, the default above MAX_GRID_N axes, where a grid
+of ~1.5e6 points has 5 points per axis) on points uniform in Sigma: IoU, precision and
+recall then carry exact 95 % intervals and there is no Hausdorff distance.
 
 The reference is the scenario's model where it has one, else simulated under Gamma*
 with the campaign's own back end: one run of up to ``adversary_settle_steps`` steps per
@@ -19,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from coordinator.reference import compare_boxes, falsified, grid as grid_points, reference_safe
+from coordinator.reference import (compare_boxes, compare_sampled, falsified, grid as grid_points, reference_safe,
+                                   uniform_points)
 from coordinator.safe_set import SafeSet
 from farm.directory.files import write_json
 from farm import lazy
@@ -28,6 +32,8 @@ from farm.directory.storage import CampaignDir
 from farm.reports.summary import Summary
 from scenarios.errors import ConfigError
 
+MAX_GRID_N = 5  # more axes: Monte-Carlo points by default
+SAMPLE_POINTS, MAX_SAMPLE_POINTS = 200_000, 10**7
 SIMULATED_GRID_POINTS = 24**3  # default grid of a simulated reference: 24 per axis in 3-D
 MODEL_GRID_POINTS = 1.5e6
 MAX_GRID_POINTS = 10**8  # (G, n) doubles and a KD-tree: ~10 GB at n = 5
@@ -65,14 +71,28 @@ def _root(total: int, n: int) -> int:
     return k
 
 
+def sample_count(n: int, grid: int | None, grid_total: int | None, points: int | None) -> int | None:
+    """How many Monte-Carlo points to compare on; None: compare on a grid. ``points`` as
+    given; by default SAMPLE_POINTS above MAX_GRID_N axes unless a grid was asked for."""
+    if points is not None:
+        if grid is not None or grid_total is not None:
+            raise ConfigError("compare: give --points (uniform points) or a grid (--grid, --grid-total), not both")
+        if not 1000 <= points <= MAX_SAMPLE_POINTS:
+            raise ConfigError(f"--points: {points} is out of range; allowed [1000, {MAX_SAMPLE_POINTS}]")
+        return int(points)
+    return SAMPLE_POINTS if n > MAX_GRID_N and grid is None and grid_total is None else None
+
+
 def compare(directory: Path, grid: int | None = None, progress=None, *, grid_total: int | None = None,
-            estimate_only: bool = False) -> dict:
+            estimate_only: bool = False, points: int | None = None) -> dict:
     """Metrics of a finished campaign against its reference (also written to
     compare.json, with plots/compare.png); ``notes`` says how the reference was made,
     ``runs`` how many runs each phase made and how long it took against the estimate.
     ``progress``: a farm.reports.progress.Progress told of the plan, the estimate and each
     phase. ``estimate_only``: time the first batch, return the plan with its estimate
-    (``estimated_s``), write nothing."""
+    (``estimated_s``), write nothing. ``points``: compare on that many states uniform in
+    Sigma (seeded: the same each time) instead of a grid; the default above
+    MAX_GRID_N axes."""
     say = progress.line if progress is not None else (lambda text: None)
     directory = Path(directory)
     CampaignDir(directory).open("quantify")
@@ -86,9 +106,10 @@ def compare(directory: Path, grid: int | None = None, progress=None, *, grid_tot
                           f"{cfg.actions.mode!r}")
     backend = build_simulator(spec_of(cfg)).backend
     scenario = backend.scenario
-    k = points_per_axis(scenario.n, grid, grid_total, simulated)
+    sampled = sample_count(scenario.n, grid, grid_total, points)
+    k = points_per_axis(scenario.n, grid, grid_total, simulated) if sampled is None else 0
     safe_set = SafeSet.from_parquet(directory / "safe_set.parquet", scenario.state_names)
-    points = grid_points(scenario, k)
+    points = grid_points(scenario, k) if sampled is None else uniform_points(scenario, sampled)
     reference_safe(backend, points[:1])  # no reference at all: say so before any work
     model = not simulated and scenario.reference_safe(points[:1]) is not None
     how = "the scenario's model" if model else (f"simulated under Gamma* on the {cfg.scenario.backend} back end, "
@@ -96,7 +117,9 @@ def compare(directory: Path, grid: int | None = None, progress=None, *, grid_tot
     res = _figure_resolution(simulated, k)
     pixels = _figure_pixels(scenario, res)
     falsifies = cfg.actions.mode != "adversarial" and scenario.name != "toy" and scenario.sv_policy_name != "brake"
-    say(f"compare: reference safe set from {how}: {len(points):,} grid points ({k} per axis) + "
+    where = f"{len(points):,} grid points ({k} per axis)" if sampled is None else \
+        f"{len(points):,} points uniform in Sigma"
+    say(f"compare: reference safe set from {how}: {where} + "
         f"{len(pixels):,} for the figure = {len(points) + len(pixels):,} runs"
         + (f", then up to {FALSIFY_TRIES} random action sequences of {FALSIFY_HORIZON} steps from each of up to "
            f"{2 * FALSIFY_POINTS:,} reference-safe points" if falsifies else ""))
@@ -108,7 +131,8 @@ def compare(directory: Path, grid: int | None = None, progress=None, *, grid_tot
     runs = {"reference_runs": int(len(points)), "figure_runs": int(len(pixels)),
             "estimated_s": round(time.monotonic() - t0 + rest_s, 3)}
     if estimate_only:
-        return {**runs, "points_per_axis": k, "reference": how, "falsification": falsifies}
+        return {**runs, "points_per_axis": k, "sample_points": sampled or 0, "reference": how,
+                "falsification": falsifies}
     truth = np.empty(len(everything), dtype=bool)
     truth[timed] = timed_truth
     rest = _rest(len(everything), timed)
@@ -116,7 +140,8 @@ def compare(directory: Path, grid: int | None = None, progress=None, *, grid_tot
     truth, pixel_truth = truth[: len(points)], truth[len(points) :]
     runs["elapsed_s"] = round(time.monotonic() - t0, 3)
     say(f"compare: reference done in {runs['elapsed_s']:.1f} s; measuring the claimed set")
-    metrics = compare_boxes(backend, safe_set, truth=truth, grid_points_per_axis=k)
+    metrics = (compare_boxes(backend, safe_set, truth=truth, grid_points_per_axis=k) if sampled is None
+               else compare_sampled(safe_set, points, truth))
     notes = []
     if falsifies:
         sample = points[truth][:: max(1, int(truth.sum()) // FALSIFY_POINTS)]
@@ -204,14 +229,19 @@ def describe(directory: Path, metrics: dict) -> str:
     """The CLI's lines for ``compare``'s metrics."""
     widths = (f"half-width {metrics['half_width']:g}" if "half_width_max" not in metrics
               else f"half-widths {metrics['half_width']:g} to {metrics['half_width_max']:g}")
-    lines = [f"{directory}: {metrics['boxes']} boxes ({widths}) against the "
-             f"{metrics['reference']} reference on {metrics['grid_points']:,} grid points",
-             f"  IoU {metrics['iou']:.4f}  precision {metrics['precision']:.4f}  recall {metrics['recall']:.4f}  "
-             f"Hausdorff (l-inf) {metrics['hausdorff']:.3g}",
-             f"  claimed volume {metrics['claimed_volume']:.6g}, reference volume {metrics['reference_volume']:.6g}",
-             f"  errors reach {metrics['missed_depth_boxes']:.3g} box widths into the reference's safe region "
-             f"(missed) and {metrics['overclaimed_depth_boxes']:.3g} into its unsafe region (claimed); the boxes' "
-             f"boundary layer is 1 box width plus a grid cell ({metrics['grid_cell_boxes']:.3g} box widths)"]
+    if "sample_points" in metrics:
+        lines = _describe_sampled(directory, metrics, widths)
+    else:
+        lines = [f"{directory}: {metrics['boxes']} boxes ({widths}) against the "
+                 f"{metrics['reference']} reference on {metrics['grid_points']:,} grid points",
+                 f"  IoU {metrics['iou']:.4f}  precision {metrics['precision']:.4f}  recall {metrics['recall']:.4f}  "
+                 f"Hausdorff (l-inf) {metrics['hausdorff']:.3g}",
+                 f"  claimed volume {metrics['claimed_volume']:.6g}, reference volume "
+                 f"{metrics['reference_volume']:.6g}",
+                 f"  errors reach {metrics['missed_depth_boxes']:.3g} box widths into the reference's safe region "
+                 f"(missed) and {metrics['overclaimed_depth_boxes']:.3g} into its unsafe region (claimed); the "
+                 f"boxes' boundary layer is 1 box width plus a grid cell ({metrics['grid_cell_boxes']:.3g} box "
+                 f"widths)"]
     lines += [f"  {n}" for n in metrics["notes"]]
     runs = metrics.get("runs")
     if runs:
@@ -223,15 +253,29 @@ def describe(directory: Path, metrics: dict) -> str:
     return "\n".join(lines)
 
 
+def _describe_sampled(directory: Path, metrics: dict, widths: str) -> list[str]:
+    level = f"{100 * metrics['interval_level']:g} %"
+
+    def share(name):
+        low, high = metrics[f"{name}_interval"]
+        return f"{metrics[name]:.4f} ({low:.4f} to {high:.4f})"
+
+    return [f"{directory}: {metrics['boxes']} boxes ({widths}) against the {metrics['reference']} reference on "
+            f"{metrics['sample_points']:,} points uniform in Sigma (exact {level} intervals)",
+            f"  IoU {share('iou')}  precision {share('precision')}  recall {share('recall')}",
+            f"  claimed {100 * metrics['claimed_share']:.3g} % of Sigma, reference {100 * metrics['reference_share']:.3g} %"]
+
+
 def describe_estimate(directory: Path, plan: dict) -> str:
     """The CLI's lines for ``compare --estimate``."""
-    text = (f"{directory}: the reference would take {plan['reference_runs']:,} runs ({plan['points_per_axis']} grid "
-            f"points per axis) and the figure {plan['figure_runs']:,}, from {plan['reference']}: about "
+    where = (f"{plan['points_per_axis']} grid points per axis" if not plan.get("sample_points") else
+             f"{plan['sample_points']:,} points uniform in Sigma")
+    text = (f"{directory}: the reference would take {plan['reference_runs']:,} runs ({where}) and the figure {plan['figure_runs']:,}, from {plan['reference']}: about "
             f"{_duration(plan['estimated_s'])} at the rate of the first batch")
     if plan["falsification"]:
         text += (f"; then up to {FALSIFY_TRIES} x {2 * FALSIFY_POINTS:,} falsification runs of {FALSIFY_HORIZON} "
                  f"steps (estimated when the reference is known)")
-    return text + "; choose the grid with --grid (per axis) or --grid-total"
+    return text + "; choose the grid with --grid (per axis) or --grid-total, or --points"
 
 
 def _figure_resolution(simulated: bool, k: int) -> int:

@@ -125,8 +125,9 @@ class QuantifyResult:
     def _scenario(self):
         return make_backend(spec_of(CampaignDir(self.directory).frozen_config()).scenario).scenario
 
-    def plot(self, out_dir=None) -> list[Path]:
-        """Redraw the figures (into DIR/plots by default); -> the files written."""
-        cfg = CampaignDir(self.directory).frozen_config()
-        scenario = make_backend(spec_of(cfg).scenario).scenario
-        return lazy.plots.draw(Path(out_dir) if out_dir else self.directory / "plots", scenario, self.safe_set, self.summary)
+    def plot(self, out_dir=None, hold: dict[str, float] | None = None) -> list[Path]:
+        """Redraw the figures (into DIR/plots by default); -> the files written.
+        ``hold``: state name -> the value the slices and 3-D views hold that axis at
+        (default mid-range); ValueError on an unknown name or a value outside Sigma."""
+        return lazy.plots.draw(Path(out_dir) if out_dir else self.directory / "plots", self._scenario(), self.safe_set,
+                               self.summary, hold=hold)

@@ -13,13 +13,14 @@ from farm.execution.process import build_simulator, spec_of
 from farm.jobs.campaign_setup import build_algorithm, build_campaign
 
 
-@pytest.mark.parametrize("algorithm,mode", [("spe", "uniform"), ("spe", "adversarial"), ("ae", "uniform"),
-                                            ("delta-pruning", "uniform"), ("vs", "uniform")])
-def test_a_done_algorithm_keeps_its_state_until_released_and_its_answers_after(algorithm, mode):
+@pytest.mark.parametrize("algorithm,mode,refine", [("spe", "uniform", "auto"), ("spe", "adversarial", "all"),
+                                                   ("spe", "adversarial", "margin"), ("ae", "uniform", "auto"),
+                                                   ("delta-pruning", "uniform", "auto"), ("vs", "uniform", "auto")])
+def test_a_done_algorithm_keeps_its_state_until_released_and_its_answers_after(algorithm, mode, refine):
     cfg = config_mod.normalize({
         "scenario": {"name": "lead-follow", "sv_policy": "idm"}, "actions": {"mode": mode},
         "quantify": {"algorithm": algorithm, "delta0": 4.0, "delta_min": 2.0, "epsilon": 0.01, "beta": 0.1,
-                     "horizon": 30, "budget": 3_000},  # vs may draw box after box: done by the budget
+                     "horizon": 30, "budget": 3_000, "refine": refine},  # vs may draw box after box: done by the budget
         "farm": {"executor": "local", "batch_size": 256, "seed": 1}})
     sim = build_simulator(spec_of(cfg))
     algo = build_algorithm(cfg, sim)
@@ -37,4 +38,4 @@ def test_a_done_algorithm_keeps_its_state_until_released_and_its_answers_after(a
     assert counts == answers[1]
     assert np.array_equal(failures, answers[2])
     if mode == "adversarial":  # certification ran: the certified count survives the release
-        assert algo.enumerates and counts["certified"] == counts["boxes"] > 0
+        assert (algo.enumerates or refine == "margin") and counts["certified"] == counts["boxes"] > 0

@@ -6,7 +6,8 @@ from functools import partial
 import numpy as np
 import pytest
 
-from coordinator.reference import NoReference, compare_boxes, falsify, grid, reference_safe
+from coordinator.reference import (NoReference, compare_boxes, compare_sampled, falsify, grid, reference_safe,
+                                  uniform_points)
 from coordinator.safe_set import SafeSet
 from invariant_sets import min_future_gap_brake
 from scenarios import NumpyBackend, make_scenario
@@ -54,6 +55,24 @@ def test_compare_scores_a_perfect_and_a_shifted_set():
     # a band one box (0.5) wide missed at each well's left edge, claimed at its right
     assert shifted["missed_depth_boxes"] == pytest.approx(1.0)
     assert shifted["overclaimed_depth_boxes"] == pytest.approx(1.0)
+
+
+def test_sampled_comparison_brackets_the_grid_value_and_is_reproducible():
+    toy = make_scenario("toy", sv_policy="none")
+    sc = NumpyBackend(toy)
+    xs = np.concatenate([np.arange(1.25, 4.0, 0.5), np.arange(6.25, 9.0, 0.5)])
+    centres = np.stack(np.meshgrid(xs, np.arange(0.25, 10.0, 0.5), indexing="ij"), -1).reshape(-1, 2)
+    one_well = SafeSet.uniform(centres[centres[:, 0] < 5], 0.25, ("x", "y"))
+    exact = compare_boxes(sc, one_well, grid_points_per_axis=400)
+    points = uniform_points(toy, 20000, seed=3)
+    assert np.array_equal(points, uniform_points(toy, 20000, seed=3))
+    assert ((points >= toy.lower) & (points <= toy.upper)).all()
+    sampled = compare_sampled(one_well, points, reference_safe(sc, points))
+    assert sampled["sample_points"] == 20000 and "hausdorff" not in sampled
+    for name in ("iou", "precision", "recall"):
+        low, high = sampled[f"{name}_interval"]
+        assert low <= sampled[name] <= high and high - low < 0.05
+        assert low - 0.01 <= exact[name] <= high + 0.01  # the grid's value (itself a fine quadrature) inside
 
 
 def test_compare_cli_on_a_campaign(tmp_path):

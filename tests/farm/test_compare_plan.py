@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from coordinator.reference import falsified, falsify
-from farm.reports.compare import points_per_axis
+from farm.reports.compare import points_per_axis, sample_count
 from scenarios.lead_follow import LeadFollow
 
 
@@ -63,8 +63,25 @@ def test_the_plan_and_estimate_come_first_and_the_grid_total_is_the_grid(campaig
     assert by_axis == by_total
 
 
+def test_compare_on_uniform_points_gives_intervals(campaign):
+    r = cli("compare", campaign, "--points", 5000, "--quiet")
+    assert r.returncode == 0, r.stderr
+    metrics = json.loads((campaign / "compare.json").read_text())
+    assert metrics["sample_points"] == 5000 and metrics["runs"]["reference_runs"] == 5000
+    low, high = metrics["iou_interval"]
+    assert 0 <= low <= metrics["iou"] <= high <= 1
+    assert "points uniform in Sigma (exact 95 % intervals)" in r.stdout
+
+
+def test_sample_count_default_is_points_above_five_axes_only():
+    assert sample_count(5, None, None, None) is None and sample_count(7, None, None, None) == 200_000
+    assert sample_count(7, 4, None, None) is None  # a grid asked for is a grid
+    assert sample_count(3, None, None, 5000) == 5000
+
+
 def test_bad_grids_are_one_line_errors(campaign):
-    for args, word in [(("--grid-total", 5), "--grid-total"), (("--grid", 10, "--grid-total", 1000), "not both")]:
+    for args, word in [(("--grid-total", 5), "--grid-total"), (("--grid", 10, "--grid-total", 1000), "not both"),
+                       (("--points", 10), "--points"), (("--points", 5000, "--grid", 10), "not both")]:
         r = cli("compare", campaign, *args)
         assert r.returncode == 2 and r.stderr.count("\n") == 1 and word in r.stderr, r.stderr
 

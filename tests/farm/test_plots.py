@@ -12,8 +12,10 @@ from matplotlib.text import Text
 
 from coordinator.safe_set import SafeSet
 from farm.reports import plots
+from farm.reports.plots.layout import _key
 from farm.reports.plots.membership import Boxes
 from farm.reports.summary import Summary
+from scenarios.base import Slices
 from scenarios.fleet3 import Fleet3
 from scenarios.lead_follow import LeadFollow
 from scenarios.toy import Toy
@@ -86,7 +88,8 @@ def assert_png(path):
 def test_draw_writes_the_public_files_for_lead_follow(tmp_path):
     sc, safe_set = lead_follow_set()
     written = plots.draw(tmp_path / "plots", sc, safe_set, named("lead-follow", "spe"))
-    assert written == [tmp_path / "plots" / "safe_set_3d.png", tmp_path / "plots" / "safe_set_slices.png"]
+    assert written == [tmp_path / "plots" / "safe_set_3d.png", tmp_path / "plots" / "safe_set_slices.png",
+                       tmp_path / "plots" / "safe_set_projections.png"]
     for path in written:
         assert_png(path)
 
@@ -99,7 +102,7 @@ def test_draw_writes_the_files_of_fleet3_total_and_sides(tmp_path):
         side, side_set = fleet3_set((facet,))
         plots.draw(tmp_path / "plots" / f"{label}_side", side, side_set, named("fleet3", f"{label} side", "idm"))
     for folder in ("", "lead_side", "rear_side"):
-        for name in ("safe_set_3d.png", "safe_set_slices.png"):
+        for name in ("safe_set_3d.png", "safe_set_slices.png", "safe_set_projections.png"):
             assert_png(tmp_path / "plots" / folder / name)
 
 
@@ -236,7 +239,8 @@ def test_the_rear_side_figures_show_the_rear_side_only():
     assert "rear side" in surfaces._suptitle.get_text()
     slices = plots.slices_figure(sc, safe_set, summary)
     assert {a.get_ylabel() for a in visible_axes(slices)} == {"p20 [m]"}
-    assert not any("lead" in w for w in texts(surfaces) + texts(slices))
+    key = _key(sc)  # what v1 and p10 are, said of every state: the rest is about the rear side only
+    assert not any("lead" in w.replace(key, "") for w in texts(surfaces) + texts(slices))
 
 
 def test_a_two_state_scenario_gets_slices_only_and_no_held_coordinates(tmp_path):
@@ -252,7 +256,7 @@ def test_an_empty_set_is_drawn_and_says_so(tmp_path):
     sc = LeadFollow("idm")
     empty = uniform_set(sc, np.zeros((0, 3)), 1.0)
     written = plots.draw(tmp_path, sc, empty)
-    assert len(written) == 2
+    assert len(written) == 3
     fig = plots.surface_figure(sc, empty)
     assert "no safe state in this view" in visible_axes(fig, "3d")[0].get_title()
 
@@ -370,3 +374,61 @@ def test_membership_on_a_grid_decides_samples_an_ulp_from_a_face_as_the_spatial_
         box = centres[k:k + 1]
         assert np.array_equal(Boxes(box, h, 1).grid({0: xs}, {}), _indexed(box, h, 1, xs[:, None]))
         assert np.array_equal(Boxes(box, h, 1).grid({0: xs[::-1]}, {}), _indexed(box, h, 1, xs[::-1, None]))
+
+
+def test_held_values_chosen_by_the_user_set_the_cuts_and_views_and_wrong_ones_are_named():
+    sc, safe_set = fleet3_set()
+    slices = plots.slices_figure(sc, safe_set, hold={"v2": 1.0, "p20": -20.0})
+    titles = [ax.get_title() for ax in visible_axes(slices)]
+    assert titles[0] == "v1 = 0 m/s, v2 = 1 m/s, p20 = -20 m"
+    assert titles[4] == "v2 = 0 m/s, v1 = 3 m/s, p10 = 15 m"  # v2 varies in that row: its levels win
+    surfaces = plots.surface_figure(sc, safe_set, hold={"p20": -20.0})
+    assert "p20 = -20 m" in visible_axes(surfaces, "3d")[0].get_title()
+    with pytest.raises(ValueError, match="unknown axis 'v9'; the axes are v0, v1, v2, p10, p20"):
+        plots.slices_figure(sc, safe_set, hold={"v9": 1.0})
+    with pytest.raises(ValueError, match=r"p20 = 3 is out of range; allowed \[-25, -5\]"):
+        plots.surface_figure(sc, safe_set, hold={"p20": 3.0})
+
+
+def test_a_held_value_changes_what_the_cut_shows(tmp_path):
+    # fleet3's lead side is unsafe at small p10 only when v0 > v1: holding v1 high clears it
+    sc, safe_set = fleet3_set()
+    low = plots.slices_figure(sc, safe_set, slices=[Slices("v0", "p10")], hold={"v1": 0.5})
+    high = plots.slices_figure(sc, safe_set, slices=[Slices("v0", "p10")], hold={"v1": 5.5})
+    assert not np.allclose(pixel(visible_axes(low)[0], 5.0, 6.0), pixel(visible_axes(high)[0], 5.0, 6.0))
+
+
+def test_projection_shares_are_exact_for_disjoint_boxes_and_said_to_be_bounds_otherwise():
+    sc = LeadFollow("idm")
+    # two disjoint boxes over the same (v0, p10) square, covering v1 in [0, 5] and [5, 10]
+    centres = np.array([[5.0, 2.5, 35.0], [5.0, 7.5, 35.0]])
+    widths = np.array([[5.0, 2.5, 35.0], [5.0, 2.5, 35.0]])
+    disjoint = SafeSet(centres, widths, sc.state_names, disjoint=True)
+    xs, ys, share = plots.projected_share(sc, disjoint, 0, 2, res=40)
+    inside = xs < 10
+    assert np.allclose(share[inside], 0.5) and np.allclose(share[~inside], 0.0)
+    fig = plots.projections_figure(sc, disjoint)
+    assert "(at most)" not in " ".join(a.get_ylabel() for a in fig.axes)
+    overlapping = SafeSet(centres, widths + [[0, 1.0, 0], [0, 1.0, 0]], sc.state_names)
+    fig = plots.projections_figure(sc, overlapping)
+    assert "upper bound" in fig._suptitle.get_text()
+    assert any("(at most)" in a.get_ylabel() for a in fig.axes)
+
+
+def test_projection_of_a_seven_axis_set_costs_one_pass_over_its_boxes():
+    from scenarios.platoon import Platoon
+
+    sc = Platoon("idm", vehicles=4, followers=1)
+    rng = np.random.default_rng(0)
+    centres = sc.lower + rng.random((20000, sc.n)) * (sc.upper - sc.lower)
+    safe_set = SafeSet(centres, np.full((20000, sc.n), 0.01), sc.state_names, disjoint=True)
+    xs, ys, share = plots.projected_share(sc, safe_set, 0, sc.state_names.index("p10"), res=30)
+    # each box's hidden share: prod of 0.02 / range over 5 hidden axes; summed where covered
+    assert share.max() < 1e-6 and share.sum() > 0
+
+
+def test_figures_say_what_the_state_names_mean():
+    sc, safe_set = fleet3_set()
+    for fig in (plots.slices_figure(sc, safe_set), plots.surface_figure(sc, safe_set),
+                plots.projections_figure(sc, safe_set)):
+        assert "v0: the SV's speed" in fig._suptitle.get_text()

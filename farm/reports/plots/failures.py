@@ -9,20 +9,10 @@ import numpy as np
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch, Rectangle
 
-from farm.reports.plots.layout import _label, _slices
-from farm.reports.plots.membership import Boxes, _axis, _samples, _set_member
+from farm.reports.plots.layout import _label, _planes, _with_key
+from farm.reports.plots.membership import Boxes, _samples, _set_member
 from farm.reports.plots.slices import _extent, _paint
 from farm.reports.plots.style import HIDDEN_SAMPLES, RESOLUTION, SAFE_COLOUR, _save
-
-
-def _planes(scenario) -> list[tuple[int, int]]:
-    """The distinct (x, y) planes of the scenario's slices (fleet3: (v0, p10), (v0, p20))."""
-    planes = []
-    for spec in _slices(scenario):
-        plane = (_axis(scenario, spec.x), _axis(scenario, spec.y))
-        if plane not in planes:
-            planes.append(plane)
-    return planes
 
 
 def _projection(scenario, safe_set, x, y):
@@ -108,8 +98,9 @@ def failures_figure(scenario, safe_set, trajectories, labels=None):
     handles += [Line2D([], [], color=line.get_color(), label=line.get_label())
                 for line in axs[0, 0].get_lines() if named and not line.get_label().startswith("_")]
     name = " / ".join(str(p) for p in (scenario.name, getattr(scenario, "sv_policy_name", None)) if p)
-    fig.suptitle(f"{name}: {len(trajectories)} failing run{'s' * (len(trajectories) != 1)} "
-                 f"over the safe set ({len(safe_set)} boxes, {safe_set.describe_widths()})", fontsize=10)
+    fig.suptitle(_with_key(f"{name}: {len(trajectories)} failing run{'s' * (len(trajectories) != 1)} "
+                           f"over the safe set ({len(safe_set)} boxes, {safe_set.describe_widths()})", scenario),
+                 fontsize=10)
     fig.legend(handles=handles, loc="outside right center", fontsize=9)
     return fig
 

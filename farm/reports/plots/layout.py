@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 
 from farm.reports.plots.membership import _axis, _held
@@ -35,6 +37,20 @@ def _title(scenario, safe_set, summary=None) -> str:
     return f"{' / '.join(str(p) for p in parts if p)}: {len(safe_set)} boxes, {safe_set.describe_widths()}"
 
 
+def _key(scenario, width: int = 150) -> str:
+    """What the state names mean, "v0: the SV's speed; ...", wrapped into lines of
+    ``width`` characters; "" for a scenario that does not say (``state_words``)."""
+    words = getattr(scenario, "state_words", {})
+    parts = [f"{name}: {words[name]}" for name in scenario.state_names if name in words]
+    return "\n".join(textwrap.wrap("; ".join(parts), width)) if parts else ""
+
+
+def _with_key(title: str, scenario) -> str:
+    """A figure's title, then the key of the state names (figures must say what v0 is)."""
+    key = _key(scenario)
+    return f"{title}\n{key}" if key else title
+
+
 def _own(items, scenario, names_of) -> list:
     """The hints about the scenario's failure facets (a side campaign counts only its
     own: fleet3's rear side has no business with the lead-side view); all if none is."""
@@ -51,15 +67,42 @@ def _slices(scenario) -> list:
     return _own(scenario.slices(), scenario, lambda s: (s.x, s.y))
 
 
-def _cuts(scenario, spec) -> list[tuple[int, int, dict[int, float]]]:
-    """A Slices hint -> panels (x, y, held coordinates): one per level of ``varied``."""
+def held_values(scenario, hold: dict[str, float] | None) -> dict[int, float]:
+    """A user's held values (state name -> value) checked against the scenario -> axis
+    -> value; ValueError naming the axis and its range on an unknown name or a value
+    outside Sigma."""
+    out = {}
+    for name, value in (hold or {}).items():
+        if name not in scenario.state_names:
+            raise ValueError(f"hold: unknown axis {name!r}; the axes are {', '.join(scenario.state_names)}")
+        a = list(scenario.state_names).index(name)
+        lo, hi = float(scenario.lower[a]), float(scenario.upper[a])
+        if not lo <= float(value) <= hi:
+            raise ValueError(f"hold: {name} = {value:g} is out of range; allowed [{lo:g}, {hi:g}]")
+        out[a] = float(value)
+    return out
+
+
+def _cuts(scenario, spec, hold: dict[int, float] | None = None) -> list[tuple[int, int, dict[int, float]]]:
+    """A Slices hint -> panels (x, y, held coordinates): one per level of ``varied``;
+    the coordinates shown in none are held at ``hold`` (axis -> value), else mid-range."""
     x, y = _axis(scenario, spec.x), _axis(scenario, spec.y)
     if spec.varied is None:
-        return [(x, y, _held(scenario, (x, y)))]
+        return [(x, y, _held(scenario, (x, y), hold))]
     v = _axis(scenario, spec.varied)
     # the varied coordinate first: it is what changes along a row, so it leads the title
-    return [(x, y, {v: float(level), **_held(scenario, (x, y, v))})
+    return [(x, y, {v: float(level), **_held(scenario, (x, y, v), hold)})
             for level in np.linspace(scenario.lower[v], scenario.upper[v], LEVELS)]
+
+
+def _planes(scenario) -> list[tuple[int, int]]:
+    """The distinct (x, y) planes of the scenario's slices (fleet3: (v0, p10), (v0, p20))."""
+    planes = []
+    for spec in _slices(scenario):
+        plane = (_axis(scenario, spec.x), _axis(scenario, spec.y))
+        if plane not in planes:
+            planes.append(plane)
+    return planes
 
 
 def _panel_title(scenario, held: dict[int, float]) -> str:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 from matplotlib.lines import Line2D
 
-from farm.reports.plots.layout import _cuts
+from farm.reports.plots.layout import _cuts, _with_key
 from farm.reports.plots.membership import _set_member
 from farm.reports.plots.slices import _extent, _frame, _paint, _panel_grid, _plane
 from farm.reports.plots.style import OVERLAY_COLOURS, _save
@@ -49,8 +49,8 @@ def overlay_figure(scenario, sets, labels):
     handles = [Line2D([], [], color=c, linestyle=_stroke(k)[0], linewidth=_stroke(k)[1],
                       label=f"{label} ({len(s)} boxes)")
                for k, (c, label, s) in enumerate(zip(colours, labels, sets))]
-    fig.suptitle(f"{scenario.name}: safe sets compared ({' vs '.join(labels)})\n"
-                 "each set shaded and outlined in its colour", fontsize=10)
+    fig.suptitle(_with_key(f"{scenario.name}: safe sets compared ({' vs '.join(labels)})\n"
+                           "each set shaded and outlined in its colour", scenario), fontsize=10)
     fig.legend(handles=handles, loc="outside lower center", ncol=min(len(handles), 4), fontsize=9)
     return fig
 

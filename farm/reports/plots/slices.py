@@ -8,7 +8,7 @@ from matplotlib.collections import PatchCollection
 from matplotlib.colors import to_rgba
 from matplotlib.patches import Patch, Rectangle
 
-from farm.reports.plots.layout import _cuts, _label, _panel_title, _slices, _title
+from farm.reports.plots.layout import _cuts, _label, _panel_title, _slices, _title, _with_key, held_values
 from farm.reports.plots.membership import Boxes, _samples, _set_member
 from farm.reports.plots.style import (NEVER_COLOUR, NEVER_HATCH, NEVER_HATCH_COLOUR, OUTSIDE_COLOUR, PRUNED_COLOUR,
                               RESOLUTION, SAFE_COLOUR)
@@ -97,12 +97,14 @@ def _panel_grid(rows: list[list], width=4.2, height=3.8):
     return fig, axs
 
 
-def slices_figure(scenario, safe_set, summary=None, slices=None, explored=None):
+def slices_figure(scenario, safe_set, summary=None, slices=None, explored=None, hold=None):
     """2-D cuts of ``safe_set`` (default: the scenario's own Slices hints), one row per
     hint, as a Figure with a legend. ``explored``: the boxes the campaign explored
     (``(points (P, n), half_widths (P,))``, see ``explored_boxes``): the cuts then tell
-    safe, unsafe (explored and pruned) and never explored apart; None: safe or not."""
-    rows = [_cuts(scenario, spec) for spec in (_slices(scenario) if slices is None else slices)]
+    safe, unsafe (explored and pruned) and never explored apart; None: safe or not.
+    ``hold``: state name -> the value the cuts hold it at (default mid-range)."""
+    held = held_values(scenario, hold)
+    rows = [_cuts(scenario, spec, held) for spec in (_slices(scenario) if slices is None else slices)]
     member = _set_member(scenario, safe_set)
     explored_member = None if explored is None else Boxes(*explored, scenario.n)  # a box twice is painted once
     fig, axs = _panel_grid(rows)
@@ -111,7 +113,7 @@ def slices_figure(scenario, safe_set, summary=None, slices=None, explored=None):
         for ax, (x, y, held) in zip(axs[r], row):
             never += _draw_slice(ax, scenario, member, x, y, held, explored_member)
     what = "safe, pruned and never-explored states" if explored is not None else "the safe set"
-    fig.suptitle(f"{_title(scenario, safe_set, summary)}\n2-D cuts: {what}", fontsize=10)
+    fig.suptitle(_with_key(f"{_title(scenario, safe_set, summary)}\n2-D cuts: {what}", scenario), fontsize=10)
     handles = _set_legend(explored is not None, never > 0)
     fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=9)
     return fig

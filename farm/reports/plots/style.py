@@ -21,7 +21,7 @@ PRUNED_COLOUR = "#D55E00"
 NEVER_COLOUR, NEVER_HATCH, NEVER_HATCH_COLOUR = "#e4e4e4", "////", "#a6a6a6"  # light grey, hatched
 OUTSIDE_COLOUR = "#f4c9c4"  # "not in the safe set" when there is no exploration record
 OVERLAY_COLOURS = ("#1f5fbf", "#e8710a", "#7b3fb5", "#1a9e8f", "#c2185b", "#6d5d00")
-SLICES_FILE, SURFACE_FILE = "safe_set_slices.png", "safe_set_3d.png"
+SLICES_FILE, SURFACE_FILE, PROJECTIONS_FILE = "safe_set_slices.png", "safe_set_3d.png", "safe_set_projections.png"
 
 
 def _save(fig, path: Path, dpi=100) -> Path:

@@ -5,17 +5,18 @@ from __future__ import annotations
 import matplotlib.pyplot as plt
 import numpy as np
 
-from farm.reports.plots.layout import _label, _settings, _title, _views
+from farm.reports.plots.layout import _label, _settings, _title, _views, _with_key, held_values
 from farm.reports.plots.membership import _axis, _held, _samples, _set_member
 from farm.reports.plots.style import SURFACE_DEPTH, SURFACE_GRID, VIEW_AZIMUTH, VIEW_ELEVATION
 
 
-def _boundary(scenario, member, view):
+def _boundary(scenario, member, view, hold=None):
     """Over the (x, y) grid, the smallest (safe_above) or largest safe z; NaN where no z
-    is safe. -> xs, ys, z (len(xs), len(ys)), held coordinates."""
+    is safe. -> xs, ys, z (len(xs), len(ys)), held coordinates (``hold``, axis -> value,
+    before the view's own ``fixed``, before mid-range)."""
     x, y, z = (_axis(scenario, name) for name in view.axes)
     lo, hi = scenario.lower, scenario.upper
-    held = _held(scenario, (x, y, z), {_axis(scenario, k): v for k, v in view.fixed})
+    held = _held(scenario, (x, y, z), {**{_axis(scenario, k): v for k, v in view.fixed}, **(hold or {})})
     xs, ys = _samples(lo[x], hi[x], SURFACE_GRID), _samples(lo[y], hi[y], SURFACE_GRID)
     zs = np.linspace(lo[z], hi[z], SURFACE_DEPTH)  # ends included: a boundary on Sigma's face
     if not view.safe_above:
@@ -36,8 +37,8 @@ def _zlim(scenario, view, values):
     return (zmin, zmax) if zmax > zmin else (lo, hi)
 
 
-def _draw_view(fig, ax, scenario, member, view) -> None:
-    xs, ys, first, held = _boundary(scenario, member, view)
+def _draw_view(fig, ax, scenario, member, view, hold=None) -> None:
+    xs, ys, first, held = _boundary(scenario, member, view, hold)
     x, y, z = (_axis(scenario, name) for name in view.axes)
     zmin, zmax = _zlim(scenario, view, first)
     gx, gy = np.meshgrid(xs, ys, indexing="ij")
@@ -60,15 +61,17 @@ def _draw_view(fig, ax, scenario, member, view) -> None:
     ax.set_title("\n".join(words), fontsize=9)
 
 
-def surface_figure(scenario, safe_set, summary=None, views=None):
+def surface_figure(scenario, safe_set, summary=None, views=None, hold=None):
     """The 3-D boundary surfaces of ``safe_set`` in ``views`` (default: the scenario's
-    own) in one Figure, or None when there is no view (a 2-D scenario)."""
+    own) in one Figure, or None when there is no view (a 2-D scenario). ``hold``: state
+    name -> the value a view holds it at (default: the view's own, else mid-range)."""
+    held = held_values(scenario, hold)
     views = _views(scenario) if views is None else views
     if not views:
         return None
     member = _set_member(scenario, safe_set)
     fig = plt.figure(figsize=(7 * len(views), 6), layout="constrained")
     for k, view in enumerate(views):
-        _draw_view(fig, fig.add_subplot(1, len(views), k + 1, projection="3d"), scenario, member, view)
-    fig.suptitle(_title(scenario, safe_set, summary), fontsize=10)
+        _draw_view(fig, fig.add_subplot(1, len(views), k + 1, projection="3d"), scenario, member, view, held)
+    fig.suptitle(_with_key(_title(scenario, safe_set, summary), scenario), fontsize=10)
     return fig
