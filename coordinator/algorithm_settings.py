@@ -40,7 +40,7 @@ class SPESettings:
         "which boxes a round end splits (spe): all of them; only those within sigma-bar + delta of the set's "
         "failure-side boundary (band: Theorem 3, the others keep their size); or, for a deterministic system, "
         "only those its runs' margins say the boundary crosses, along only the axes it crosses (margin: a "
-        "partition of boxes with a half-width per axis, docs/refinement.md). auto: margin for a deterministic "
+        "partition of boxes with a half-width per axis, docs/margin_refinement.md). auto: margin for a deterministic "
         "system (one adversarial action, no disturbance), all otherwise"), choices=("auto", "margin", "band", "all"),
         hashed_when_default=False)
 

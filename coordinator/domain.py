@@ -193,6 +193,17 @@ class Domain:
             return SafeSet(s.centres, np.maximum(s.axis_half_widths + margin, delta), s.state_names)
         return SafeSet(s.centres, np.maximum(s.half_widths, delta), s.state_names)
 
+    def covering_words(self, delta: float, named: bool = False) -> str:
+        """``covering`` in words: "each box at max(its half-width, 1)", or for a set with a
+        covering margin "each box at max(its half-widths + 0.5, 1) per axis"; ``named``:
+        "delta = 1"."""
+        value = f"delta = {delta:g}" if named else f"{delta:g}"
+        s = self.safe_set
+        if s is not None and s.anisotropic:
+            margin = float(s.metadata.get(COVERING_MARGIN, 0.0))
+            return f"each box at max(its half-widths + {margin:g}, {value}) per axis"
+        return f"each box at max(its half-width, {value})"
+
     # -- sampling ---------------------------------------------------------------------------
     def sample(self, streams: RunStreams, reach: float | None = None) -> np.ndarray:
         """i.i.d. uniform in Phi (or its boundary set): rejection from the bounding box, attempt k

@@ -131,9 +131,11 @@ def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, h
 
 # -- validation -----------------------------------------------------------------------------
 def validated(scenario, policy, result, *, algorithm: str, plan_description: str, epsilon: float,
-              beta: float, delta: float, horizon: int, seed: int, adversarial: bool, mixed: bool = False) -> Guarantee:
+              beta: float, delta: float, horizon: int, seed: int, adversarial: bool, mixed: bool = False,
+              covering: str = "") -> Guarantee:
     """The verdict of a validation in both forms. ``mixed``: the domain is a set of mixed
-    box sizes (boundary refinement), its own covering: each box at max(its half-width, delta)."""
+    box sizes (boundary refinement), its own covering: ``covering`` in words (default each
+    box at max(its half-width, delta); ``Domain.covering_words``)."""
     cond, fail, t = _conditions(scenario, policy), scenario.failure_words, _horizon_s(scenario, horizon)
     gamma = "Gamma* (the adversarial set, Definition 7)" if adversarial else "Gamma"
     n = result.n_run  # result: a coordinator.validation.ValidationResult
@@ -146,7 +148,7 @@ def validated(scenario, policy, result, *, algorithm: str, plan_description: str
         formal = (f"Phi is NOT forward invariant: sample {ce['sample_index']} (stream key seed={seed}, "
                   f"index={ce['sample_index']}) from {ce['start_state']} {ce['reason']}.")
         return Guarantee(plain, formal)
-    own = f"each box at max(its half-width, delta = {delta:g})"
+    own = covering or f"each box at max(its half-width, delta = {delta:g})"
     if algorithm == "delta" and mixed:
         plain = (f"Every scenario started at one of the {n} box centres of this set, {cond}, stays in the set "
                  f"({own}) and does not {fail} for {t}.")

@@ -67,11 +67,11 @@ def validation_plan(domain: Domain, algorithm: str, epsilon: float, beta: float,
         # Lemma 1; a set of mixed sizes is its own covering (Domain.covering): its centres
         needed = covering_size(domain.volume(), delta, sc.n) if domain.covering(delta) is None else len(centres)
         what = (f"every {delta:g}-covering centre of {where} once" if domain.covering(delta) is None else
-                f"every box centre of the set once (its own covering: each box at max(its half-width, {delta:g}))")
+                f"every box centre of the set once (its own covering: {domain.covering_words(delta)})")
         return ValidationPlan("delta", max(len(centres), needed if not boundary else len(centres)), centres, reach,
                               what)
     over = (f"the {len(centres)} {delta:g}-covering centres of {where}" if domain.covering(delta) is None else
-            f"the set's {len(centres)} box centres (its own covering: each box at max(its half-width, {delta:g}))")
+            f"the set's {len(centres)} box centres (its own covering: {domain.covering_words(delta)})")
     return ValidationPlan("eps-delta", n_eps(epsilon, beta), centres, reach, f"start states i.i.d. uniform over {over}")
 
 

@@ -70,7 +70,7 @@ def one_seed(seed: int, mc: int, workdir: Path, refine: str = "all") -> dict:
     result = api.quantify({"scenario": SCENARIO, "actions": ACTIONS, "quantify": {**QUANTIFY, "refine": refine},
                            "farm": {"executor": "local", "seed": seed, **WINDOW}}, out=workdir / f"s{seed}")
     bad, n = violation_rate(result.safe_set, mc)
-    # a set of mixed sizes is validated at its finest half-width (README, "Boundary refinement")
+    # a set of mixed sizes is validated at its finest half-width (README, "Refinement: where the runs go")
     cert = api.validate({"scenario": SCENARIO, "actions": ACTIONS,
                          "validate": {**VALIDATE, "delta": result.safe_set.finest,
                                       "domain_set": str(workdir / f"s{seed}" / "safe_set.parquet")},

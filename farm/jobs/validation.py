@@ -46,7 +46,8 @@ def run(cfg: Config, out: Path | None = None, *, force: bool = False, progress=N
         executor.close()
     guarantee = validated(scenario, policy, result, algorithm=plan.algorithm, plan_description=plan.description,
                           epsilon=v.epsilon, beta=v.beta, delta=v.delta, horizon=v.horizon, seed=farm_cfg.seed,
-                          adversarial=cfg.actions.mode == "adversarial", mixed=domain.covering(v.delta) is not None)
+                          adversarial=cfg.actions.mode == "adversarial", mixed=domain.covering(v.delta) is not None,
+                          covering=domain.covering_words(v.delta, named=True))
     cert = certificate_of(cfg, plan, result, guarantee, scenario, policy, domain)
     if directory is not None:
         _write(directory, cfg, cert, scenario, force)
