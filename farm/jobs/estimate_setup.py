@@ -16,6 +16,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from coordinator.estimation import EstimateSettings, Strata, estimate_seed, set_strata, whole_strata
+from coordinator.estimation.allocation import FLOOR, smallest_stage
 from coordinator.safe_set import SafeSet
 from farm.config import Config
 from farm.config.hashing import config_hash
@@ -70,6 +71,9 @@ def setup(cfg: Config, campaign: Path) -> EstimateSetup:
         set_hash = safe_set.result_hash
     else:
         strata = whole_strata(law, scenario.lower, scenario.upper)
+    if e.runs < smallest_stage(len(strata)):
+        raise ConfigError(f"estimate.runs: {e.runs} is too few for {len(strata)} strata of {FLOOR} runs each; allowed "
+                          f">= {smallest_stage(len(strata))}")
     specs, labels = [spec], [controller_label(cfg.scenario.model_dump(), scenario)]
     if e.versus is not None:
         other = {**cfg.scenario.model_dump(), **e.versus.model_dump(exclude_none=True)}
@@ -78,7 +82,7 @@ def setup(cfg: Config, campaign: Path) -> EstimateSetup:
                               "the campaign's [scenario]")
         versus = replace(spec, scenario=other)
         specs.append(versus)
-        labels.append(controller_label(other, build_simulator(versus).scenario))
+        labels.append(controller_label(other, build_simulator(versus).scenario, cfg.scenario.name))
     settings = EstimateSettings(runs=e.runs, relative_error=e.relative_error, confidence=e.confidence,
                                 pilot=e.pilot, batch_size=farm_cfg.batch_size, pipeline_depth=farm_cfg.pipeline_depth)
     ident = {"campaign_config_hash": config_hash(cfg), "set": set_hash, "distribution": law.digest,
@@ -89,9 +93,13 @@ def setup(cfg: Config, campaign: Path) -> EstimateSetup:
                          final_actions(cfg, campaign), settings, seed, set_hash, digest)
 
 
-def controller_label(scenario_section: dict, scenario) -> str:
-    """How a controller is named in estimate.json: its SV policy, or its scenario class."""
-    return str(scenario_section.get("sv_policy") or getattr(scenario, "sv_policy", None) or scenario_section["name"])
+def controller_label(scenario_section: dict, scenario, campaign_scenario: str | None = None) -> str:
+    """How a controller is named in estimate.json: its SV policy, after its scenario's name
+    when that is not the campaign's (another version of a user's controller)."""
+    policy = str(scenario_section.get("sv_policy") or getattr(scenario, "sv_policy_name", "") or "")
+    if campaign_scenario is None or scenario_section["name"] == campaign_scenario:
+        return policy or scenario.name
+    return f"{scenario.name}.{policy}" if policy else scenario.name
 
 
 def distribution(cfg: Config, scenario):

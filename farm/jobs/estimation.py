@@ -11,6 +11,7 @@ kill -9) reaches the very estimate an uninterrupted one does, on any number of w
 
 from __future__ import annotations
 
+import re
 import time
 from pathlib import Path
 
@@ -65,7 +66,7 @@ def _is_file(source) -> bool:
 
 def default_name(cfg: Config, labels) -> str:
     name = "plain" if cfg.estimate.strata == "none" else "stratified"
-    return f"{name}-vs-{labels[1]}" if len(labels) > 1 else name
+    return f"{name}-vs-{re.sub(r'[^A-Za-z0-9_.-]+', '-', labels[1])}" if len(labels) > 1 else name
 
 
 def run(cfg: Config, campaign: Path, *, name: str | None = None, resume: bool = False, force: bool = False,
@@ -88,8 +89,13 @@ def run(cfg: Config, campaign: Path, *, name: str | None = None, resume: bool = 
     try:
         tally = _open(directory, parts, ledger, journal, resume, force)
         t0 = time.monotonic()
-        stage_run = _run(parts, tally, ledger, journal, progress, directory.path)
-        report = report_of(name, parts, stage_run, time.monotonic() - t0)
+        stage_run, clock = _run(parts, tally, ledger, journal, progress, directory.path)
+        if clock is None and (directory.path / "estimate.json").exists():
+            before = EstimateReport.read(directory.path)
+            if (before.runs, before.confidence) == (stage_run.committed, parts.settings.confidence):
+                return before  # resumed when finished, nothing changed: the estimate as written
+        report = report_of(name, parts, stage_run, time.monotonic() - t0,
+                           None if clock is None else clock.elapsed_s)
         report.write(directory.path)
         _figure(directory.path, parts, report)
         return report
@@ -147,12 +153,13 @@ def _executors(parts: EstimateSetup, stop) -> list:
     return executors
 
 
-def _run(parts: EstimateSetup, tally, ledger, journal, progress: Progress, out: Path) -> StageRun:
+def _run(parts: EstimateSetup, tally, ledger, journal, progress: Progress, out: Path):
+    """-> the finished stages and the virtual farm's clock (None on a real executor)."""
     if tally is not None and tally.stages and tally.stage_complete():
         over = StageRun(parts.strata, parts.settings, parts.seed, [], tally)
         over.stopped_by = over.finished()
         if over.stopped_by:  # a finished estimate resumed with its own budget: nothing to run (no Ray)
-            return over
+            return over, None
     every = parts.cfg.farm.checkpoint_every
     last = [time.monotonic()]
     t0 = time.monotonic()
@@ -181,10 +188,13 @@ def _run(parts: EstimateSetup, tally, ledger, journal, progress: Progress, out: 
             for executor in executors:
                 executor.close()
     _save(stage_run, ledger, journal, parts)
-    if stage_run.stopped_by is None:
+    if stage_run.stopped_by is not None:
+        progress.line(f"estimate: {stage_run.committed:,} runs in {stage_run.tally.stages} stages (stopped by "
+                      f"{stage_run.stopped_by}); writing estimate.json and failures.png")
+    else:
         raise Stopped(f"estimate stopped at {stage_run.committed:,} runs; checkpointed (continue with `scenario-farm "
                       f"estimate {out.parent.parent} --name {out.name} --resume`)")
-    return stage_run
+    return stage_run, executors[0].report()
 
 
 def _figure(out: Path, parts: EstimateSetup, report: EstimateReport) -> None:

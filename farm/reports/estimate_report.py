@@ -38,6 +38,7 @@ class EstimateReport(JsonFile):
     scenario: str = ""
     controller: str = ""
     actions: str = ""
+    action_weights: list | None = None  # the search's final mixture (family weights, adversary.json's order)
     horizon: int = 0
     seed: int = 0
     confidence: float
@@ -61,6 +62,7 @@ class EstimateReport(JsonFile):
     campaign_config_hash: str = ""
     estimate_hash: str = ""
     elapsed_s: float = 0.0
+    virtual_elapsed_s: float | None = None  # a virtual farm's simulated time to the result
     scenario_farm_version: str = __version__
     extra: dict = field(default_factory=dict)
 
@@ -96,8 +98,9 @@ def _zero(iv: Interval, runs: int) -> dict | None:
         f"(N_eps({iv.high:.3g}, {alpha:g}) = {n_eps(iv.high, alpha):,} runs)")}
 
 
-def report_of(name: str, setup, run, elapsed_s: float) -> EstimateReport:
-    """estimate.json of a finished ``StageRun`` over ``setup`` (farm/jobs/estimate_setup.py)."""
+def report_of(name: str, setup, run, elapsed_s: float, virtual_elapsed_s: float | None = None) -> EstimateReport:
+    """estimate.json of a finished ``StageRun`` over ``setup`` (farm/jobs/estimate_setup.py);
+    ``virtual_elapsed_s``: the virtual farm's simulated time to the result, if it ran there."""
     tally, strata, s = run.tally, setup.strata, setup.settings
     rate = run.rate()
     n_h, x_h = tally.runs.sum(axis=0), tally.failures.sum(axis=0)
@@ -116,6 +119,9 @@ def report_of(name: str, setup, run, elapsed_s: float) -> EstimateReport:
                   "failures": int(tally.versus_failures.sum()),
                   "difference": {"of": f"{setup.labels[0]} - {setup.labels[1]}", **_interval_json(diff),
                                  "unpaired_half_width": unpaired,
+                                 "two_plain_half_width": float(np.hypot(
+                                     plain_half_width(rate.estimate, tally.committed, s.confidence),
+                                     plain_half_width(other.estimate, tally.committed, s.confidence))),
                                  "pairing_gain": unpaired / diff.half_width if diff.half_width > 0 else None,
                                  "runs_only_first_failed": int(tally.a_only.sum()),
                                  "runs_only_second_failed": int(tally.b_only.sum())},
@@ -123,6 +129,7 @@ def report_of(name: str, setup, run, elapsed_s: float) -> EstimateReport:
     cfg = setup.cfg
     return EstimateReport(
         name=name, scenario=setup.scenario.name, controller=setup.labels[0], actions=cfg.actions.mode,
+        action_weights=None if setup.actions is None else list(setup.actions["schedule"][0][1]),
         horizon=setup.specs[0].horizon, seed=setup.seed, confidence=s.confidence, estimate=rate.estimate,
         interval=[rate.low, rate.high], half_width=rate.half_width,
         relative_half_width=rate.half_width / rate.estimate if rate.estimate > 0 else None, method=rate.method,
@@ -134,7 +141,7 @@ def report_of(name: str, setup, run, elapsed_s: float) -> EstimateReport:
         set=None if setup.set_hash is None else {"result_hash": setup.set_hash, "band": cfg.estimate.band,
                                                   "grid": list(strata.shape)},
         campaign_config_hash=config_hash(cfg), estimate_hash=setup.estimate_hash,
-        elapsed_s=round(elapsed_s, 3))
+        elapsed_s=round(elapsed_s, 3), virtual_elapsed_s=virtual_elapsed_s)
 
 
 def describe(report: EstimateReport) -> list[str]:
