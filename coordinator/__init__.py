@@ -22,6 +22,9 @@
   (``sample_size.py``: Lemmas 1 and 2), the guarantee in words (``guarantee.py``),
   volumes (``volume.py``), reference sets and comparison (``reference.py``), the
   adversary search (``adversary.py``).
+- A failure rate beside the set (the ``estimation`` package): strata of Sigma around a
+  quantified set with their masses under a scenario distribution, Neyman stages on an
+  executor, the stratified and paired estimators and their intervals.
 """
 
 from coordinator.algorithm import Algorithm, EmptySetError, Event

@@ -8,6 +8,7 @@ scenario sampling, on a Ray farm. The Python API (``farm.api``):
     open_campaign(directory)         -> QuantifyResult   a finished campaign
     overlay([dir1, dir2], path)      -> Path             campaigns on the same slices
     plan(config, out, workers=[...]) -> dict             time to the result per worker count (virtual farm)
+    estimate(directory, config=None, ...) -> EstimateReport   P(failure) under a distribution D, beside the set
     load_config(source, **overrides) -> Config           TOML path or string, dict
 
 Results: ``SafeSet`` (the boxes: contains, volumes, result_hash, Parquet), ``Summary``
@@ -18,7 +19,8 @@ Runtime pieces: config, executors (in-process and Ray), campaign storage, CLI.
 
 from scenarios.version import __version__
 
-__all__ = ["Certificate", "QuantifyResult", "SafeSet", "Summary", "__version__", "compare", "export_openscenario",
+__all__ = ["Certificate", "EstimateReport", "QuantifyResult", "SafeSet", "Summary", "__version__", "compare",
+           "estimate", "export_openscenario",
            "load_config", "open_campaign", "plan", "quantify", "overlay", "validate"]
 
 

@@ -22,12 +22,14 @@ from farm import config as config_mod, lazy
 from farm.config import Config
 from farm.directory.storage import CampaignError
 from farm.reports.certificate import Certificate
+from farm.reports.estimate_report import EstimateReport
 from farm.reports.progress import Progress
 from farm.reports.result import QuantifyResult
 from farm.reports.summary import Summary
 from coordinator.safe_set import SafeSet
 
-__all__ = ["Certificate", "QuantifyResult", "SafeSet", "Summary", "compare", "export_openscenario", "falsify",
+__all__ = ["Certificate", "EstimateReport", "QuantifyResult", "SafeSet", "Summary", "compare", "estimate",
+           "export_openscenario", "falsify",
            "load_config", "open_campaign", "overlay", "plan", "quantify", "validate"]
 
 
@@ -89,6 +91,26 @@ def validate(config, *, out=None, force: bool = False, progress=None, **override
     counterexample; with ``out``, write certificate.json (and counterexample.mcap);
     ``progress(done, total)`` is told the runs committed (farm/jobs/validation.py)."""
     return lazy.validation.run(load_config(config, **overrides), out, force=force, progress=progress)
+
+
+# -- a failure rate beside the set ------------------------------------------------------------
+def estimate(target, config=None, *, name: str | None = None, resume: bool = False, force: bool = False,
+             progress=False, **overrides) -> EstimateReport:
+    """P(failure) of runs started from a scenario distribution D, with an interval, beside
+    the finished campaign ``target`` (directory or QuantifyResult), on its executors
+    (farm/jobs/estimation.py). D, the strata and the stopping rule are the campaign's
+    [estimate] section, or ``config``'s (a TOML path or string, or a dict, holding an
+    [estimate] table only); keyword overrides as in ``load_config`` (``estimate__runs=20000``,
+    ``estimate__strata="none"`` for plain Monte Carlo, ``estimate__versus={"sv_policy":
+    "brake"}`` for a paired comparison, ``farm__executor="ray"``). Writes
+    ``DIR/estimates/<name>/`` (estimate.json, the runs' ledger, failures.png; ``name``
+    default: "stratified", "plain", with "-vs-<controller>" for a comparison); ``resume``
+    continues a stopped or killed one, ``force`` replaces one. ``progress``: True or a
+    farm.reports.progress.Progress. Returns estimate.json as an ``EstimateReport``."""
+    directory = target.directory if isinstance(target, QuantifyResult) else Path(target)
+    cfg = lazy.estimation.estimate_config(directory, config, {k.replace("__", "."): v for k, v in overrides.items()})
+    shown = progress if isinstance(progress, Progress) else Progress(enabled=bool(progress))
+    return lazy.estimation.run(cfg, directory, name=name, resume=resume, force=force, progress=shown)
 
 
 # -- comparison -------------------------------------------------------------------------------

@@ -31,6 +31,8 @@ MODULES = {
     "openscenario_ranges": "farm.openscenario.ranges",
     "validation": "farm.jobs.validation",
     "quantification": "farm.jobs.quantification",
+    "estimation": "farm.jobs.estimation",
+    "estimate_figure": "farm.reports.estimate_figure",  # matplotlib
     "pyarrow_dataset": "pyarrow.dataset",  # the ledger read as one table
     "rich_console": "rich.console",  # the live progress line, on a terminal only
     "rich_progress": "rich.progress",

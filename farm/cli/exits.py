@@ -77,7 +77,9 @@ def report(exc: BaseException, campaign_dir: str | None = None) -> int:
     if os.environ.get(DEBUG):
         traceback.print_exception(exc, file=sys.stderr)
     if isinstance(exc, Stopped):
-        _say(f"{exc}; checkpointed (continue with `scenario-farm resume {campaign_dir or 'DIR'}`)")
+        # a stop that names its own way on (an estimate's) keeps it
+        _say(str(exc) if "continue with" in str(exc) else
+             f"{exc}; checkpointed (continue with `scenario-farm resume {campaign_dir or 'DIR'}`)")
         return STOPPED
     code, text = exit_code(exc), one_line(exc)
     if code == USER:

@@ -12,6 +12,7 @@ from farm.cli import exits
 from farm.directory.storage import CampaignDir
 from farm.jobs import quantification
 from farm.reports import status
+from farm.reports.estimate_report import EstimateReport, describe as describe_estimate, estimate_dirs
 from farm.reports.progress import Progress
 from farm.reports.summary import Summary
 from farm.reports.holdout import describe_holdout
@@ -53,6 +54,38 @@ def cmd_quantify(args) -> int:
                        progress=Progress(mode=_mode(args)), config_text=text)
     _print_summary(Path(args.out))
     return EXIT_OK
+
+
+def cmd_estimate(args) -> int:
+    overrides = {f"estimate__{k}": getattr(args, k) for k in ("runs", "relative_error", "confidence", "seed")
+                 if getattr(args, k) is not None}
+    overrides.update({f"farm__{k}": getattr(args, k) for k in ("workers", "address", "executor", "checkpoint_every")
+                      if getattr(args, k) is not None})
+    if args.plain:
+        overrides["estimate__strata"] = "none"
+    versus = {k: v for k, v in (("sv_policy", args.versus_sv_policy), ("name", args.versus_scenario)) if v}
+    if versus:
+        overrides["estimate__versus"] = versus
+    report = api.estimate(args.dir, args.config, name=args.name, resume=args.resume, force=args.force,
+                          progress=Progress(mode=_mode(args)), **overrides)
+    if args.json:
+        print(json.dumps(report.to_json(), indent=2))
+    else:
+        _print_estimate(report)
+    return EXIT_OK
+
+
+def _print_estimates(campaign: Path) -> None:
+    """A line per estimate of the campaign (DIR/estimates/*/estimate.json), with its detail."""
+    for folder in estimate_dirs(campaign):
+        _print_estimate(EstimateReport.read(folder))
+
+
+def _print_estimate(report: EstimateReport) -> None:
+    first, *rest = describe_estimate(report)
+    print(f"{'failure rate':>18}: {first}")
+    for line in rest:
+        print(f"{'':>18}  {line.strip()}")
 
 
 def cmd_plan(args) -> int:
@@ -132,6 +165,7 @@ def cmd_report(args) -> int:
             raise ConfigError(f"report --{exc}") from None
         failures = result.plot_failures()
         _print_summary(Path(directory), result.summary)
+        _print_estimates(Path(directory))
         print(f"{'plots':>18}: {', '.join(str(p) for p in paths + ([failures] if failures else []))}")
         if args.graph:
             print(f"{'graph':>18}: {result.export_graph()}")

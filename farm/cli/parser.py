@@ -67,6 +67,32 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="replace the plan in --out (only a plan directory)")
     _add_output_flags(p)
 
+    p = sub.add_parser("estimate", help="estimate P(failure) under a scenario distribution D, with an interval, "
+                                        "beside a campaign's safe set")
+    p.add_argument("dir", help="a finished quantify campaign")
+    p.add_argument("--config", help="a TOML file holding an [estimate] table (default: the campaign's)")
+    p.add_argument("--runs", type=int, help="stop at this budget of runs (estimate.runs)")
+    p.add_argument("--relative-error", type=float, help="stop once the interval's half-width is at most this share "
+                                                        "of the estimate (estimate.relative_error)")
+    p.add_argument("--confidence", type=float, help="the interval's level (estimate.confidence)")
+    p.add_argument("--plain", action="store_true", help="plain Monte Carlo: the set switched off, for comparison "
+                                                        "(estimate.strata = 'none')")
+    p.add_argument("--versus-sv-policy", help="also run this SV policy on the same runs: the paired difference "
+                                              "(estimate.versus.sv_policy)")
+    p.add_argument("--versus-scenario", help="also run this scenario ('package.module:Class', another version of "
+                                             "your controller) on the same runs (estimate.versus.name)")
+    p.add_argument("--name", help="DIR/estimates/<name> (default: stratified, plain, with -vs-<controller>)")
+    p.add_argument("--seed", type=int, help="the estimate's seed (estimate.seed; default: derived from farm.seed)")
+    p.add_argument("--json", action="store_true", help="print estimate.json")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--resume", action="store_true", help="continue a stopped or killed estimate (or extend one "
+                                                         "with a larger --runs)")
+    g.add_argument("--force", action="store_true", help="replace the estimate of that name")
+    p.add_argument("--checkpoint-every", type=float, help="seconds between checkpoints, at least 1 "
+                                                          "(farm.checkpoint_every)")
+    _add_farm_flags(p, seed=False)
+    _add_output_flags(p)
+
     p = sub.add_parser("resume", help="continue a stopped or killed campaign")
     p.add_argument("dir")
     p.add_argument("--checkpoint-every", type=float)

@@ -14,13 +14,14 @@ the code they name.
 """
 
 from farm.config.hashing import changed_fields, config_hash, result_view
+from farm.config.estimate_section import AxisLawConfig, EstimateConfig, VersusConfig
 from farm.config.model import Config, normalize, schema
-from farm.config.reading import load, parse, read_text, to_toml
+from farm.config.reading import load, parse, parse_tables, read_text, to_toml
 from farm.config.sections import (MIN_CHECKPOINT_ENV, MIN_CHECKPOINT_S, ActionsConfig, ConfigWarning, FarmConfig,
                                   QuantifyConfig, RecordConfig, ScenarioConfig, ValidateConfig, VirtualConfig)
 from scenarios.errors import ConfigError
 
-__all__ = ["ActionsConfig", "Config", "ConfigError", "ConfigWarning", "FarmConfig", "MIN_CHECKPOINT_ENV",
+__all__ = ["ActionsConfig", "AxisLawConfig", "Config", "ConfigError", "ConfigWarning", "EstimateConfig", "FarmConfig", "MIN_CHECKPOINT_ENV",
            "MIN_CHECKPOINT_S", "QuantifyConfig", "RecordConfig", "ScenarioConfig", "ValidateConfig", "VirtualConfig",
-           "changed_fields", "config_hash", "load", "normalize", "parse", "read_text", "result_view", "schema",
-           "to_toml"]
+           "changed_fields", "config_hash", "load", "normalize", "parse", "parse_tables", "read_text", "result_view", "schema",
+           "to_toml", "VersusConfig"]

@@ -38,27 +38,46 @@ def _field_info(loc, root: type[BaseModel]):
     """The pydantic FieldInfo an error location points to (None past a nested model)."""
     model: type[BaseModel] | None = root
     info = None
+    keyed = None  # the model of a table of tables ([estimate.axes.<name>]): the next item is a key
     for item in loc:
+        if keyed is not None:
+            model, keyed = keyed, None
+            continue
         if not isinstance(item, str) or model is None or item not in model.model_fields:
             break
         info = model.model_fields[item]
         annotation = info.annotation
         model = annotation if isinstance(annotation, type) and issubclass(annotation, BaseModel) else None
+        keyed = _table_of_models(annotation)
     return info
+
+
+def _table_of_models(annotation) -> type[BaseModel] | None:
+    """M for an annotation dict[str, M] (or dict[str, M] | None), else None."""
+    for option in (annotation, *get_args(annotation)):
+        args = get_args(option)
+        if len(args) == 2 and isinstance(args[1], type) and issubclass(args[1], BaseModel):
+            return args[1]
+    return None
 
 
 def _model_at(loc, root: type[BaseModel]) -> type[BaseModel]:
     """The config model of the table at ``loc`` (e.g. ("validate", "openscenario"))."""
     model: type[BaseModel] = root
+    keyed = None
     for item in loc:
+        if keyed is not None:  # a key of a table of tables
+            model, keyed = keyed, None
+            continue
         info = model.model_fields.get(item) if isinstance(item, str) else None
         if info is None:
             break
+        keyed = _table_of_models(info.annotation)
         inner = [a for a in (info.annotation, *get_args(info.annotation))
                  if isinstance(a, type) and issubclass(a, BaseModel)]
-        if not inner:
+        if not inner and keyed is None:
             break
-        model = inner[0]
+        model = inner[0] if inner else model
     return model
 
 

@@ -16,6 +16,8 @@ def result_view(cfg: Config) -> dict:
     the one-run-at-a-time campaign's), so resume may change them."""
     out = {}
     for section, values in cfg.model_dump(mode="json").items():
+        if not _affects_result(type(cfg).model_fields[section]):
+            continue  # a section of another job ([estimate]): it changes no campaign's result
         fields = type(getattr(cfg, section)).model_fields
         out[section] = {k: v for k, v in values.items() if _affects_result(fields.get(k))
                         and not (v is None and _extra(fields.get(k)).get("hashed_when_unset") is False)

@@ -4,11 +4,12 @@ checked into it (``normalize``)."""
 from __future__ import annotations
 
 import warnings
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import ValidationError
+from pydantic import Field, ValidationError
 
 from farm.config.errors import one_line, did_you_mean
+from farm.config.estimate_section import EstimateConfig
 from farm.config.sections import (ActionsConfig, FarmConfig, QuantifyConfig, RecordConfig, ScenarioConfig, Section,
                                   ValidateConfig)
 from scenarios.errors import ConfigError
@@ -28,6 +29,8 @@ with warnings.catch_warnings():
         quantify: QuantifyConfig = QuantifyConfig()
         farm: FarmConfig = FarmConfig()
         record: RecordConfig = RecordConfig()
+        # read by `estimate` only: no campaign's hash or resume check sees it (farm/config/hashing.py)
+        estimate: Annotated[EstimateConfig, Field(json_schema_extra={"affects_result": False})] = EstimateConfig()
 
         def refinement(self) -> str:
             """quantify.refine with "auto" resolved: margin refinement for SPE on a

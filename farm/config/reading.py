@@ -44,14 +44,18 @@ def read_text(path) -> str:
 
 def parse(text: str, where: str = "config") -> Config:
     """A checked config from TOML text; ``where`` names it in errors (the file)."""
+    return normalize(parse_tables(text, where), where=where)
+
+
+def parse_tables(text: str, where: str = "config") -> dict:
+    """TOML text as tables, unchecked (a part of a config: an estimate's [estimate])."""
     text = text.removeprefix("\ufeff")
     try:
-        raw = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{where}: not valid TOML ({exc})") from None
     except RecursionError:
         raise ConfigError(f"{where}: nested too deeply to read; allowed at most {MAX_DEPTH} levels") from None
-    return normalize(raw, where=where)
 
 
 def to_toml(cfg: Config) -> str:

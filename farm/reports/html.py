@@ -12,6 +12,7 @@ import pyarrow.compute as pc
 
 from farm.directory.files import atomic_write_bytes
 from farm.directory.storage import read_ledger
+from farm.reports.estimate_report import EstimateReport, describe as describe_estimate, estimate_dirs
 from farm.reports.summary import Summary
 from farm.reports.truncations import shares
 
@@ -44,6 +45,33 @@ def _table(rows: list[dict]) -> str:
     return f"<table><tr>{head}</tr>{body}</table>"
 
 
+def _image(png: Path, label: str) -> str:
+    data = base64.b64encode(png.read_bytes()).decode()
+    return (f"<p>{html.escape(label)}<br><img alt='{html.escape(png.stem)}' "
+            f"src='data:image/png;base64,{data}'></p>")
+
+
+def _estimates(directory: Path) -> str:
+    """The failure rates estimated beside the set (DIR/estimates/*): each against plain
+    Monte Carlo's interval at the same runs, its strata, and where its failures fell."""
+    parts = []
+    for folder in estimate_dirs(directory):
+        report = EstimateReport.read(folder)
+        parts.append(f"<h3>{html.escape(folder.name)}</h3><p>"
+                     + "<br>".join(map(html.escape, describe_estimate(report))) + "</p>")
+        parts.append(_table([{"stratum": s["name"], "mass": f"{s['mass']:.4g}", "runs": s["runs"],
+                              "failures": s["failures"], "rate": f"{s['rate']:.4g}",
+                              "contribution": f"{s['contribution']:.4g}"} for s in report.strata]))
+        png = folder / "failures.png"
+        if png.exists():
+            parts.append(_image(png, str(png.relative_to(directory))))
+    if not parts:
+        return ""
+    return ("<h2>Failure rate</h2><p>P(failure) of runs started from the scenario distribution D (`scenario-farm "
+            "estimate`), stratified around the safe set, against plain Monte Carlo's interval at the same runs.</p>"
+            + "".join(parts))
+
+
 def write_html(directory, out: Path | None = None) -> Path:
     """Write DIR/report.html (or ``out``) for a finished campaign; -> its path."""
     directory = Path(directory)
@@ -55,10 +83,9 @@ def write_html(directory, out: Path | None = None) -> Path:
              f"<p class='formal'>{html.escape(summary.guarantee_formal)}</p>"]
     parts.append("<h2>Figures</h2>")
     for png in sorted((directory / "plots").rglob("*.png")):
-        data = base64.b64encode(png.read_bytes()).decode()
-        parts.append(f"<p>{html.escape(str(png.relative_to(directory)))}<br>"
-                     f"<img alt='{html.escape(png.stem)}' src='data:image/png;base64,{data}'></p>")
+        parts.append(_image(png, str(png.relative_to(directory))))
     parts.append("<h2>Rounds</h2>" + _table(_rounds(directory)))
+    parts.append(_estimates(directory))
     parts.append("<h2>Truncated runs</h2><p>Committed runs that left Sigma through a truncating facet: they "
                  "end quietly and count as safe. A large share through a facet the study did not expect (a "
                  "vehicle reversing through a speed's lower bound) hides failures.</p>"
