@@ -18,6 +18,7 @@ WINDOWS = [(16, 1), (256, 2), (2048, 4)]
 def _campaign(tmp_path, name, batch, depth, counting, mode="uniform"):
     toml = lead_follow_toml(farm_extra=f"pipeline_depth = {depth}\ncounting = \"{counting}\"\nseed = 3")
     toml = toml.replace("batch_size = 256", f"batch_size = {batch}").replace('mode = "uniform"', f'mode = "{mode}"')
+    toml = toml.replace("[quantify]\n", '[quantify]\nrefine = "all"\n')  # SPE's rounds and certification throughout
     quantify(toml, out=tmp_path / name, force=True)
     summary = json.loads((tmp_path / name / "summary.json").read_text())
     ledger = pq.read_table(tmp_path / name / "ledger").to_pandas()

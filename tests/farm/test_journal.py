@@ -1,6 +1,8 @@
 """Checkpoint journal (farm/directory/journal.py): what a reader gets, and that reading changes
 nothing on disk while the owner's load tidies up."""
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -58,10 +60,10 @@ def test_a_finished_certified_campaign_checkpoints_its_whole_certificates_then_l
     from farm.jobs import quantification
 
     parts = []
-    monkeypatch.setattr(quantification, "finish", lambda cfg, out, p: parts.append(p) or {"result_hash": ""})
+    monkeypatch.setattr(quantification, "finish", lambda cfg, out, p: parts.append(p) or SimpleNamespace(result_hash=""))
     cfg = config_mod.normalize({
         "scenario": {"name": "lead-follow", "sv_policy": "idm"}, "actions": {"mode": "adversarial"},
-        "quantify": {"delta0": 4.0, "delta_min": 1.0, "epsilon": 0.01, "beta": 0.1, "horizon": 30},
+        "quantify": {"delta0": 4.0, "delta_min": 1.0, "epsilon": 0.01, "beta": 0.1, "horizon": 30, "refine": "all"},
         "farm": {"executor": "local", "batch_size": 256, "seed": 1}})
     quantification.run(cfg, tmp_path / "c")
     algo = parts[0]["total"].algorithm

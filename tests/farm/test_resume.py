@@ -161,8 +161,9 @@ def test_a_deterministic_certification_stopped_then_resumed_with_another_window_
     from farm.jobs.quantification import Stopped, run
 
     toml = lead_follow_toml(delta_min=1.0, epsilon=0.002, horizon=40, farm_extra="pipeline_depth = 2\nseed = 5\n")
-    toml = toml.replace('mode = "uniform"', 'mode = "adversarial"')
+    toml = toml.replace('mode = "uniform"', 'mode = "adversarial"').replace("[quantify]\n", '[quantify]\nrefine = "all"\n')
     cfg = config_mod.parse(toml, "c.toml")
+    assert cfg.quantify.refine == "all"  # SPE's certification round, not margin refinement
     whole = run(cfg, tmp_path / "whole")
     stop = _StopInCertification(1000)
     with pytest.raises(Stopped):
