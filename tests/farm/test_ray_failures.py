@@ -29,6 +29,8 @@ TESTS = ROOT / "tests"
 RAY_LOG_LINE = re.compile(r"^\[\d{4}-\d\d-\d\d \d\d:\d\d:\d\d,\d{3} [DIWEF] \d+ \d+\] ", re.M)
 # a few seconds of campaign on two Ray workers: long enough to be hit while it runs
 CAMPAIGN = lead_follow_toml(delta_min=0.5, epsilon=0.002, horizon=40, executor="ray", farm_extra="workers = 2\n")
+# run to its end: coarser, with a fifth of the runs per centre
+SHORT_CAMPAIGN = lead_follow_toml(delta_min=1.0, epsilon=0.01, horizon=40, executor="ray", farm_extra="workers = 2\n")
 
 
 def popen(*args):
@@ -144,7 +146,7 @@ def test_kill_9_of_the_driver_leaves_no_ray_process_behind(tmp_path):
 
 
 def test_a_finished_campaign_exits_whole_and_leaves_no_ray_process_behind(tmp_path):
-    (tmp_path / "c.toml").write_text(CAMPAIGN)
+    (tmp_path / "c.toml").write_text(SHORT_CAMPAIGN)
     proc = popen("quantify", tmp_path / "c.toml", "--out", tmp_path / "out")
     procs = running(proc, tmp_path / "c.toml")
     stdout, stderr = proc.communicate(timeout=600)
