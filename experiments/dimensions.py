@@ -167,7 +167,7 @@ def render() -> Path:
         f"{meta['numpy']}): one CLI campaign per row (`scenario-farm quantify`, in-process executor, results, holdout",
         "and plots included; a 16 GB address-space cap), Gamma*, eps = 0.001, beta = 0.1, K = 50, delta0 = 2,",
         "certified, seed 0, the SV's IDM. `margin` is the margin refinement (the default for a deterministic",
-        "system: docs/refinement.md), `band` the earlier boundary refinement (Theorem 3's band). Accuracy of the",
+        "system: docs/margin_refinement.md), `band` the earlier boundary refinement (Theorem 3's band). Accuracy of the",
         f"written set against {meta['truth_points']:,} Monte-Carlo truth points (uniform in Sigma, seed "
         f"{meta['truth_seed']}) simulated to their end by `experiments/truth.py`, which imports nothing of the farm.",
         "`holdout` is the campaign's own check (summary.json `holdout`: the share of 1,000 fresh starts in the set",

@@ -69,8 +69,8 @@ class Scenario(ABC):
       name            registry name, e.g. "lead-follow"
       state_names     tuple of n state variable names
       lower, upper    (n,) bounds of the box Sigma
-      failure_facet_names  state variables whose crossing is a failure, in the form
-                      "<name>" (the facet side is given by ``failure_sides``)
+      failure_sides   failure facets: state name -> True for its upper bound, False for
+                      its lower (e.g. {"p10": False}: the gap below its lower bound)
       action_names    tuple of m action names
       action_lower, action_upper  (m,) bounds of Gamma
       adversarial_actions  (k, m) the finite adversarial set Gamma*

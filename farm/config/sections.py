@@ -127,7 +127,9 @@ class _QuantifyBase(Section):
     beta: Beta = 0.1
     horizon: Horizon = 50
     budget: Annotated[int, Field(ge=1, le=10**12)] = 2_000_000
-    sides: bool | None = None
+    sides: Annotated[bool | None, Field(description=(
+        "quantify the scenario's named sides (fleet3's lead and rear) too, each a campaign of its own beside the "
+        "total (runs_committed sums them); default: when the scenario declares sides"))] = None
     holdout_runs: Annotated[int, Field(ge=0, le=10**8, json_schema_extra={"affects_result": False}, description=(
         "fresh runs from uniform starts in Sigma against the finished set (summary.json holdout: overclaims "
         "and misses with Clopper-Pearson intervals); 0: none"))] = 1000

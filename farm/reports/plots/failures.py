@@ -99,7 +99,7 @@ def failures_figure(scenario, safe_set, trajectories, labels=None):
                 for line in axs[0, 0].get_lines() if named and not line.get_label().startswith("_")]
     name = " / ".join(str(p) for p in (scenario.name, getattr(scenario, "sv_policy_name", None)) if p)
     fig.suptitle(_with_key(f"{name}: {len(trajectories)} failing run{'s' * (len(trajectories) != 1)} "
-                           f"over the safe set ({len(safe_set)} boxes, {safe_set.describe_widths()})", scenario),
+                           f"over the safe set ({len(safe_set)} boxes, {safe_set.describe_widths()})", scenario, fig),
                  fontsize=10)
     fig.legend(handles=handles, loc="outside right center", fontsize=9)
     return fig

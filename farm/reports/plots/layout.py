@@ -45,10 +45,16 @@ def _key(scenario, width: int = 150) -> str:
     return "\n".join(textwrap.wrap("; ".join(parts), width)) if parts else ""
 
 
-def _with_key(title: str, scenario) -> str:
-    """A figure's title, then the key of the state names (figures must say what v0 is)."""
+CHARS_PER_INCH = 12  # a 10-point title line: about 12 characters per inch of figure
+
+
+def _with_key(title: str, scenario, fig=None) -> str:
+    """A figure's title, then the key of the state names (figures must say what v0 is),
+    each line wrapped to the figure's width (``fig``; 80 characters without one)."""
     key = _key(scenario)
-    return f"{title}\n{key}" if key else title
+    text = f"{title}\n{key}" if key else title
+    width = int(fig.get_figwidth() * CHARS_PER_INCH) if fig is not None else 80
+    return "\n".join(textwrap.fill(line, max(width, 40)) for line in text.split("\n"))
 
 
 def _own(items, scenario, names_of) -> list:

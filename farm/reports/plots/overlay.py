@@ -50,7 +50,7 @@ def overlay_figure(scenario, sets, labels):
                       label=f"{label} ({len(s)} boxes)")
                for k, (c, label, s) in enumerate(zip(colours, labels, sets))]
     fig.suptitle(_with_key(f"{scenario.name}: safe sets compared ({' vs '.join(labels)})\n"
-                           "each set shaded and outlined in its colour", scenario), fontsize=10)
+                           "each set shaded and outlined in its colour", scenario, fig), fontsize=10)
     fig.legend(handles=handles, loc="outside lower center", ncol=min(len(handles), 4), fontsize=9)
     return fig
 

@@ -64,5 +64,5 @@ def projections_figure(scenario, safe_set, summary=None):
                      label="share of the other axes' range in the set" + ("" if exact else " (at most)"))
     how = "" if exact else "; overlapping boxes: an upper bound"
     fig.suptitle(_with_key(f"{_title(scenario, safe_set, summary)}\nprojections: 1 = safe for every value of the "
-                           f"other axes, 0 = for none{how}", scenario), fontsize=10)
+                           f"other axes, 0 = for none{how}", scenario, fig), fontsize=10)
     return fig

@@ -38,7 +38,7 @@ def draw_reference(path: Path, scenario, safe_set: SafeSet, x: int, y: int, vari
             ax.set_title(_setting(scenario, varied, level), fontsize=9)
     others = ", ".join(_setting(scenario, a, pixels[0, 0, a]) for a in held)
     fig.suptitle(_with_key(f"{scenario.name} / {scenario.sv_policy_name}: the quantified set ({len(safe_set)} boxes) "
-                           f"against the reference" + (f"\nheld at {others}" if others else ""), scenario),
+                           f"against the reference" + (f"\nheld at {others}" if others else ""), scenario, fig),
                  fontsize=10)
     handles = [Patch(facecolor=AGREE, label="safe in both"), Patch(facecolor="white", edgecolor="0.6",
                                                                    label="unsafe in both"),

@@ -113,7 +113,7 @@ def slices_figure(scenario, safe_set, summary=None, slices=None, explored=None, 
         for ax, (x, y, held) in zip(axs[r], row):
             never += _draw_slice(ax, scenario, member, x, y, held, explored_member)
     what = "safe, pruned and never-explored states" if explored is not None else "the safe set"
-    fig.suptitle(_with_key(f"{_title(scenario, safe_set, summary)}\n2-D cuts: {what}", scenario), fontsize=10)
+    fig.suptitle(_with_key(f"{_title(scenario, safe_set, summary)}\n2-D cuts: {what}", scenario, fig), fontsize=10)
     handles = _set_legend(explored is not None, never > 0)
     fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=9)
     return fig

@@ -73,5 +73,5 @@ def surface_figure(scenario, safe_set, summary=None, views=None, hold=None):
     fig = plt.figure(figsize=(7 * len(views), 6), layout="constrained")
     for k, view in enumerate(views):
         _draw_view(fig, fig.add_subplot(1, len(views), k + 1, projection="3d"), scenario, member, view, held)
-    fig.suptitle(_with_key(_title(scenario, safe_set, summary), scenario), fontsize=10)
+    fig.suptitle(_with_key(_title(scenario, safe_set, summary), scenario, fig), fontsize=10)
     return fig
