@@ -22,6 +22,7 @@ RENDERED = {  # renderer -> the docs it writes
     "experiments/refinement.py": ["refinement.md"],
     "experiments/certified_sets.py": ["guarantee.md"],
     "experiments/estimate.py": ["estimate.md"],
+    "experiments/holdout_check.py": ["guarantee.md"],
 }
 
 
