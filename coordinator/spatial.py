@@ -30,6 +30,21 @@ from coordinator.cell_grid import SMALL_MATMUL, box_cells, flat_index
 _P = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
                0xD6E8FEB86659FD93, 0xFF51AFD7ED558CCD, 0xC4CEB9FE1A85EC53,
                0x2545F4914F6CDD1D, 0x9FB21C651E98DF25], dtype=np.uint64)
+
+
+def _multipliers(n: int) -> np.ndarray:
+    """(n,) odd 64-bit multipliers of the cell hash: ``_P`` (whose buckets every result so
+    far was computed with), extended for n > 8 by splitmix64 from a fixed seed."""
+    if n <= len(_P):
+        return _P[:n]
+    extra, state = [], 0x243F6A8885A308D3
+    for _ in range(n - len(_P)):
+        state = (state + 0x9E3779B97F4A7C15) & 0xFFFFFFFFFFFFFFFF
+        z = state
+        z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & 0xFFFFFFFFFFFFFFFF
+        z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & 0xFFFFFFFFFFFFFFFF
+        extra.append((z ^ (z >> 31)) | 1)
+    return np.concatenate([_P, np.array(extra, dtype=np.uint64)])
 TOLERANCE = 1e-9  # closed boxes, decided as exact arithmetic would on grid boundaries
 DENSE_LIMIT = 1 << 25  # cells; 32 Mi int32 counters = 128 MiB at most
 SMALL_PUSH = 8  # points pushed one by one: ~12 array operations cost more below this
@@ -130,7 +145,7 @@ class PointIndex(AlivePoints):
 
     def _bucket(self, cells: np.ndarray) -> np.ndarray:
         with np.errstate(over="ignore"):
-            h = (cells.astype(np.uint64) * _P[: cells.shape[1]]).sum(axis=1, dtype=np.uint64)
+            h = (cells.astype(np.uint64) * _multipliers(cells.shape[1])).sum(axis=1, dtype=np.uint64)
             h ^= h >> np.uint64(31)
             h *= np.uint64(0xBF58476D1CE4E5B9)
             h ^= h >> np.uint64(29)

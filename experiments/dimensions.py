@@ -101,10 +101,9 @@ def accuracy(name: str, out: Path, truths: dict) -> dict:
 
 
 def _state_names(name: str) -> tuple[str, ...]:
-    from scenarios import make_scenario
+    from scenarios.registry import make_backend
 
-    scenario = dict(SCENARIOS[name][0])
-    return make_scenario(scenario.pop("name"), **scenario).state_names
+    return make_backend(dict(SCENARIOS[name][0])).scenario.state_names
 
 
 def run(name: str, delta_min: float, refine: str, truths: dict) -> dict:
@@ -180,13 +179,16 @@ def render() -> Path:
     for r in rows:
         if r["exit"] != 0:
             out.append(f"| {r['scenario']} | {r['axes']} | {r['delta_min']:g} | {r['refine']} | - | - | {r['wall_s']:g} | "
-                       f"{r['peak_gb']:g} | - | - | - | - | exit {r['exit']}: {' '.join(r.get('error', []))} |")
+                       f"{r['peak_gb']:g} | - | - | - | - | exit {r['exit']}: {' '.join(r.get('error', [])).split(';')[0]} |")
             continue
         out.append(f"| {r['scenario']} | {r['axes']} | {r['delta_min']:g} | {r['refine']} | {r['runs']:,} | "
                    f"{r['boxes']:,} | {r['wall_s']:g} | {r['peak_gb']:g} | {r['precision']:.4f} | {r['recall']:.4f} | "
                    f"{r['iou']:.4f} | {_cell(r, 'holdout_overclaim', '.2%')} | {_target(r)} |")
     loads = [r["load_average"] for r in rows]
     out += ["", f"1-minute load average {min(loads):g}-{max(loads):g} at the end of the rows."]
+    if any(r["exit"] == 130 for r in data["rows"]):
+        out += ["", "Exit 130: a campaign still running after the seconds shown was stopped with SIGTERM (it "
+                "checkpointed; the table gives its runs so far), to leave the machine to the other rows."]
     return write_doc(DOCS / "dimensions.md", out)
 
 

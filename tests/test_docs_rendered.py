@@ -23,6 +23,7 @@ RENDERED = {  # renderer -> the docs it writes
     "experiments/certified_sets.py": ["guarantee.md"],
     "experiments/estimate.py": ["estimate.md"],
     "experiments/holdout_check.py": ["guarantee.md"],
+    "experiments/dimensions.py": ["dimensions.md"],
 }
 
 

@@ -230,3 +230,16 @@ def test_a_uniform_validation_domain_samples_as_before():
     first = centres[np.minimum((u[:, 0] * 30).astype(np.int64), 29)] + 0.5 * (2 * u[:, 1:3] - 1)
     accepted = u[:, 3] * np.maximum(1, (np.abs(first[:, None] - centres[None]) <= 0.5 + 1e-12).all(2).sum(1)) <= 1
     assert np.array_equal(points[accepted], np.clip(first[accepted], Toy.lower, Toy.upper))
+
+
+@pytest.mark.parametrize("n", [9, 10])
+def test_membership_works_past_eight_axes(n):
+    # the cell hash had multipliers for 8 axes: a 9-D band set failed in its holdout
+    rng = np.random.default_rng(n)
+    centres = rng.integers(0, 6, size=(500, n)) * 2.0 + 1.0
+    widths = np.where(rng.random(500) < 0.5, 1.0, 0.5)
+    s = SafeSet(centres, widths, tuple(f"x{i}" for i in range(n)))
+    inside = centres + rng.uniform(-0.4, 0.4, size=centres.shape)
+    assert s.contains(inside).all()
+    far = np.full((3, n), -50.0)
+    assert not s.contains(far).any()
