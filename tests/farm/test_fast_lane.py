@@ -7,6 +7,8 @@ them. Either way the result is the in-process one."""
 import sys
 from pathlib import Path
 
+import pytest
+
 from farm import config as config_mod
 from farm.jobs.campaign_setup import build_algorithm, build_campaign
 from farm.execution.process import build_simulator, spec_of
@@ -114,6 +116,7 @@ def _on_eight_slow_actors():
     return (ray_campaign, counters, algo.result().result_hash), (local_hash, local_counters)
 
 
+@pytest.mark.soak  # CI: the same contract on the virtual farm (tests/farm/test_virtual.py)
 def test_runs_launched_while_a_change_waits_on_ray_give_the_in_process_result(ray_local):
     """8 actors of ~20 ms runs: the head passes replacements not back and waits for them at
     changes; meanwhile the runs each change will call for are launched, worked out on a
@@ -124,6 +127,7 @@ def test_runs_launched_while_a_change_waits_on_ray_give_the_in_process_result(ra
     assert ray_hash == local_hash and counters.committed == local_counters.committed
 
 
+@pytest.mark.soak  # CI: the same contract on the virtual farm (tests/farm/test_virtual.py)
 def test_changes_applied_past_holds_on_ray_give_the_in_process_result(ray_local, monkeypatch):
     """The same 8 actors, with changes applied past the holds before them (for runs of
     20 ms here; by default from 0.2 s, coordinator/driver/speculation.py): a change undone sends
