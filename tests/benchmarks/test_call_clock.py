@@ -12,7 +12,7 @@ from farm.ray_runtime.executor import RayExecutor  # noqa: E402
 from scenarios.simulator import SimSpec  # noqa: E402
 
 
-def test_the_call_clock_counts_the_calls_and_leaves_the_waits_out_and_the_chunks_unchanged(ray_local):
+def test_the_call_clock_counts_the_calls_and_leaves_the_waits_out_and_the_runs_unchanged(ray_local):
     from bench_scaling import CallClock
 
     # runs of ~50 ms (sleeping): the driver waits for every chunk it reads
@@ -31,10 +31,12 @@ def test_the_call_clock_counts_the_calls_and_leaves_the_waits_out_and_the_chunks
         got = [ex.result(h) for h in ex.submit(0, starts)]
     finally:
         ex.close()
-    assert [len(c) for c in got] == [len(c) for c in expected]
-    for a, b in zip(got, expected):
-        np.testing.assert_array_equal(a.lengths, b.lengths)
-        np.testing.assert_array_equal(a.outcomes, b.outcomes)
+    # the chunks' sizes follow measured times (a loaded machine cuts them otherwise): the
+    # runs, in order, are what must not change
+    for field in ("lengths", "outcomes"):
+        np.testing.assert_array_equal(np.concatenate([getattr(c, field) for c in got]),
+                                      np.concatenate([getattr(c, field) for c in expected]))
+    assert sum(len(c) for c in got) == len(starts)
     assert (np.concatenate([c.lengths for c in got]) == 50).all()
     assert clock.in_waits > 0  # it waited (polling Ray) for chunks of ~50 ms a run
     assert 0 < clock.seconds < clock.in_calls  # the waits are inside the calls, and left out
