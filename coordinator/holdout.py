@@ -11,23 +11,12 @@ as a user's uniform scenario would meet it.
 from __future__ import annotations
 
 import numpy as np
-from scipy.stats import beta as beta_law
 
+from coordinator.binomial import LEVEL, clopper_pearson
 from scenarios.base import FAILURE
 from scenarios.streams import PURPOSE_START, RunStreams
 
 HOLDOUT_INDEX = 1 << 62  # the holdout's sample indices: a stream range no campaign reaches
-LEVEL = 0.95
-
-
-def clopper_pearson(k: int, n: int, level: float = LEVEL) -> tuple[float, float]:
-    """The exact two-sided interval for a share of k in n."""
-    if n == 0:
-        return 0.0, 1.0
-    alpha = 1.0 - level
-    low = 0.0 if k == 0 else float(beta_law.ppf(alpha / 2, k, n - k + 1))
-    high = 1.0 if k == n else float(beta_law.ppf(1 - alpha / 2, k + 1, n - k))
-    return low, high
 
 
 def holdout_starts(scenario, seed: int, runs: int) -> tuple[np.ndarray, np.ndarray]:

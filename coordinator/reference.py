@@ -23,13 +23,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from coordinator.holdout import clopper_pearson
+from coordinator.binomial import clopper_pearson
 from scenarios.actions import UniformActions
 from scenarios.base import FAILURE, Scenario
 from scenarios.errors import UserError
-from scenarios.worst_case_rollout import safe_by_simulation
 from scenarios.rollout import run_scenario
 from scenarios.streams import RunStreams
+from scenarios.worst_case_rollout import safe_by_simulation
 
 
 class NoReference(UserError, ValueError):

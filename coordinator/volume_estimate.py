@@ -24,8 +24,12 @@ from dataclasses import dataclass
 import numpy as np
 
 SAMPLES = 1 << 20  # uniform points per estimate: a share's 95 % interval is ~0.2 % wide at 1/2
+# the hull's points each meet DIRECTIONS half-spaces (a box lookup is all a union's point
+# costs): 8x fewer of them, a 95 % interval ~0.5 % wide at 1/2, for an outer estimate
+HULL_SAMPLES = 1 << 17
 DIRECTIONS = 1024  # half-spaces of the outer polytope of the hull
 BLOCK = 1 << 16  # points tested at once
+DIRECTION_BLOCK = 128  # half-spaces tested at once: (BLOCK, 128) floats, 64 MB, whatever DIRECTIONS is
 Z95 = 1.959963984540054
 
 
@@ -90,7 +94,7 @@ def union_volume_estimate(contains, lo: np.ndarray, hi: np.ndarray, bounds=None,
                           f"(95 % Wilson interval)")
 
 
-def hull_volume_estimate(lo: np.ndarray, hi: np.ndarray, bounds=None, seed: int = 0, samples: int = SAMPLES,
+def hull_volume_estimate(lo: np.ndarray, hi: np.ndarray, bounds=None, seed: int = 0, samples: int = HULL_SAMPLES,
                          directions: int = DIRECTIONS) -> VolumeEstimate:
     """The convex hull of the union of boxes, from outside: the polytope of the set's
     support function in ``directions`` directions, its volume by Monte Carlo."""
@@ -109,7 +113,16 @@ def hull_volume_estimate(lo: np.ndarray, hi: np.ndarray, bounds=None, seed: int 
         support = np.maximum(support, (c @ u.T + h @ np.abs(u).T).max(axis=0))
 
     def inside(points: np.ndarray) -> np.ndarray:
-        return (points @ u.T <= support + 1e-12).all(axis=1)
+        # a block of half-spaces at a time, on the points still inside: most points of the
+        # bounding box outside the hull are cut off by the first random directions
+        keep = np.ones(len(points), dtype=bool)
+        for at in range(0, len(u), DIRECTION_BLOCK):
+            alive = np.flatnonzero(keep)
+            if not len(alive):
+                break
+            block = slice(at, at + DIRECTION_BLOCK)
+            keep[alive] = (points[alive] @ u[block].T <= support[block] + 1e-12).all(axis=1)
+        return keep
 
     box_lo, box_hi = lo.min(axis=0), hi.max(axis=0)
     count, box = _monte_carlo(inside, box_lo, box_hi, seed + 1, samples)

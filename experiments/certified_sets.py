@@ -24,8 +24,8 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy.stats import beta as beta_dist
 
+from coordinator.binomial import clopper_pearson
 from farm import api
 from scenarios.base import FAILURE
 from scenarios.simulator import SimSpec, Simulator
@@ -83,13 +83,6 @@ def one_seed(seed: int, mc: int, workdir: Path, refine: str = "all") -> dict:
            "validate_runs": cert.n_run, "seconds": round(time.time() - t, 1)}
     print(json.dumps(row), flush=True)
     return row
-
-
-def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
-    a = (1 - level) / 2
-    lo = 0.0 if k == 0 else float(beta_dist.ppf(a, k, n - k + 1))
-    hi = 1.0 if k == n else float(beta_dist.ppf(1 - a, k + 1, n - k))
-    return lo, hi
 
 
 def experiment(seeds: int, mc: int, refine: str = "all") -> dict:

@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from coordinator.holdout import clopper_pearson, holdout_report, holdout_starts
+from coordinator.binomial import clopper_pearson
+from coordinator.holdout import holdout_report, holdout_starts
 from farm import api
 from scenarios.base import FAILURE
 from scenarios.simulator import SimSpec, Simulator

@@ -20,7 +20,9 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.special import betaincinv, ndtri
+from scipy.special import ndtri
+
+from coordinator.binomial import clopper_pearson
 
 
 @dataclass(frozen=True)
@@ -52,14 +54,6 @@ def stage_weights(runs: np.ndarray) -> np.ndarray:
     """(T,) lambda_t = m_t / M from the runs (T, H) of each stage."""
     per_stage = runs.sum(axis=1).astype(float)
     return per_stage / per_stage.sum()
-
-
-def clopper_pearson(failures: int, runs: int, confidence: float) -> tuple[float, float]:
-    """The exact two-sided interval of a binomial proportion."""
-    alpha = 1 - confidence
-    low = 0.0 if failures == 0 else float(betaincinv(failures, runs - failures + 1, alpha / 2))
-    high = 1.0 if failures == runs else float(betaincinv(failures + 1, runs - failures, 1 - alpha / 2))
-    return low, high
 
 
 def zero_failure_bound(masses: np.ndarray, runs_per_stratum: np.ndarray, confidence: float) -> float:
