@@ -98,7 +98,7 @@ def report(exc: BaseException, campaign_dir: str | None = None) -> int:
 
 def interrupted(campaign_dir: str | None = None) -> int:
     """A signal stopped the command before a campaign's own handler could (e.g. while Ray starts)."""
-    where = f" (continue with `scenario-farm resume {campaign_dir}`)" if campaign_dir else ""
+    where = f" (continue with `scenario-farm resume {campaign_dir}`)" if _resumable(campaign_dir) else ""
     _say(f"stopped by a signal; the files are as the last checkpoint left them{where}")
     return STOPPED
 
@@ -122,7 +122,15 @@ def one_line(exc: BaseException, limit: int = 600) -> str:
 
 
 def _resume_hint(campaign_dir: str | None) -> str:
-    return f" (the last checkpoint stands: `scenario-farm resume {campaign_dir}` continues)" if campaign_dir else ""
+    return f" (the last checkpoint stands: `scenario-farm resume {campaign_dir}` continues)" \
+        if _resumable(campaign_dir) else ""
+
+
+def _resumable(campaign_dir: str | None) -> bool:
+    """Whether ``campaign_dir`` holds a campaign to resume: its frozen config.json (what
+    resume reads first); a hint to resume a directory never made (an error while the
+    config was read) sends the user astray."""
+    return campaign_dir is not None and os.path.isfile(os.path.join(campaign_dir, "config.json"))
 
 
 def _say(text: str) -> None:

@@ -154,6 +154,33 @@ def test_config_that_is_a_directory_or_unreadable(tmp_path):
         (tmp_path / "c.toml").chmod(0o600)
 
 
+@pytest.mark.parametrize("device", ["/dev/zero", "/dev/urandom"])
+def test_a_config_that_never_ends_is_refused_without_filling_the_memory(tmp_path, device):
+    """Issue 54: read whole, /dev/zero exhausted the memory and ended with exit 4 and a resume
+    hint for a directory never made. The address-space limit keeps a regression from
+    taking the machine's memory with it."""
+    def two_gib():
+        resource.setrlimit(resource.RLIMIT_AS, (2**31, 2**31))
+
+    out = tmp_path / "out"
+    r = cli("quantify", device, "--out", out, preexec_fn=two_gib)
+    one_line_error(r, device)
+    assert "resume" not in r.stderr and not out.exists()
+    if device == "/dev/zero":
+        assert "allowed at most 4 MiB" in r.stderr
+
+
+def test_no_resume_hint_for_a_directory_that_holds_no_campaign(tmp_path, capsys):
+    from farm.cli import exits
+    from scenarios.errors import InfrastructureError
+
+    assert exits.report(InfrastructureError("Ray lost"), str(tmp_path / "never")) == exits.INFRASTRUCTURE
+    assert capsys.readouterr().err == "scenario-farm: infrastructure error: Ray lost\n"
+    (tmp_path / "config.json").write_text("{}")
+    exits.report(InfrastructureError("Ray lost"), str(tmp_path))
+    assert f"`scenario-farm resume {tmp_path}` continues" in capsys.readouterr().err
+
+
 def test_a_domain_set_with_zero_half_width(tmp_path):
     import pyarrow as pa
     import pyarrow.parquet as pq
