@@ -18,7 +18,7 @@ from typing import NoReturn
 
 from farm import lazy
 from farm.cli import exits
-from farm.cli.native_stderr import install as quiet_native_stderr
+from farm.cli.native_stderr import install as quiet_native_stderr, keep_standard_fds
 from farm.cli.parser import build_parser
 from farm.execution.memory import keep_freed_memory
 from farm.ray_runtime import watch as ray_watch
@@ -42,6 +42,7 @@ def main(argv=None) -> int:
 
 
 def _main(argv) -> int:
+    keep_standard_fds()
     parser = build_parser()
     args = parser.parse_args(argv)
     if not os.environ.get(exits.DEBUG):

@@ -240,6 +240,20 @@ def test_a_reader_that_goes_away_is_no_error(campaign):
     assert proc.stderr.read() == ""
 
 
+def test_commands_work_with_stderr_closed(campaign, tmp_path):
+    """Issue 54: `status DIR 2>&-` (as some service managers start a process) exited 1 and
+    did nothing: stderr is then None in Python, and fd 2 the next file opened."""
+    def close_stderr():
+        os.close(2)
+
+    r = subprocess.run([sys.executable, "-m", "farm", "status", str(campaign)], stdout=subprocess.PIPE, text=True,
+                       preexec_fn=close_stderr, timeout=120)
+    assert r.returncode == 0 and f"campaign {campaign}" in r.stdout and "finished" in r.stdout, r
+    r = subprocess.run([sys.executable, "-m", "farm", "status", str(tmp_path / "none")], stdout=subprocess.PIPE,
+                       text=True, preexec_fn=close_stderr, timeout=120)
+    assert r.returncode == 2 and r.stdout == ""  # the error line went nowhere; the exit code says it
+
+
 def test_garbage_status_json_is_reported_and_rewritten(campaign, tmp_path):
     out = copy_of(campaign, tmp_path)
     (out / "status.json").write_text("\x00garbage")
