@@ -30,7 +30,7 @@ TABLE = (
            "nothing was changed)"),
     (BUG, "our bug: one line, and the traceback in a file (SCENARIO_FARM_DEBUG=1 prints it)"),
     (INFRASTRUCTURE, "infrastructure: Ray lost or failing, a full disk (the last checkpoint stands: resume)"),
-    (STOPPED, "stopped by a signal (Ctrl-C, SIGTERM): checkpointed; resume continues"),
+    (STOPPED, "stopped by a signal (Ctrl-C, SIGTERM, SIGHUP): checkpointed; resume continues"),
 )
 
 # a full or failing disk is the machine's, not the input's: resume once there is room

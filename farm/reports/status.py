@@ -98,6 +98,8 @@ def describe(directory: Path) -> str:
         state = st.get("state", "?")
         if state in ("running", "finishing") and holder is None:
             state = f"stopped while {state} (process gone; continue with `scenario-farm resume {directory}`)"
+        elif state == "stopped" and holder is None:  # by a signal, checkpointed
+            state = f"stopped (continue with `scenario-farm resume {directory}`)"
         elif holder is not None:
             state = f"{state} (pid {holder}, updated {time.time() - st.get('updated', 0):.0f} s ago)"
         fields = ["side", "round", "delta", "boxes", "n_eps_counter", "n_eps", "runs_committed", "runs_simulated",

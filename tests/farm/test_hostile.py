@@ -109,6 +109,38 @@ def test_a_second_writer_is_refused_naming_the_holder(tmp_path):
         first.wait(60)
 
 
+def test_a_lock_outliving_its_pid_is_no_running_campaign(campaign, tmp_path):
+    """Issue 54: after SIGHUP `status` said "running" for a campaign process that was gone. A
+    process the campaign started and that inherited its lock holds it here (this test)."""
+    import fcntl
+    import socket
+
+    from farm.directory.storage import CampaignDir, CampaignError
+    from farm.reports.status import describe
+
+    out = copy_of(campaign, tmp_path)
+    status = json.loads((out / "status.json").read_text())
+    (out / "status.json").write_text(json.dumps({**status, "state": "running"}))
+    ended = subprocess.Popen(["true"])
+    ended.wait()
+    fd = os.open(out / ".lock", os.O_RDWR | os.O_CREAT)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        for pid, says in ((ended.pid, "stopped while running (process gone; continue with `scenario-farm resume"),
+                          (os.getpid(), f"running (pid {os.getpid()}, updated")):
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{pid}\n{socket.gethostname()}\n".encode(), 0)
+            assert says in describe(out)
+        with pytest.raises(CampaignError, match=f"pid {os.getpid()} \\(a campaign runs there\\)"):
+            CampaignDir(out).lock()
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{ended.pid}\n{socket.gethostname()}\n".encode(), 0)
+        with pytest.raises(CampaignError, match=f"pid {ended.pid} that worked there has ended"):
+            CampaignDir(out).lock()  # resume's refusal
+    finally:
+        os.close(fd)
+
+
 # -- 3. bad paths and bad files: one line each ------------------------------------------------
 def test_out_is_a_file_or_unwritable(config, tmp_path):
     (tmp_path / "file").write_text("x")
