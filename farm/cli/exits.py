@@ -118,6 +118,23 @@ def one_line(exc: BaseException, limit: int = 600) -> str:
         text = f"{exc.filename}: {exc.strerror}"  # e.g. "/out/summary.json: No space left on device"
     if not isinstance(exc, FarmError):
         text = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    return _fit(text, limit)
+
+
+LONG_WORD = 80  # characters a shortened word (a path) keeps: its start and its end
+
+
+def _fit(text: str, limit: int) -> str:
+    """``text`` in ``limit`` characters: its longest words (paths) shortened in their middle
+    first, so that the reason after a 4,000-character path is kept; cut at the end last."""
+    words = text.split(" ")
+    for i in sorted(range(len(words)), key=lambda i: -len(words[i])):
+        excess = len(" ".join(words)) - limit
+        if excess <= 0 or len(words[i]) <= LONG_WORD:
+            break
+        keep = max(LONG_WORD, len(words[i]) - excess) - 3
+        words[i] = f"{words[i][: keep // 2]}...{words[i][len(words[i]) - (keep - keep // 2):]}"
+    text = " ".join(words)
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 

@@ -66,6 +66,14 @@ class CampaignDir:
     def check_writable(self) -> None:
         """Refuse, before any work, a path that cannot become a campaign directory."""
         p = self.path
+        if p.is_symlink() and not p.exists():  # else mkdir says "File exists" of a name that leads nowhere
+            try:
+                os.stat(p)
+                how = "dangles"
+            except OSError as exc:
+                how = "loops" if exc.errno == errno.ELOOP else "dangles"
+            raise CampaignError(f"{p}: a symlink that {how} (to {os.readlink(p)}); choose another --out or fix "
+                                f"the link")
         if p.exists() and not p.is_dir():
             raise CampaignError(f"{p}: exists and is not a directory")
         parent = p if p.exists() else next((a for a in p.parents if a.exists()), Path("."))
@@ -167,6 +175,10 @@ class CampaignDir:
         """The campaign's config as frozen when it started (``config.json``)."""
         path = self.path / "config.json"
         raw = read_json(path, ("config",), missing=f"{self.path}: not a campaign directory (no config.json)")["config"]
+        absent = [f"[{name}]" for name in config_mod.result_sections() if isinstance(raw, dict) and name not in raw]
+        if absent:  # else filled with defaults, it would pass for another config (a hash mismatch)
+            raise CampaignError(f"{path}: the frozen config lacks its {', '.join(absent)} section"
+                                f"{'s' if len(absent) > 1 else ''} (damaged or edited?); nothing was changed")
         try:
             with warnings.catch_warnings():
                 # the start of the campaign warned of a value it changed (a checkpoint

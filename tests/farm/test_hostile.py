@@ -157,6 +157,26 @@ def test_out_is_a_file_or_unwritable(config, tmp_path):
         ro.chmod(0o700)
 
 
+def test_out_is_a_symlink_that_dangles_or_loops(config, tmp_path):
+    """Issue 54: both were "File exists"."""
+    (tmp_path / "dangling").symlink_to(tmp_path / "nowhere")
+    (tmp_path / "loop").symlink_to(tmp_path / "loop")
+    one_line_error(cli("quantify", config, "--out", tmp_path / "dangling"), "a symlink that dangles", "nowhere")
+    one_line_error(cli("validate", config, "--out", tmp_path / "loop"), "a symlink that loops")
+    assert not (tmp_path / "nowhere").exists()
+
+
+def test_a_path_of_4000_characters_is_shortened_in_its_middle_and_the_reason_kept():
+    import errno
+
+    from farm.cli.exits import one_line
+
+    path = "/tmp/" + "/".join(f"{i:02d}" + "d" * 248 for i in range(16)) + "/out"
+    text = one_line(OSError(errno.ENAMETOOLONG, "File name too long", path))
+    assert len(text) <= 600 and text.endswith("/out: File name too long"), text
+    assert text.startswith("OSError: /tmp/00ddd") and "..." in text
+
+
 @pytest.mark.parametrize("case, text, words", [
     ("constraints_not_a_list", '[scenario]\nname = "lead-follow"\n[validate]\nconstraints = 3\n',
      ["validate.constraints"]),
@@ -436,6 +456,10 @@ def damage(path, how):
         pass
     elif how.startswith("text:"):
         path.write_text(how[5:])
+    elif how.startswith("drop_config:"):  # a frozen config without one section
+        data = json.loads(path.read_text())
+        del data["config"][how.split(":")[1]]
+        path.write_text(json.dumps(data))
     elif how.startswith("drop_meta:"):  # a checkpoint whose metadata lacks one key
         with np.load(path, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
@@ -481,6 +505,9 @@ DAMAGE_CASES = [  # (finished?, file, damage, command, words)
     (False, SEGMENT, "half", "resume", ["ledger segment is corrupt"]),
     (False, SEGMENT, "delete", "resume", ["ledger segment missing"]),
     (False, "config.json", "garbage", "resume", ["config.json: not valid JSON"]),
+    # issue 54: filled with defaults, it was "stamped with config hash ..., the config hashes to ..."
+    (False, "config.json", "drop_config:quantify", "resume", ["config.json: the frozen config lacks its [quantify] "
+                                                              "section"]),
     (False, ".scenario-farm.json", "delete", "resume", ["not a campaign directory"]),
     (False, ".scenario-farm.json", "text:{\"format\": 1}", "resume", ["directory format 1"]),
 ]
