@@ -551,3 +551,23 @@ def test_a_damaged_certificate_is_named_by_replay(tmp_path):
     before = snapshot(out)
     one_line_error(cli("replay", out, "--sample", sample), "certificate.json: holds a JSON list")
     assert snapshot(out) == before
+
+
+def test_replay_of_a_counterexample_is_a_finding_and_status_describes_the_validation(tmp_path):
+    """Issue 54: replay of a counterexample exited 0 (the table says 1), and `status` read a
+    validation directory as a quantification not started ("spe ... not started")."""
+    (tmp_path / "v.toml").write_text(LF + '[validate]\nalgorithm = "eps"\nepsilon = 0.01\n')
+    out = tmp_path / "v"
+    assert cli("validate", tmp_path / "v.toml", "--out", out).returncode == 1
+    cert = json.loads((out / "certificate.json").read_text())
+    sample = cert["counterexample"]["sample_index"]
+    r = cli("status", out)
+    assert r.returncode == 0 and f"validation {out}" in r.stdout and " / eps, config hash" in r.stdout, r.stdout
+    assert f"done: counterexample at sample {sample}" in r.stdout and "spe" not in r.stdout, r.stdout
+    r = cli("replay", out, "--sample", sample)
+    assert r.returncode == 1 and "replay reproduces the counterexample" in r.stdout, (r.returncode, r.stdout, r.stderr)
+    cert["counterexample"]["trajectory"][-1][0] += 1.0  # a record the re-run cannot match
+    (out / "certificate.json").write_text(json.dumps(cert))
+    r = cli("replay", out, "--sample", sample)
+    one_line_error(r, f"the replay of sample {sample} does not match the record")
+    assert "DIFF trajectory" in r.stdout
