@@ -18,23 +18,35 @@ from typing import NoReturn
 
 from farm import lazy
 from farm.cli import exits
-from farm.cli.native_stderr import install as quiet_native_stderr
+from farm.cli.native_stderr import install as quiet_native_stderr, keep_standard_fds
 from farm.cli.parser import build_parser
 from farm.execution.memory import keep_freed_memory
+from farm.jobs.signals import STOP_SIGNALS, catch
 from farm.ray_runtime import watch as ray_watch
+from farm.ray_runtime.session import exit_now, exit_process
 
 
 def run() -> NoReturn:
     """The ``scenario-farm`` command (and ``python -m farm``): ``main`` on the command
     line's arguments, then the process ends with its exit code (farm/ray_runtime/session.py
-    ``exit_process``: at once after a private local Ray)."""
-    lazy.ray_session.exit_process(main())
+    ``exit_process``: at once after a private local Ray, or after a stop)."""
+    try:
+        code = main()
+    except KeyboardInterrupt:  # a signal in the instant main returned
+        code = exits.STOPPED
+    # the command is over: a signal now (a second one after a stop) hastens the exit, and
+    # must not turn it into a death by the signal (exit 143) once the interpreter's shutdown
+    # has put the default handlers back
+    _exit_at_once_on_signals(code)
+    exit_process(code, at_once=code == exits.STOPPED)
 
 
 def main(argv=None) -> int:
-    # SIGTERM outside a campaign's own handler (start-up, finishing) ends like Ctrl-C: the
-    # files stay as the last checkpoint left them, and the exit says "stopped"
-    signal.signal(signal.SIGTERM, _terminate)
+    # SIGTERM and SIGHUP outside a campaign's own handler (start-up, finishing) end like
+    # Ctrl-C (SIGINT: Python's KeyboardInterrupt): the files stay as the last checkpoint
+    # left them, and the exit says "stopped"
+    for signum in (signal.SIGTERM, signal.SIGHUP):
+        catch(signum, _terminate)
     try:
         return _main(argv)
     except KeyboardInterrupt:  # before a command ran
@@ -42,6 +54,7 @@ def main(argv=None) -> int:
 
 
 def _main(argv) -> int:
+    keep_standard_fds()
     parser = build_parser()
     args = parser.parse_args(argv)
     if not os.environ.get(exits.DEBUG):
@@ -77,7 +90,13 @@ def _stdout_closed() -> bool:
 
 
 def _terminate(signum, frame):
+    _exit_at_once_on_signals(exits.STOPPED)  # a second signal stops at once, still "stopped"
     raise KeyboardInterrupt
+
+
+def _exit_at_once_on_signals(code: int) -> None:
+    for signum in STOP_SIGNALS:
+        catch(signum, lambda signum, frame: exit_now(code))
 
 
 def _one_line_warning(message, category, filename, lineno, file=None, line=None):

@@ -30,7 +30,7 @@ TABLE = (
            "nothing was changed)"),
     (BUG, "our bug: one line, and the traceback in a file (SCENARIO_FARM_DEBUG=1 prints it)"),
     (INFRASTRUCTURE, "infrastructure: Ray lost or failing, a full disk (the last checkpoint stands: resume)"),
-    (STOPPED, "stopped by a signal (Ctrl-C, SIGTERM): checkpointed; resume continues"),
+    (STOPPED, "stopped by a signal (Ctrl-C, SIGTERM, SIGHUP): checkpointed; resume continues"),
 )
 
 # a full or failing disk is the machine's, not the input's: resume once there is room
@@ -98,7 +98,7 @@ def report(exc: BaseException, campaign_dir: str | None = None) -> int:
 
 def interrupted(campaign_dir: str | None = None) -> int:
     """A signal stopped the command before a campaign's own handler could (e.g. while Ray starts)."""
-    where = f" (continue with `scenario-farm resume {campaign_dir}`)" if campaign_dir else ""
+    where = f" (continue with `scenario-farm resume {campaign_dir}`)" if _resumable(campaign_dir) else ""
     _say(f"stopped by a signal; the files are as the last checkpoint left them{where}")
     return STOPPED
 
@@ -118,11 +118,36 @@ def one_line(exc: BaseException, limit: int = 600) -> str:
         text = f"{exc.filename}: {exc.strerror}"  # e.g. "/out/summary.json: No space left on device"
     if not isinstance(exc, FarmError):
         text = f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+    return _fit(text, limit)
+
+
+LONG_WORD = 80  # characters a shortened word (a path) keeps: its start and its end
+
+
+def _fit(text: str, limit: int) -> str:
+    """``text`` in ``limit`` characters: its longest words (paths) shortened in their middle
+    first, so that the reason after a 4,000-character path is kept; cut at the end last."""
+    words = text.split(" ")
+    for i in sorted(range(len(words)), key=lambda i: -len(words[i])):
+        excess = len(" ".join(words)) - limit
+        if excess <= 0 or len(words[i]) <= LONG_WORD:
+            break
+        keep = max(LONG_WORD, len(words[i]) - excess) - 3
+        words[i] = f"{words[i][: keep // 2]}...{words[i][len(words[i]) - (keep - keep // 2):]}"
+    text = " ".join(words)
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
 def _resume_hint(campaign_dir: str | None) -> str:
-    return f" (the last checkpoint stands: `scenario-farm resume {campaign_dir}` continues)" if campaign_dir else ""
+    return f" (the last checkpoint stands: `scenario-farm resume {campaign_dir}` continues)" \
+        if _resumable(campaign_dir) else ""
+
+
+def _resumable(campaign_dir: str | None) -> bool:
+    """Whether ``campaign_dir`` holds a campaign to resume: its frozen config.json (what
+    resume reads first); a hint to resume a directory never made (an error while the
+    config was read) sends the user astray."""
+    return campaign_dir is not None and os.path.isfile(os.path.join(campaign_dir, "config.json"))
 
 
 def _say(text: str) -> None:

@@ -17,7 +17,7 @@ from farm.reports.progress import Progress
 from farm.reports.summary import Summary
 from farm.reports.holdout import describe_holdout
 from farm.reports.truncations import lines as truncation_lines
-from scenarios.errors import ConfigError
+from scenarios.errors import ConfigError, ScenarioError
 
 EXIT_OK, EXIT_COUNTEREXAMPLE = exits.OK, exits.FINDING
 
@@ -186,9 +186,12 @@ def cmd_status(args) -> int:
 
 
 def cmd_replay(args) -> int:
-    ok, text = lazy.rerun.replay(Path(args.dir), args.sample)
+    ok, finding, text = lazy.rerun.replay(Path(args.dir), args.sample)
     print(text)
-    return EXIT_OK if ok else EXIT_COUNTEREXAMPLE
+    if not ok:
+        raise ScenarioError(f"{args.dir}: the replay of sample {args.sample} does not match the record (the DIFF "
+                            f"lines above): a scenario whose runs are not fixed by their stream key, or changed files")
+    return EXIT_COUNTEREXAMPLE if finding else EXIT_OK  # a reproduced counterexample is a finding
 
 
 def cmd_compare(args) -> int:

@@ -21,6 +21,26 @@ RAY_LOG_LINE = re.compile(rb"^\[\d{4}-\d\d-\d\d \d\d:\d\d:\d\d,\d{3} [DIWEF] \d+
 _installed = False
 
 
+def keep_standard_fds() -> None:
+    """Standard streams that were closed (``2>&-``, as some service managers start a
+    process) become /dev/null: what is written to them is dropped. Else
+    ``sys.stderr`` is None, and fd 2 goes to the next file opened (a lock, a ledger
+    segment), where Ray's and our lines would be written."""
+    for fd, name, mode in ((0, "stdin", "r"), (1, "stdout", "w"), (2, "stderr", "w")):
+        try:
+            os.fstat(fd)
+        except OSError:
+            null = os.open(os.devnull, os.O_RDWR)
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
+            if getattr(sys, name) is None:
+                setattr(sys, name, open(fd, mode, closefd=False))
+            continue
+        if getattr(sys, name) is None:  # closed at start-up, and the fd since taken by a file: not ours to write
+            setattr(sys, name, open(os.devnull, mode))
+
+
 def install() -> None:
     """From now on, fd 2 drops Ray's log lines (POSIX; once per process)."""
     global _installed

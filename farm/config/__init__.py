@@ -13,7 +13,7 @@ A config is code: ``scenario.name = "module:Class"``, ``actions.policy`` and
 the code they name.
 """
 
-from farm.config.hashing import changed_fields, config_hash, result_view
+from farm.config.hashing import changed_fields, config_hash, result_sections, result_view
 from farm.config.estimate_section import AxisLawConfig, EstimateConfig, VersusConfig
 from farm.config.model import Config, normalize, schema
 from farm.config.reading import load, parse, parse_tables, read_text, to_toml
@@ -23,5 +23,5 @@ from scenarios.errors import ConfigError
 
 __all__ = ["ActionsConfig", "AxisLawConfig", "Config", "ConfigError", "ConfigWarning", "EstimateConfig", "FarmConfig", "MIN_CHECKPOINT_ENV",
            "MIN_CHECKPOINT_S", "QuantifyConfig", "RecordConfig", "ScenarioConfig", "ValidateConfig", "VirtualConfig",
-           "changed_fields", "config_hash", "load", "normalize", "parse", "parse_tables", "read_text", "result_view", "schema",
+           "changed_fields", "config_hash", "load", "normalize", "parse", "parse_tables", "read_text", "result_sections", "result_view", "schema",
            "to_toml", "VersusConfig"]

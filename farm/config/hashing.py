@@ -34,6 +34,11 @@ def result_view(cfg: Config) -> dict:
     return out
 
 
+def result_sections() -> list[str]:
+    """The sections that can change a result: every frozen config (config.json) holds them."""
+    return [name for name, field in Config.model_fields.items() if _affects_result(field)]
+
+
 def _extra(field) -> dict:
     return getattr(field, "json_schema_extra", None) or {}
 

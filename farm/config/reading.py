@@ -10,6 +10,8 @@ from pathlib import Path
 from farm.config.model import MAX_DEPTH, Config, normalize
 from scenarios.errors import ConfigError
 
+MAX_CHARS = 4 * 2**20  # the largest configs (sets of constraints) are kilobytes
+
 
 def load(source, overrides: dict | None = None) -> Config:
     """A config from a TOML file (str or Path), a TOML string, a dict or a Config."""
@@ -30,7 +32,7 @@ def read_text(path) -> str:
     path = Path(path)
     try:
         with open(path, encoding="utf-8-sig") as fh:  # -sig: a byte-order mark is no TOML
-            return fh.read()
+            text = fh.read(MAX_CHARS + 1)  # bounded: /dev/zero or /dev/urandom must not fill the memory
     except FileNotFoundError:
         raise ConfigError(f"{path}: no such config file") from None
     except IsADirectoryError:
@@ -40,6 +42,10 @@ def read_text(path) -> str:
                           f"file") from None
     except OSError as exc:
         raise ConfigError(f"{path}: cannot read the config ({exc.strerror or type(exc).__name__})") from None
+    if len(text) > MAX_CHARS:
+        raise ConfigError(f"{path}: larger than a config may be; allowed at most {MAX_CHARS // 2**20} MiB of "
+                          f"TOML text")
+    return text
 
 
 def parse(text: str, where: str = "config") -> Config:

@@ -2,7 +2,8 @@
 
     DIR/.scenario-farm.json   the marker: this tool wrote DIR (kind, format version)
     DIR/.lock                 an advisory lock held by the process working in DIR (the
-                              kernel releases it on exit, kill -9 included)
+                              kernel releases it on exit, kill -9 included); it names
+                              that process: its pid, and its host's name
     DIR/config.toml           the config as given (frozen copy)
     DIR/config.json           the normalized config with its hash
     DIR/checkpoint.npz, DIR/checkpoint/   the checkpoint (farm/directory/journal.py)
@@ -23,6 +24,7 @@ import json
 import os
 import re
 import shutil
+import socket
 import time
 import warnings
 from pathlib import Path
@@ -64,6 +66,14 @@ class CampaignDir:
     def check_writable(self) -> None:
         """Refuse, before any work, a path that cannot become a campaign directory."""
         p = self.path
+        if p.is_symlink() and not p.exists():  # else mkdir says "File exists" of a name that leads nowhere
+            try:
+                os.stat(p)
+                how = "dangles"
+            except OSError as exc:
+                how = "loops" if exc.errno == errno.ELOOP else "dangles"
+            raise CampaignError(f"{p}: a symlink that {how} (to {os.readlink(p)}); choose another --out or fix "
+                                f"the link")
         if p.exists() and not p.is_dir():
             raise CampaignError(f"{p}: exists and is not a directory")
         parent = p if p.exists() else next((a for a in p.parents if a.exists()), Path("."))
@@ -123,17 +133,20 @@ class CampaignDir:
         except OSError as exc:
             if exc.errno not in (errno.EAGAIN, errno.EACCES):
                 raise
-            holder = os.pread(fd, 64, 0).decode(errors="replace").strip() or "?"
+            pid, gone = _recorded_holder(fd)
             os.close(fd)
-            raise CampaignError(f"{self.path}: in use by pid {holder} (a campaign runs there); wait for it "
-                                f"to finish or stop it first") from None
+            if gone:
+                raise CampaignError(f"{self.path}: locked, though pid {pid} that worked there has ended: a process "
+                                    f"it started still holds {LOCK}; end that process, then try again") from None
+            raise CampaignError(f"{self.path}: in use by pid {pid if pid is not None else '?'} (a campaign runs "
+                                f"there); wait for it to finish or stop it first") from None
         self._lock_fd = fd
         if announce:
             self.announce()
 
     def announce(self) -> None:
         os.ftruncate(self._lock_fd, 0)
-        os.pwrite(self._lock_fd, f"{os.getpid()}\n".encode(), 0)
+        os.pwrite(self._lock_fd, f"{os.getpid()}\n{socket.gethostname()}\n".encode(), 0)
 
     def unlock(self) -> None:
         if self._lock_fd is not None:
@@ -141,7 +154,9 @@ class CampaignDir:
             self._lock_fd = None
 
     def holder(self) -> int | None:
-        """The pid working in DIR now, or None (for `status`)."""
+        """The pid working in DIR now, or None (for `status`): None too when the lock is
+        held but the pid it names has ended on this machine (a process it started, which
+        inherited the lock, outlived it: nobody works there)."""
         try:
             fd = os.open(self.path / LOCK, os.O_RDONLY)
         except OSError:
@@ -150,8 +165,8 @@ class CampaignDir:
             fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
             return None  # nobody holds it
         except OSError:
-            text = os.pread(fd, 64, 0).decode(errors="replace").strip()
-            return int(text) if text.isdigit() else -1
+            pid, gone = _recorded_holder(fd)
+            return None if gone else pid if pid is not None else -1
         finally:
             os.close(fd)
 
@@ -160,6 +175,10 @@ class CampaignDir:
         """The campaign's config as frozen when it started (``config.json``)."""
         path = self.path / "config.json"
         raw = read_json(path, ("config",), missing=f"{self.path}: not a campaign directory (no config.json)")["config"]
+        absent = [f"[{name}]" for name in config_mod.result_sections() if isinstance(raw, dict) and name not in raw]
+        if absent:  # else filled with defaults, it would pass for another config (a hash mismatch)
+            raise CampaignError(f"{path}: the frozen config lacks its {', '.join(absent)} section"
+                                f"{'s' if len(absent) > 1 else ''} (damaged or edited?); nothing was changed")
         try:
             with warnings.catch_warnings():
                 # the start of the campaign warned of a value it changed (a checkpoint
@@ -199,6 +218,25 @@ class CampaignDir:
                 tmp.unlink(missing_ok=True)
                 removed.append(tmp)
         return removed
+
+
+def _recorded_holder(fd: int) -> tuple[int | None, bool]:
+    """(the pid a held lock names, whether that pid has ended). Only a pid of this
+    machine (the host name beside it) is checked: another host's, or another PID
+    namespace's, pid says nothing here."""
+    pid, _, host = os.pread(fd, 320, 0).decode(errors="replace").partition("\n")
+    if not pid.strip().isdigit():
+        return None, False
+    pid = int(pid)
+    if host.strip() != socket.gethostname():
+        return pid, False
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return pid, True
+    except OSError:  # another user's: alive
+        pass
+    return pid, False
 
 
 class Ledger:

@@ -64,7 +64,9 @@ def _load_adaptive_actions(directory: Path, simulator) -> None:
         simulator.policy.load(schedule)
 
 
-def replay(directory: Path, index: int) -> tuple[bool, str]:
+def replay(directory: Path, index: int) -> tuple[bool, bool, str]:
+    """Re-run sample ``index`` of DIR; -> (whether it matches the record, whether the run
+    is a finding: a validation's counterexample, the report's lines)."""
 
     directory = Path(directory)
     CampaignDir(directory).open()  # a one-line error for a file or a directory not ours
@@ -97,10 +99,10 @@ def replay(directory: Path, index: int) -> tuple[bool, str]:
              f"{dict(zip(scenario.state_names, start.tolist()))}:"]
     lines += [f"  {'ok  ' if good else 'DIFF'} {name}: {text}" for name, good, text in checks]
     lines.append("replay matches the record" if ok else "replay does NOT match the record")
-    return ok, "\n".join(lines)
+    return ok, False, "\n".join(lines)
 
 
-def _replay_counterexample(directory: Path, index: int) -> tuple[bool, str]:
+def _replay_counterexample(directory: Path, index: int) -> tuple[bool, bool, str]:
     ce = Certificate.read(directory).counterexample
     if not ce or ce["sample_index"] != index:
         raise CampaignError(f"{directory}: certificate.json holds no counterexample with sample index {index}")
@@ -122,4 +124,4 @@ def _replay_counterexample(directory: Path, index: int) -> tuple[bool, str]:
     lines = [f"counterexample sample {index} (stream key seed={spec.seed}, index={index}): {ce['reason']}"]
     lines += [f"  {'ok  ' if good else 'DIFF'} {name}: {text}" for name, good, text in checks]
     lines.append("replay reproduces the counterexample" if ok else "replay does NOT reproduce the counterexample")
-    return ok, "\n".join(lines)
+    return ok, True, "\n".join(lines)

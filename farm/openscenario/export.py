@@ -15,6 +15,7 @@ the box) with the logical scenario; a certified set (``domain_set``) as ``safe_s
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -44,7 +45,8 @@ MAX_VALUE_SETS = 250_000  # a value set per box: beyond this the file is hundred
 def export_openscenario(directory, *, force: bool = False) -> dict:
     """Write DIR/openscenario/ (see the module docstring); -> {"directory", "files",
     "runs", "notes"}. A non-empty DIR/openscenario/ is refused unless ``force`` (then
-    the files of this export are replaced; others there are left alone)."""
+    the files of this export are replaced; others there are left alone); a symlink there
+    is always refused."""
     directory = Path(directory)
     kind = CampaignDir(directory).open().get("kind")
     cfg = CampaignDir(directory).frozen_config()
@@ -64,6 +66,9 @@ def export_openscenario(directory, *, force: bool = False) -> dict:
     else:
         raise CampaignError(f"{directory}: a {kind} directory; export reads quantification and validation directories")
     out = directory / SUBDIR
+    if out.is_symlink():  # its target is not ours: --force must not write over a user's files there
+        raise CampaignError(f"{out}: a symlink (to {os.readlink(out)}); export writes only into a directory it makes: "
+                            f"remove the link or export elsewhere")
     if out.is_dir() and any(out.iterdir()) and not force:
         raise CampaignError(f"{out}: exists and is not empty; pass --force to replace the files export writes there")
     if out.exists() and not out.is_dir():

@@ -85,21 +85,34 @@ def start_local(num_cpus: int, extra_path: str | None = None) -> None:
 _reapers: list[subprocess.Popen] = []  # their stdin pipes stay open as long as this process
 
 
-def exit_process(code: int) -> NoReturn:
-    """End this process with ``code``: at once when a private local Ray runs here and its
-    reaper watches it (its processes then end as after kill -9 of the driver), sparing
-    ``ray.shutdown``'s stop of each process in turn, which waits up to a second for each
-    to exit; else as usual (``sys.exit``). Everything a command writes is in its files
-    when it returns; what is still buffered on stdout and stderr is flushed."""
+def exit_process(code: int, *, at_once: bool = False) -> NoReturn:
+    """End this process with ``code``: at once when ``at_once`` (a command a signal
+    stopped: nothing is left to do, and a second signal must find no interpreter shutdown
+    under way, whose default handlers make it a death by that signal), or when a private
+    local Ray runs here and its reaper watches it (its processes then end as after kill -9
+    of the driver), sparing ``ray.shutdown``'s stop of each process in turn, which waits
+    up to a second for each to exit; else as usual (``sys.exit``). Everything a command
+    writes is in its files when it returns; what is still buffered on stdout and stderr
+    is flushed."""
     ray = sys.modules.get("ray")  # not imported: no Ray here
-    if ray is not None and ray.is_initialized() and any(r.poll() is None for r in _reapers):
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except (OSError, ValueError):  # a closed pipe: nobody reads it any more
-                pass
-        os._exit(code)
+    connected = ray is not None and ray.is_initialized()
+    reaped = connected and any(r.poll() is None for r in _reapers)
+    if at_once and connected and not reaped:
+        ray.shutdown()  # a cluster's connection closed, a local Ray no reaper watches stopped
+    if at_once or reaped:
+        exit_now(code)
     sys.exit(code)
+
+
+def exit_now(code: int) -> NoReturn:
+    """End this process with ``code`` at once, stdout and stderr flushed (no atexit, no
+    interpreter shutdown)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe: nobody reads it any more
+            pass
+    os._exit(code)
 
 
 def _start_reaper(ray) -> None:

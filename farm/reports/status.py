@@ -15,6 +15,7 @@ from pathlib import Path
 
 from farm.directory.files import read_json, write_json
 from farm.directory.storage import MARKER, CampaignDir, CampaignError
+from farm.reports.certificate import FILE as CERTIFICATE_FILE, Certificate
 from farm.reports.summary import FILE as SUMMARY_FILE, Summary
 
 EVERY_S = 2.0
@@ -82,15 +83,19 @@ def describe(directory: Path) -> str:
     directory = Path(directory)
     if not (directory / MARKER).exists() or not (directory / "config.json").exists():
         raise CampaignError(f"{directory}: not a campaign directory (no {MARKER} or config.json)")
-    lines = [f"campaign {directory}"]
+    kind = (CampaignDir(directory).marker() or {}).get("kind")
+    lines = [f"{'validation' if kind == 'validate' else 'campaign'} {directory}"]
     frozen = read_json(directory / "config.json", ("config", "config_hash"))
     try:
         c = frozen["config"]
         lines.append(f"  scenario {c['scenario']['name']} / {c['scenario'].get('sv_policy')} / "
-                     f"{c['quantify']['algorithm']}, config hash {frozen['config_hash']}")
+                     f"{c['validate' if kind == 'validate' else 'quantify']['algorithm']}, config hash "
+                     f"{frozen['config_hash']}")
     except (KeyError, TypeError) as exc:
         raise CampaignError(f"{directory}/config.json: lacks {exc} (damaged?)") from None
     holder = CampaignDir(directory).holder()
+    if kind == "validate":
+        return "\n".join(lines + [_validation(directory, holder)])
     st = read_status(directory)
     if st is None:
         lines.append("  not started" if holder is None else f"  starting (pid {holder})")
@@ -98,6 +103,8 @@ def describe(directory: Path) -> str:
         state = st.get("state", "?")
         if state in ("running", "finishing") and holder is None:
             state = f"stopped while {state} (process gone; continue with `scenario-farm resume {directory}`)"
+        elif state == "stopped" and holder is None:  # by a signal, checkpointed
+            state = f"stopped (continue with `scenario-farm resume {directory}`)"
         elif holder is not None:
             state = f"{state} (pid {holder}, updated {time.time() - st.get('updated', 0):.0f} s ago)"
         fields = ["side", "round", "delta", "boxes", "n_eps_counter", "n_eps", "runs_committed", "runs_simulated",
@@ -111,6 +118,21 @@ def describe(directory: Path) -> str:
         lines.append(f"  finished: {s.boxes} boxes, volume {s.volume_union:.6g}, result hash {s.result_hash}")
         lines.append(f"  {s.guarantee}")
     return "\n".join(lines)
+
+
+def _validation(directory: Path, holder: int | None) -> str:
+    """A validation's line: its verdict (certificate.json), or that it is being written. Its
+    directory is made once the runs are done: without a certificate it holds no result."""
+    if (directory / CERTIFICATE_FILE).exists():
+        cert = Certificate.read(directory)
+        if cert.counterexample:
+            ce = cert.counterexample
+            return (f"  done: counterexample at sample {ce['sample_index']} after {cert.n_run} runs: {ce.get('reason')} "
+                    f"(`scenario-farm replay {directory} --sample {ce['sample_index']}` re-runs it)")
+        return f"  done: {cert.verdict} after {cert.n_run} runs: {cert.guarantee}"
+    if holder is not None:
+        return f"  writing its certificate (pid {holder})"
+    return "  no certificate: the validation ended before writing it (run `scenario-farm validate` again)"
 
 
 def watch(directory: Path, every: float = EVERY_S, stream=None, max_s: float | None = None) -> str:

@@ -109,6 +109,38 @@ def test_a_second_writer_is_refused_naming_the_holder(tmp_path):
         first.wait(60)
 
 
+def test_a_lock_outliving_its_pid_is_no_running_campaign(campaign, tmp_path):
+    """Issue 54: after SIGHUP `status` said "running" for a campaign process that was gone. A
+    process the campaign started and that inherited its lock holds it here (this test)."""
+    import fcntl
+    import socket
+
+    from farm.directory.storage import CampaignDir, CampaignError
+    from farm.reports.status import describe
+
+    out = copy_of(campaign, tmp_path)
+    status = json.loads((out / "status.json").read_text())
+    (out / "status.json").write_text(json.dumps({**status, "state": "running"}))
+    ended = subprocess.Popen(["true"])
+    ended.wait()
+    fd = os.open(out / ".lock", os.O_RDWR | os.O_CREAT)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        for pid, says in ((ended.pid, "stopped while running (process gone; continue with `scenario-farm resume"),
+                          (os.getpid(), f"running (pid {os.getpid()}, updated")):
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{pid}\n{socket.gethostname()}\n".encode(), 0)
+            assert says in describe(out)
+        with pytest.raises(CampaignError, match=f"pid {os.getpid()} \\(a campaign runs there\\)"):
+            CampaignDir(out).lock()
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{ended.pid}\n{socket.gethostname()}\n".encode(), 0)
+        with pytest.raises(CampaignError, match=f"pid {ended.pid} that worked there has ended"):
+            CampaignDir(out).lock()  # resume's refusal
+    finally:
+        os.close(fd)
+
+
 # -- 3. bad paths and bad files: one line each ------------------------------------------------
 def test_out_is_a_file_or_unwritable(config, tmp_path):
     (tmp_path / "file").write_text("x")
@@ -123,6 +155,26 @@ def test_out_is_a_file_or_unwritable(config, tmp_path):
         one_line_error(cli("quantify", config, "--out", ro / "out"), "not writable")
     finally:
         ro.chmod(0o700)
+
+
+def test_out_is_a_symlink_that_dangles_or_loops(config, tmp_path):
+    """Issue 54: both were "File exists"."""
+    (tmp_path / "dangling").symlink_to(tmp_path / "nowhere")
+    (tmp_path / "loop").symlink_to(tmp_path / "loop")
+    one_line_error(cli("quantify", config, "--out", tmp_path / "dangling"), "a symlink that dangles", "nowhere")
+    one_line_error(cli("validate", config, "--out", tmp_path / "loop"), "a symlink that loops")
+    assert not (tmp_path / "nowhere").exists()
+
+
+def test_a_path_of_4000_characters_is_shortened_in_its_middle_and_the_reason_kept():
+    import errno
+
+    from farm.cli.exits import one_line
+
+    path = "/tmp/" + "/".join(f"{i:02d}" + "d" * 248 for i in range(16)) + "/out"
+    text = one_line(OSError(errno.ENAMETOOLONG, "File name too long", path))
+    assert len(text) <= 600 and text.endswith("/out: File name too long"), text
+    assert text.startswith("OSError: /tmp/00ddd") and "..." in text
 
 
 @pytest.mark.parametrize("case, text, words", [
@@ -152,6 +204,33 @@ def test_config_that_is_a_directory_or_unreadable(tmp_path):
         one_line_error(cli("validate", tmp_path / "c.toml"), "c.toml")
     finally:
         (tmp_path / "c.toml").chmod(0o600)
+
+
+@pytest.mark.parametrize("device", ["/dev/zero", "/dev/urandom"])
+def test_a_config_that_never_ends_is_refused_without_filling_the_memory(tmp_path, device):
+    """Issue 54: read whole, /dev/zero exhausted the memory and ended with exit 4 and a resume
+    hint for a directory never made. The address-space limit keeps a regression from
+    taking the machine's memory with it."""
+    def two_gib():
+        resource.setrlimit(resource.RLIMIT_AS, (2**31, 2**31))
+
+    out = tmp_path / "out"
+    r = cli("quantify", device, "--out", out, preexec_fn=two_gib)
+    one_line_error(r, device)
+    assert "resume" not in r.stderr and not out.exists()
+    if device == "/dev/zero":
+        assert "allowed at most 4 MiB" in r.stderr
+
+
+def test_no_resume_hint_for_a_directory_that_holds_no_campaign(tmp_path, capsys):
+    from farm.cli import exits
+    from scenarios.errors import InfrastructureError
+
+    assert exits.report(InfrastructureError("Ray lost"), str(tmp_path / "never")) == exits.INFRASTRUCTURE
+    assert capsys.readouterr().err == "scenario-farm: infrastructure error: Ray lost\n"
+    (tmp_path / "config.json").write_text("{}")
+    exits.report(InfrastructureError("Ray lost"), str(tmp_path))
+    assert f"`scenario-farm resume {tmp_path}` continues" in capsys.readouterr().err
 
 
 def test_a_domain_set_with_zero_half_width(tmp_path):
@@ -211,6 +290,20 @@ def test_a_reader_that_goes_away_is_no_error(campaign):
     proc.stdout.close()  # before the child writes a line
     assert proc.wait(120) == 0
     assert proc.stderr.read() == ""
+
+
+def test_commands_work_with_stderr_closed(campaign, tmp_path):
+    """Issue 54: `status DIR 2>&-` (as some service managers start a process) exited 1 and
+    did nothing: stderr is then None in Python, and fd 2 the next file opened."""
+    def close_stderr():
+        os.close(2)
+
+    r = subprocess.run([sys.executable, "-m", "farm", "status", str(campaign)], stdout=subprocess.PIPE, text=True,
+                       preexec_fn=close_stderr, timeout=120)
+    assert r.returncode == 0 and f"campaign {campaign}" in r.stdout and "finished" in r.stdout, r
+    r = subprocess.run([sys.executable, "-m", "farm", "status", str(tmp_path / "none")], stdout=subprocess.PIPE,
+                       text=True, preexec_fn=close_stderr, timeout=120)
+    assert r.returncode == 2 and r.stdout == ""  # the error line went nowhere; the exit code says it
 
 
 def test_garbage_status_json_is_reported_and_rewritten(campaign, tmp_path):
@@ -363,6 +456,10 @@ def damage(path, how):
         pass
     elif how.startswith("text:"):
         path.write_text(how[5:])
+    elif how.startswith("drop_config:"):  # a frozen config without one section
+        data = json.loads(path.read_text())
+        del data["config"][how.split(":")[1]]
+        path.write_text(json.dumps(data))
     elif how.startswith("drop_meta:"):  # a checkpoint whose metadata lacks one key
         with np.load(path, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
@@ -408,6 +505,9 @@ DAMAGE_CASES = [  # (finished?, file, damage, command, words)
     (False, SEGMENT, "half", "resume", ["ledger segment is corrupt"]),
     (False, SEGMENT, "delete", "resume", ["ledger segment missing"]),
     (False, "config.json", "garbage", "resume", ["config.json: not valid JSON"]),
+    # issue 54: filled with defaults, it was "stamped with config hash ..., the config hashes to ..."
+    (False, "config.json", "drop_config:quantify", "resume", ["config.json: the frozen config lacks its [quantify] "
+                                                              "section"]),
     (False, ".scenario-farm.json", "delete", "resume", ["not a campaign directory"]),
     (False, ".scenario-farm.json", "text:{\"format\": 1}", "resume", ["directory format 1"]),
 ]
@@ -451,3 +551,23 @@ def test_a_damaged_certificate_is_named_by_replay(tmp_path):
     before = snapshot(out)
     one_line_error(cli("replay", out, "--sample", sample), "certificate.json: holds a JSON list")
     assert snapshot(out) == before
+
+
+def test_replay_of_a_counterexample_is_a_finding_and_status_describes_the_validation(tmp_path):
+    """Issue 54: replay of a counterexample exited 0 (the table says 1), and `status` read a
+    validation directory as a quantification not started ("spe ... not started")."""
+    (tmp_path / "v.toml").write_text(LF + '[validate]\nalgorithm = "eps"\nepsilon = 0.01\n')
+    out = tmp_path / "v"
+    assert cli("validate", tmp_path / "v.toml", "--out", out).returncode == 1
+    cert = json.loads((out / "certificate.json").read_text())
+    sample = cert["counterexample"]["sample_index"]
+    r = cli("status", out)
+    assert r.returncode == 0 and f"validation {out}" in r.stdout and " / eps, config hash" in r.stdout, r.stdout
+    assert f"done: counterexample at sample {sample}" in r.stdout and "spe" not in r.stdout, r.stdout
+    r = cli("replay", out, "--sample", sample)
+    assert r.returncode == 1 and "replay reproduces the counterexample" in r.stdout, (r.returncode, r.stdout, r.stderr)
+    cert["counterexample"]["trajectory"][-1][0] += 1.0  # a record the re-run cannot match
+    (out / "certificate.json").write_text(json.dumps(cert))
+    r = cli("replay", out, "--sample", sample)
+    one_line_error(r, f"the replay of sample {sample} does not match the record")
+    assert "DIFF trajectory" in r.stdout

@@ -97,3 +97,52 @@ def test_signal_at_five_moments_then_resume_gives_the_uninterrupted_result(tmp_p
     if executor == "local":
         assert want["runs_replaced"] > 0  # the campaign discarded and replaced runs: resume had them to carry
     assert not [p for p in out.rglob("*") if ".tmp" in p.name]
+
+
+# -- issue 54: a second signal, a closed terminal ------------------------------------------------
+LONG = lead_follow_toml(delta_min=0.25, epsilon=0.0005)  # a minute or more: always running when signalled
+
+
+def running(tmp_path, preexec_fn=None):
+    """A campaign process once its campaign runs (status.json is written as it starts)."""
+    (tmp_path / "c.toml").write_text(LONG)
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "farm", "quantify", str(tmp_path / "c.toml"), "--out", str(out)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, preexec_fn=preexec_fn)
+    deadline = time.monotonic() + 120
+    while not (out / "status.json").exists() and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert proc.poll() is None, proc.stderr.read()
+    return proc, out
+
+
+def test_two_sigterms_50_ms_apart_stop_at_once_with_exit_130(tmp_path):
+    """The second signal found the interpreter shutting down, its default handlers back: 143."""
+    proc, _ = running(tmp_path)
+    proc.send_signal(signal.SIGTERM)
+    time.sleep(0.05)
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGTERM)
+    stderr = proc.communicate(timeout=60)[1]
+    assert proc.returncode == 130 and "stopped" in stderr and "Traceback" not in stderr, (proc.returncode, stderr)
+
+
+def test_sighup_stops_like_sigterm_and_status_says_stopped(tmp_path):
+    proc, out = running(tmp_path)
+    proc.send_signal(signal.SIGHUP)  # the terminal closed
+    stderr = proc.communicate(timeout=60)[1]
+    assert proc.returncode == 130 and "stopped at" in stderr, (proc.returncode, stderr)
+    status = subprocess.run([sys.executable, "-m", "farm", "status", str(out)], capture_output=True, text=True)
+    assert "stopped" in status.stdout and f"scenario-farm resume {out}" in status.stdout, status.stdout
+
+
+def test_an_ignored_sighup_stays_ignored(tmp_path):
+    """`nohup scenario-farm quantify ...`: the campaign is to outlive its terminal."""
+    proc, _ = running(tmp_path, preexec_fn=lambda: signal.signal(signal.SIGHUP, signal.SIG_IGN))
+    try:
+        proc.send_signal(signal.SIGHUP)
+        time.sleep(1.0)
+        assert proc.poll() is None
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(60)

@@ -63,7 +63,8 @@ def test_counterexample_recording_and_replay(tmp_path):
     np.testing.assert_array_equal(rec["runs"][index]["trajectory"], np.array(cert["counterexample"]["trajectory"]))
     r = subprocess.run([sys.executable, "-m", "farm", "replay", str(out), "--sample", str(index)],
                        capture_output=True, text=True)
-    assert r.returncode == 0 and "replay reproduces the counterexample" in r.stdout, r.stdout + r.stderr
+    # a reproduced counterexample is a finding: exit 1, as README's table says (issue 54: it was 0)
+    assert r.returncode == 1 and "replay reproduces the counterexample" in r.stdout, r.stdout + r.stderr
 
 
 def test_quantification_recording_matches_ledger_and_replay(tmp_path):

@@ -178,6 +178,23 @@ def test_a_damaged_recording_is_left_out_with_a_note(lead_follow, tmp_path):
     assert len(list((copy / "openscenario").glob("run-*.xosc"))) == len(recorded(lead_follow))
 
 
+def test_an_openscenario_symlink_is_refused_and_its_target_untouched(lead_follow, tmp_path):
+    """Issue 54: --force wrote over the user's road.xodr through DIR/openscenario -> their folder."""
+    import shutil
+
+    copy = tmp_path / "copy"
+    shutil.copytree(lead_follow, copy)
+    shutil.rmtree(copy / "openscenario")
+    user = tmp_path / "user"
+    user.mkdir()
+    (user / "road.xodr").write_text("the user's road")
+    (copy / "openscenario").symlink_to(user)
+    for flags in (["--xosc"], ["--xosc", "--force"]):
+        one_line_error(cli("export", copy, *flags), "openscenario: a symlink", str(user))
+    assert [p.name for p in user.iterdir()] == ["road.xodr"] and (user / "road.xodr").read_text() == "the user's road"
+    assert (copy / "openscenario").is_symlink()
+
+
 def test_a_scenario_without_vehicles_on_a_lane_is_refused(tmp_path):
     (tmp_path / "t.toml").write_text('[scenario]\nname = "toy"\n[quantify]\ndelta0 = 0.5\ndelta_min = 0.5\n'
                                      '[farm]\nexecutor = "local"\n')
