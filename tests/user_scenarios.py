@@ -110,3 +110,13 @@ class NoBounds(Scenario):
 
     def step(self, states, actions, noise):
         return states
+
+
+class HalfLead(LeadFollow):
+    """Rewrites step() alone (not LeadFollow's vectorized step_into): the lead accelerates
+    half as hard. The farm must simulate this step, not the parent's dynamics."""
+
+    name = "half-lead"
+
+    def step(self, states, actions, noise):
+        return super().step(states, 0.5 * actions, noise)
