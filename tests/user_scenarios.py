@@ -120,3 +120,12 @@ class HalfLead(LeadFollow):
 
     def step(self, states, actions, noise):
         return super().step(states, 0.5 * actions, noise)
+
+
+class ExitsInStep(LeadFollow):
+    """Calls sys.exit(0) in its step: no verdict can come of that."""
+
+    name = "exits"
+
+    def step_into(self, states, actions, noise, out):
+        raise SystemExit(0)
