@@ -124,6 +124,18 @@ class Scenario(ABC):
     parameter_names: tuple[str, ...] = ()
     config_options: tuple[str, ...] = ()
 
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        # The farm simulates with step_into. A subclass that rewrites step() alone, over a
+        # parent's vectorized step_into that never calls step (LeadFollow's), would be
+        # simulated by the parent's dynamics under the user's name: it gets the generic
+        # step_into, which calls its step. The parent's step keeps the parent's dynamics
+        # (``_step_via_into``), so the user's step may call super().step().
+        if "step_into" in cls.__dict__:
+            cls._own_step_into = cls.__dict__["step_into"]
+        elif "step" in cls.__dict__:
+            cls.step_into = Scenario.step_into
+
     def __init__(self, sv_policy: str | None = None, failure_facets: tuple[str, ...] | None = None,
                  disturbance: float = 0.0):
         """``sv_policy`` names one of ``sv_policies`` (default: the first), or
@@ -284,6 +296,8 @@ class Scenario(ABC):
         out[...] = nxt.T
         self.hold_parameters(states, out)
 
+    _own_step_into = step_into  # the dynamics ``_step_via_into`` runs (set per class)
+
     def hold_parameters(self, states: np.ndarray, out: np.ndarray) -> None:
         """Copy the parameters of ``states`` (B, n) into the next states ``out`` (n, B):
         a parameter of the domain never changes during a run."""
@@ -297,8 +311,10 @@ class Scenario(ABC):
                                 f"needs an SV policy ({', '.join(self.sv_policies)})")
 
     def _step_via_into(self, states, actions, noise) -> np.ndarray:
+        """``step`` of a scenario that writes its dynamics as ``step_into``: the nearest
+        class's own step_into (a subclass's generic one would call step again)."""
         out = np.empty((self.n, len(states)))
-        self.step_into(states, actions, noise, out)
+        self._own_step_into(states, actions, noise, out)
         return out.T
 
     # -- classification --------------------------------------------------------------------

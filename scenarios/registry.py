@@ -60,7 +60,7 @@ def load_object(target: str, field: str):
     except ImportError as exc:
         raise ConfigError(f"{field}: cannot import module {module_name!r} ({exc}); is it on the path or in the "
                           f"working directory?") from None
-    except Exception as exc:  # noqa: BLE001 - the user's module raised while importing
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - the user's module raised while importing
         raise ConfigError(f"{field}: importing {module_name!r} raised {type(exc).__name__}: {exc}") from None
     try:
         return getattr(module, attr)
@@ -98,7 +98,8 @@ def backend_class(name: str) -> type:
     if isinstance(cls, type) and issubclass(cls, RunSimulator):
         if inspect.isabstract(cls):
             missing = ", ".join(sorted(cls.__abstractmethods__))
-            raise ValueError(f"scenario.backend: {name!r} does not implement {missing}")
+            raise ConfigError(f"scenario.backend: {name!r} (class {cls.__name__}) does not implement {missing}; a "
+                              f"per-run simulator defines reset(state, key) and step(action) (scenarios/per_run.py)")
         return per_run_backend(cls)
     if not isinstance(cls, type) or not all(callable(getattr(cls, m, None)) for m in ("insert", "step", "keep", "clear")):
         raise ConfigError(f"scenario.backend: {name!r} is not a back end (a class with insert, step, keep, clear) "
@@ -130,7 +131,7 @@ def make_scenario(name: str, sv_policy: str | None = None, failure_facets=None, 
         raise ConfigError(f"scenario.name: {name!r} could not be constructed ({exc}); a Scenario subclass's __init__ "
                           f"must accept the keywords sv_policy, failure_facets and disturbance (or not be defined)") \
             from None
-    except Exception as exc:  # noqa: BLE001 - the user's scenario class: its attributes or __init__
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - the user's scenario class (sys.exit too): its attributes or __init__
         raise ScenarioError(f"scenario.name: constructing {name!r} raised {type(exc).__name__}: {exc}") from None
 
 
@@ -161,5 +162,5 @@ def make_backend(scenario: dict):
         return cls(sc, scenario.get(name))
     except FarmError:
         raise
-    except Exception as exc:  # noqa: BLE001 - a user's back end class
+    except (Exception, SystemExit) as exc:  # noqa: BLE001 - a user's back end class (sys.exit too)
         raise ScenarioError(f"scenario.backend: constructing {name!r} raised {type(exc).__name__}: {exc}") from None

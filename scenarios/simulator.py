@@ -68,7 +68,7 @@ class Simulator:
             raise self._culprit(indices, starts, exc) from None
         except ScenarioError:
             raise
-        except Exception as exc:  # a user scenario raised: name the run, not just the batch
+        except (Exception, SystemExit) as exc:  # a user scenario raised (or sys.exit): name the run, not the batch
             raise self._culprit(indices, starts, exc) from None
         self._checked = True
         keep = int(batch.lengths.max()) if len(batch) else 1  # only the rows some run used
@@ -85,7 +85,7 @@ class Simulator:
                 run_scenario(self.backend, starts[lo:mid], self.spec.horizon, self.policy,
                              RunStreams.of(self.spec.seed, indices[lo:mid]))
                 lo = mid
-            except Exception:  # noqa: BLE001 - any error narrows the search
+            except (Exception, SystemExit):  # noqa: BLE001 - any error narrows the search
                 hi = mid
         policy = isinstance(exc, PolicyError)
         what = str(exc) if policy else f"scenario {self.scenario.name!r} raised {type(exc).__name__}: {exc}"

@@ -4,6 +4,9 @@
 contract it must give what the numpy back end gives, bit for bit. The others break the
 contract on purpose."""
 
+import sys
+import time
+
 import numpy as np
 
 from scenarios.per_run import RunSimulator
@@ -79,3 +82,38 @@ class Still(RunSimulator):
 
     def step(self, action):
         return self.state
+
+
+def _hang():
+    while True:  # a simulator that never answers (a lost socket, a deadlock)
+        time.sleep(0.05)
+
+
+class HangsInReset(RowByRow):
+    def reset(self, state, key):
+        _hang()
+
+
+class HangsInStep(RowByRow):
+    def step(self, action):
+        _hang()
+
+
+class HangsInClose(RowByRow):
+    def close(self):
+        _hang()
+
+
+class RaisesInClose(RowByRow):
+    def close(self):
+        raise RuntimeError("the licence server went away")
+
+
+class RaisesInStep(RowByRow):
+    def step(self, action):
+        raise ValueError("sim boom")
+
+
+class ExitsInStep(RowByRow):
+    def step(self, action):
+        sys.exit(0)

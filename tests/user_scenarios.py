@@ -110,3 +110,22 @@ class NoBounds(Scenario):
 
     def step(self, states, actions, noise):
         return states
+
+
+class HalfLead(LeadFollow):
+    """Rewrites step() alone (not LeadFollow's vectorized step_into): the lead accelerates
+    half as hard. The farm must simulate this step, not the parent's dynamics."""
+
+    name = "half-lead"
+
+    def step(self, states, actions, noise):
+        return super().step(states, 0.5 * actions, noise)
+
+
+class ExitsInStep(LeadFollow):
+    """Calls sys.exit(0) in its step: no verdict can come of that."""
+
+    name = "exits"
+
+    def step_into(self, states, actions, noise, out):
+        raise SystemExit(0)

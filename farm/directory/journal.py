@@ -75,7 +75,10 @@ class Journal:
         meta = {**meta, "format": CHECKPOINT_FORMAT, "scenario_farm_version": __version__, "epoch": epoch,
                 "journal": self.segments, "append_only": sorted(n for n in append_only if n in arrays),
                 "shapes": {n: list(arrays[n].shape[1:]) for n in append_only if n in arrays},
-                "dtypes": {n: arrays[n].dtype.str for n in append_only if n in arrays}}
+                "dtypes": {n: arrays[n].dtype.str for n in append_only if n in arrays},
+                # the whole arrays' shapes and dtypes, so that a damaged or replaced one is refused on
+                # reading (a wrong-shaped alive flag or cell size was accepted, and made a resume crawl)
+                "whole": {n: [list(v.shape), v.dtype.str] for n, v in whole.items()}}
         whole["__meta__"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
         atomic_write(self.main, _npz_bytes(whole))
         for name in append_only:
@@ -126,6 +129,7 @@ class Journal:
         if missing:
             raise CampaignError(f"{self.main}: checkpoint metadata lacks {', '.join(map(repr, missing))} (damaged?); "
                                 f"nothing was changed")
+        _check_whole(self.main, arrays, meta.get("whole"))  # absent: written before it was recorded
         try:
             return arrays | self._journalled(meta, wanted), meta
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
@@ -163,6 +167,20 @@ class Journal:
             for path in self.segment_dir.iterdir():
                 if SEGMENT.search(path.name) and path.name not in listed:
                     path.unlink()
+
+
+def _check_whole(path: Path, arrays: dict[str, np.ndarray], written: dict | None) -> None:
+    """Every array of ``checkpoint.npz`` has the shape and dtype it was written with."""
+    if written is None:
+        return
+    if not isinstance(written, dict):
+        raise CampaignError(f"{path}: checkpoint metadata is damaged (whole is not a table); nothing was changed")
+    for name, array in arrays.items():
+        want = written.get(name)
+        if want is None or [list(array.shape), array.dtype.str] != list(want):
+            what = "was not written" if want is None else f"was written as shape {tuple(want[0])} {want[1]}"
+            raise CampaignError(f"{path}: checkpoint array {name!r} has shape {array.shape} {array.dtype.str} but "
+                                f"{what} (damaged?); nothing was changed")
 
 
 def _read_npz(path: Path, names=None) -> dict[str, np.ndarray]:

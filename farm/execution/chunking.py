@@ -28,8 +28,10 @@ a result: runs are committed in index order and re-screened.
 
 The time limit of a chunk is ``LIMIT_FACTOR`` times its expected time plus
 ``LIMIT_FLOOR_S`` (``farm.chunk_timeout`` replaces it), counted from when its worker
-starts it; before any chunk has come back nothing is measured, and the limit is
-``UNMEASURED_LIMIT_S``.
+starts it; before any chunk has come back nothing is measured, and a chunk may take
+``FIRST_RUN_LIMIT_S`` per run: the executors' first chunk is a single run (Ray's probe,
+the in-process executor's first run alone), so a simulator that hangs in its first run
+is given up after that long.
 """
 
 from __future__ import annotations
@@ -48,7 +50,7 @@ EXTRAPOLATE = 4  # the floor's chunks hold at most this many times the largest c
 LIMIT_FACTOR = 10.0  # a chunk may take this many times its expected time ...
 LIMIT_FLOOR_S = 5.0  # [s] ... plus this (a loaded machine, a garbage collection)
 REPLAY_FLOOR_S = 120.0  # [s] an experience replay's limit at least: its cost per run is not a chunk's
-UNMEASURED_LIMIT_S = 600.0  # [s] a chunk's limit before any chunk has come back
+FIRST_RUN_LIMIT_S = 60.0  # [s] per run of a chunk before any chunk has come back (and a close())
 WORKERS_PER_LANE = 16  # workers per fast lane (an actor that takes only replacements)
 ONE_AT_A_TIME_S = 0.2  # [s] chunks at least this long are sent to an actor one at a time
 
@@ -59,6 +61,11 @@ def fast_lanes(workers: int) -> int:
     1,000 workers of 0.1 s runs with one lane took 21x the time of one lane per 16
     workers, which is within 5 % of replacements taken by the next free worker."""
     return max(1, math.ceil(workers / WORKERS_PER_LANE))
+
+
+def close_limit(chunk_timeout: float) -> float:
+    """[s] the time a simulator's close() may take: farm.chunk_timeout, else a first run's."""
+    return chunk_timeout if chunk_timeout > 0 else FIRST_RUN_LIMIT_S
 
 
 class ChunkSizer:
@@ -197,5 +204,5 @@ class ChunkSizer:
             return self.chunk_timeout
         expected = self.expected_s(runs)
         if expected is None:
-            return UNMEASURED_LIMIT_S
+            return FIRST_RUN_LIMIT_S * max(1, runs)
         return LIMIT_FLOOR_S + LIMIT_FACTOR * expected

@@ -5,8 +5,11 @@ a dropped batch costs nothing, and screens against the live coverage (always cur
 Each batch is one chunk. The simulator runs in a thread of its own (farm/execution/waiting.py):
 the coordinator's wait for it wakes for a stop within a fraction of a second, and gives
 up on a chunk that overruns its time limit (derived from the measured run time as on
-Ray, or farm.chunk_timeout) with the same one-line error as the Ray executor. A thread
-cannot be cancelled, so there is no retry: the stuck thread stays until the process ends.
+Ray, or farm.chunk_timeout) with the same one-line error as the Ray executor, naming the
+user call it hangs in (a per-run simulator's reset, step or close). As on Ray, the first
+chunk is a single run (the probe: it is simulated again with its batch, so no result
+changes), timed under the first-run limit (farm/execution/chunking.py). A thread cannot
+be cancelled, so there is no retry: the stuck thread stays until the process ends.
 """
 
 from __future__ import annotations
@@ -20,8 +23,8 @@ import numpy as np
 from coordinator.executor import Chunk, ChunkSummary, Executor, screen_piece
 from coordinator.experience_replay import select
 from farm.execution.chunking import ChunkSizer
-from farm.execution.process import build_simulator
-from farm.execution.waiting import InThread, name_runs
+from farm.execution.process import build_simulator, close_simulator
+from farm.execution.waiting import InThread, culprit, name_runs
 from scenarios.simulator import SimSpec
 
 
@@ -40,7 +43,7 @@ class LocalExecutor(Executor):
         self.simulator = build_simulator(spec, check_step_bound)
         self.sizer = ChunkSizer(1, chunk_timeout)
         self._thread = InThread(stop)
-        self._scenario = str(spec.scenario.get("name", "?"))
+        self._culprit = culprit(spec.scenario)
         self._jobs: dict[int, tuple] = {}
         self._next = 0
 
@@ -61,6 +64,8 @@ class LocalExecutor(Executor):
 
     def result(self, handle: int) -> Chunk:
         first_index, starts, screen, actions, indices = self._jobs.pop(handle)
+        if self.sizer.run_s is None and len(starts) > 1:
+            self._probe(first_index, starts, actions, indices)
 
         def work():
             t0 = time.perf_counter()
@@ -69,9 +74,31 @@ class LocalExecutor(Executor):
             self.sizer.ran(len(starts), time.perf_counter() - t0)
             return done
 
-        what = name_runs(self._scenario, first_index, starts, indices)
+        what = self._what(name_runs(self._culprit, first_index, starts, indices))
         summary, visited = self._thread.run(work, self.sizer.limit(len(starts)), what)
         return summary.chunk(lambda: visited, lambda rows, takes: _compact(visited, rows, takes))
+
+    def _probe(self, first_index, starts, actions, indices) -> None:
+        """The batch's first run alone, timed under the first-run limit: a simulator that
+        hangs at once is named within it, and the batch gets a measured limit. The step
+        bound is checked on the whole batch still (a run depends on its key only)."""
+        checked = self.simulator._checked
+
+        def work():
+            t0 = time.perf_counter()
+            self.simulator.simulate(first_index, starts[:1], indices=None if indices is None else indices[:1],
+                                    actions=actions)
+            self.sizer.ran(1, time.perf_counter() - t0)
+
+        self._thread.run(work, self.sizer.limit(1),
+                         self._what(name_runs(self._culprit, first_index, starts[:1], indices)))
+        self.simulator._checked = checked
+
+    def _what(self, runs: str):
+        """What a wait that overran names: the user call the simulator hangs in, if it
+        tells (a per-run simulator: ``PerRunBackend.where``), else the runs."""
+        where = getattr(self.simulator.backend, "where", None)
+        return lambda: (where() if where is not None else None) or runs
 
     def screen_stored(self, pieces, screen):
         def work():
@@ -87,14 +114,15 @@ class LocalExecutor(Executor):
 
         runs = sum(len(p.indices) for p in pieces)
         # a round end's replay finishes before a stop is taken (interruptible=False)
-        return self._thread.run(work, self.sizer.replay_limit(runs), f"scenario {self._scenario!r}: experience replay of "
-                                f"{runs} runs", interruptible=False)
+        return self._thread.run(work, self.sizer.replay_limit(runs),
+                                self._what(f"{self._culprit}: experience replay of {runs} runs"), interruptible=False)
 
     def cancel(self, handle: int) -> None:
         self._jobs.pop(handle, None)
 
     def close(self) -> None:
         self._jobs.clear()
+        close_simulator(self.simulator, self.sizer.chunk_timeout, self._thread)
 
 
 def _compact(visited, rows, takes) -> tuple[np.ndarray, np.ndarray]:

@@ -32,9 +32,18 @@ class Interrupted(KeyboardInterrupt):
     so the campaign can be checkpointed as it is."""
 
 
-def name_runs(scenario: str, first: int, starts: np.ndarray, indices: np.ndarray | None = None) -> str:
-    """A chunk's runs as an error names them: the sample index and start state of a single
-    run, the index range of several."""
+def culprit(scenario: dict) -> str:
+    """Whose code simulates a ``[scenario]`` section's runs, as errors name it: the back
+    end a config names (a user's per-run simulator), else the scenario."""
+    backend = scenario.get("backend")
+    if backend and backend != "numpy":
+        return f"back end {str(backend)!r}"
+    return f"scenario {str(scenario.get('name', '?'))!r}"
+
+
+def name_runs(culprit: str, first: int, starts: np.ndarray, indices: np.ndarray | None = None) -> str:
+    """A chunk's runs as an error names them (``culprit``: whose code ran them): the
+    sample index and start state of a single run, the index range of several."""
     k = len(starts)
     if k == 1:
         index = first if indices is None else int(indices[0])
@@ -43,7 +52,7 @@ def name_runs(scenario: str, first: int, starts: np.ndarray, indices: np.ndarray
         where = f"the {k} runs at sample indices {first}-{first + k - 1}"
     else:
         where = f"the {k} runs at sample indices {int(indices[0])}, ..., {int(indices[-1])}"
-    return f"scenario {scenario!r}: {where}"
+    return f"{culprit}: {where}"
 
 
 def stop_asked(stop: threading.Event | None) -> None:
@@ -61,9 +70,11 @@ class InThread:
         self._thread: threading.Thread | None = None
         self._stuck = ""  # what the thread is stuck in, once something overran
 
-    def run(self, work: Callable[[], Any], limit: float, what: str, interruptible: bool = True) -> Any:
+    def run(self, work: Callable[[], Any], limit: float, what: str | Callable[[], str],
+            interruptible: bool = True) -> Any:
         """``work()``'s value (or its exception). Raises Interrupted on a stop
-        (``interruptible``), WorkerError when it runs longer than ``limit`` seconds."""
+        (``interruptible``), WorkerError when it runs longer than ``limit`` seconds, naming
+        ``what`` (a function: asked then, e.g. which user call the work is stuck in)."""
         if self._stuck:
             raise WorkerError(f"the in-process simulator is still stuck in {self._stuck}")
         if self._thread is None:
@@ -76,13 +87,18 @@ class InThread:
             if interruptible:
                 stop_asked(self.stop)
             if time.monotonic() - t0 > limit:
-                self._stuck = what
+                self._stuck = what = what() if callable(what) else what
                 raise WorkerError(f"{what} did not finish within {limit:.3g} s (farm.chunk_timeout): the simulator "
                                   f"hangs there, or is far slower than on the runs before; the in-process executor "
                                   f"cannot stop it (the Ray executor replaces a hung worker and retries)")
         if "error" in box:
             raise box["error"]
         return box["value"]
+
+    @property
+    def stuck(self) -> bool:
+        """Some work overran its limit: the thread is stuck in it."""
+        return bool(self._stuck)
 
     def _serve(self) -> None:
         while True:

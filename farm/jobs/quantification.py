@@ -18,7 +18,7 @@ from coordinator.guarantee import quantified, refined
 from coordinator.margin.refinement import MarginRefinement
 from farm import config as config_mod, lazy
 from farm.jobs.campaign_setup import side_facets
-from farm.execution.process import build_simulator, spec_of
+from farm.execution.process import build_simulator, close_simulator, spec_of
 from farm.config import Config
 from farm.jobs.side_campaign import SideCampaign, Stopped
 from farm.directory.files import atomic_write, write_json
@@ -54,7 +54,9 @@ def run(cfg: Config, out: Path, *, resume: bool = False, force: bool = False, pr
         finished = Summary.finished(out)
         if finished is not None:
             return finished
-    scenario = build_simulator(spec_of(cfg)).scenario
+    checked = build_simulator(spec_of(cfg))
+    close_simulator(checked, cfg.farm.chunk_timeout)  # the config check's simulator: a close that hangs, named now
+    scenario = checked.scenario
     check_quantify(cfg, scenario.lower, scenario.upper)
     sides = [SideCampaign(cfg, side, out if side == "total" else out / "sides" / side, failure_facets)
              for side, failure_facets in side_facets(cfg, scenario).items()]

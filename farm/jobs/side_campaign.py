@@ -17,7 +17,7 @@ from coordinator.holdout import holdout_report, holdout_starts
 from farm.directory import checkpoint
 from farm.directory.checkpoint import Stamp
 from farm.jobs.campaign_setup import build_algorithm, build_campaign
-from farm.execution.process import build_simulator, spec_of
+from farm.execution.process import build_simulator, close_simulator, spec_of
 from farm.config import Config, config_hash
 from farm.execution.factory import make_executor
 from farm.directory.journal import Journal
@@ -38,6 +38,7 @@ class SideCampaign:
         self.simulator = build_simulator(self.spec)
         self.scenario, self.policy = self.simulator.scenario, self.simulator.policy
         self.algorithm = build_algorithm(cfg, self.simulator)
+        close_simulator(self.simulator, cfg.farm.chunk_timeout)  # its back end simulates nothing: the executor's do
         self.ledger = Ledger(self.directory / "ledger", self.scenario.state_names)
         self.journal = Journal(self.directory)
         self.config_hash = config_hash(cfg)

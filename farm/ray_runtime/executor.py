@@ -39,7 +39,7 @@ from farm.ray_runtime.actor import RESYNC, actor_class
 from farm.ray_runtime.mirror import Mirrors
 from farm.ray_runtime.pool import ActorPool, Call, check_started
 from farm.ray_runtime.session import connect
-from farm.execution.waiting import WorkerError, name_runs
+from farm.execution.waiting import WorkerError, culprit, name_runs
 from scenarios.errors import FarmError
 from scenarios.simulator import SimSpec
 
@@ -84,7 +84,7 @@ class RayExecutor(Executor):
         self.max_retries = max_retries
         self.pipeline_depth = max(1, int(pipeline_depth))
         self.sizer = ChunkSizer(workers, chunk_timeout)
-        self._scenario = str(spec.scenario.get("name", "?"))
+        self._culprit = culprit(spec.scenario)
         self._check_step_bound = check_step_bound
         self._stop, self._notify = stop, notify
         self._lanes = fast_lanes(workers) if fast_lane else 0
@@ -213,7 +213,7 @@ class RayExecutor(Executor):
             self._start_lane()
         first = first_index + int(rows[0])
         picked = None if indices is None else np.asarray(indices, dtype=np.int64)[rows]
-        job = _Job(len(rows), name_runs(self._scenario, first, starts[rows], picked), None, first=first, starts=starts[rows],
+        job = _Job(len(rows), name_runs(self._culprit, first, starts[rows], picked), None, first=first, starts=starts[rows],
                    screen=screen, actions=actions, indices=picked, urgent=indices is not None)
         job.launch = lambda actor, job=job: self._launch(job, actor)
         self.pool.send(job)
@@ -369,7 +369,7 @@ class RayExecutor(Executor):
         stripped = [Stored(None, p.indices, p.rows, p.takes, p.parents, p.starts) for p in shares]
         sources = [[p.source] if p.source is not None else [] for p in shares]  # nested: not resolved by Ray
         runs = sum(len(p.indices) for p in shares)
-        call = Call(runs, f"scenario {self._scenario!r}: experience replay of {runs} runs", None,
+        call = Call(runs, f"{self._culprit}: experience replay of {runs} runs", None,
                     limit=self.sizer.replay_limit(runs))
 
         def launch(actor: int, fresh: bool = False) -> None:

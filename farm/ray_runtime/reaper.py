@@ -8,6 +8,13 @@ which is gone too, and wait for the RPC to time out). Run as a script by
 
     python -I reaper.py [--session SESSION_NAME] RAYLET_PID [PID ...]
 
+    python -I reaper.py --starting DRIVER_PID
+
+guards ``ray.init`` itself (a kill -9 there left the agents running): it learns the
+driver's descendants every ``START_SCAN_S`` and the sessions their command lines name,
+until the driver writes a byte (Ray is up and the reaper above watches it: it exits) or
+its stdin ends (the driver is gone: it kills them, as below).
+
 It learns the raylet's descendants every ``SCAN_S`` seconds, and when its stdin (a pipe
 the driver holds) reaches end of file or the raylet is gone, it kills those of them that
 are still the same processes (pid and start time), and every process whose command line
@@ -23,6 +30,7 @@ import signal
 import sys
 
 SCAN_S = 1.0
+START_SCAN_S = 0.1  # [s] while Ray starts: its processes come and go within a second
 
 
 def start_time(pid: int) -> str | None:
@@ -70,8 +78,50 @@ def of_session(session: str) -> dict[int, str]:
     return found
 
 
+def session_of(pid: int) -> str | None:
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as fh:
+            words = fh.read().split(b"\0")
+    except OSError:
+        return None
+    for word in words:
+        if word.startswith(b"--session-name="):
+            return word.split(b"=", 1)[1].decode(errors="replace")
+    return None
+
+
+def guard_start(driver: int) -> None:
+    """While the driver starts Ray: its descendants and their sessions, killed if the driver dies."""
+    known: dict[int, str] = {}
+    sessions: set[str] = set()
+    while True:
+        learn(driver, known)
+        sessions.update(s for pid in known if (s := session_of(pid)))
+        ready, _, _ = select.select([sys.stdin], [], [], START_SCAN_S)
+        if ready:
+            if os.read(sys.stdin.fileno(), 4096):
+                return  # Ray is up, and watched by a reaper of its own
+            break  # the driver is gone
+    for session in sessions:
+        known.update(of_session(session))
+    known.pop(os.getpid(), None)
+    kill(known)
+
+
+def kill(known: dict[int, str]) -> None:
+    for pid, started in known.items():
+        if start_time(pid) == started:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
+
+
 def main(argv: list[str]) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # a terminal's Ctrl-C is for the driver
+    if argv[:1] == ["--starting"]:
+        guard_start(int(argv[1]))
+        return
     session = ""
     if argv[:1] == ["--session"]:
         session, argv = argv[1], argv[2:]
@@ -87,12 +137,7 @@ def main(argv: list[str]) -> None:
     learn(raylet, known)
     if session:
         known.update(of_session(session))
-    for pid, started in known.items():
-        if start_time(pid) == started:
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except OSError:
-                pass
+    kill(known)
 
 
 if __name__ == "__main__":

@@ -76,10 +76,19 @@ def start_local(num_cpus: int, extra_path: str | None = None) -> None:
     ray = lazy.ray
     # the banner says token auth is on by default; it stays on, the line goes
     logging.getLogger("ray._private.authentication").setLevel(logging.ERROR)
-    with _loopback_only(), _workers_path(extra_path):
-        ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False, configure_logging=False,
-                 _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1", _system_config=RAY_SYSTEM_CONFIG)
-    _start_reaper(ray)
+    guard = _reaper("--starting", str(os.getpid()))  # a kill -9 inside ray.init: its agents end too
+    try:
+        with _loopback_only(), _workers_path(extra_path):
+            ray.init(num_cpus=num_cpus, include_dashboard=False, log_to_driver=False, configure_logging=False,
+                     _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1", _system_config=RAY_SYSTEM_CONFIG)
+        _start_reaper(ray)
+    finally:
+        if guard is not None:  # Ray is up and watched (or did not start): the guard steps down
+            try:
+                guard.stdin.write(b"up")
+                guard.stdin.close()
+            except OSError:
+                pass
 
 
 _reapers: list[subprocess.Popen] = []  # their stdin pipes stay open as long as this process
@@ -124,10 +133,16 @@ def _start_reaper(ray) -> None:
     others = [pid for name, group in pids.items() if name != "raylet" for pid in group]
     session = ["--session", node.session_name] if getattr(node, "session_name", "") else []
     _reapers[:] = [r for r in _reapers if r.poll() is None]  # those of an earlier Ray here have ended
-    _reapers.append(subprocess.Popen(
-        [sys.executable, "-I", str(Path(__file__).with_name("reaper.py")), *session, str(pids["raylet"][0]),
-         *map(str, others)], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        start_new_session=True))
+    _reapers.append(_reaper(*session, str(pids["raylet"][0]), *map(str, others)))
+
+
+def _reaper(*args: str) -> subprocess.Popen | None:
+    """farm/ray_runtime/reaper.py with ``args``, its stdin a pipe this process holds (Linux only)."""
+    if not sys.platform.startswith("linux"):
+        return None
+    return subprocess.Popen([sys.executable, "-I", str(Path(__file__).with_name("reaper.py")), *args],
+                            stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
 
 
 class _keep_sigterm_handler:

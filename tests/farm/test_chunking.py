@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from farm.execution.chunking import DRIVER_SHARE, EXTRAPOLATE, LIMIT_FACTOR, LIMIT_FLOOR_S, REPLAY_FLOOR_S, UNMEASURED_LIMIT_S, ChunkSizer
+from farm.execution.chunking import DRIVER_SHARE, EXTRAPOLATE, LIMIT_FACTOR, LIMIT_FLOOR_S, REPLAY_FLOOR_S, FIRST_RUN_LIMIT_S, ChunkSizer
 
 
 def measured(workers, chunk_cost, run_cost, call=1e-3, sizes=(1, 40, 60), timeout=0.0):
@@ -23,7 +23,7 @@ def measured(workers, chunk_cost, run_cost, call=1e-3, sizes=(1, 40, 60), timeou
 def test_before_any_chunk_every_worker_gets_a_share_and_the_limit_is_generous():
     sizer = ChunkSizer(8)
     assert sizer.size(1024) == 128 and sizer.chunks(1024) == 8
-    assert sizer.limit(128) == UNMEASURED_LIMIT_S
+    assert sizer.limit(1) == FIRST_RUN_LIMIT_S and sizer.limit(128) == 128 * FIRST_RUN_LIMIT_S
     assert sizer.busy_at_most(1024, 2) == 8
     assert ChunkSizer(32).busy_at_most(10, 1) == 10  # more workers than runs in flight
 

@@ -460,6 +460,12 @@ def damage(path, how):
         data = json.loads(path.read_text())
         del data["config"][how.split(":")[1]]
         path.write_text(json.dumps(data))
+    elif how.startswith("reshape:"):  # one array of the checkpoint, written again with another shape
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+        name = how.split(":")[1]
+        arrays[name] = np.concatenate([arrays[name]] * 100)
+        np.savez(path, **arrays)
     elif how.startswith("drop_meta:"):  # a checkpoint whose metadata lacks one key
         with np.load(path, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
@@ -501,6 +507,9 @@ DAMAGE_CASES = [  # (finished?, file, damage, command, words)
     (False, "checkpoint.npz", "drop_meta:journal", "resume", ["checkpoint metadata lacks 'journal'"]),
     (False, "checkpoint.npz", "drop_meta:epoch", "resume", ["checkpoint metadata lacks 'epoch'"]),
     (False, "checkpoint.npz", "half", "resume", ["checkpoint is truncated or corrupt"]),
+    # issue 54 point 5: a wrong-shaped array was accepted, and the resume ran ~100x slower
+    (False, "checkpoint.npz", "reshape:algo.vertices.alive", "resume",
+     ["checkpoint.npz: checkpoint array 'algo.vertices.alive' has shape", "but was written as shape"]),
     (False, "checkpoint.npz", "delete", "resume", ["checkpoint.npz is missing"]),
     (False, SEGMENT, "half", "resume", ["ledger segment is corrupt"]),
     (False, SEGMENT, "delete", "resume", ["ledger segment missing"]),

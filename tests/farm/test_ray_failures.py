@@ -145,6 +145,25 @@ def test_kill_9_of_the_driver_leaves_no_ray_process_behind(tmp_path):
     assert not alive(procs), [(p.pid, p.name()) for p in alive(procs)]
 
 
+@pytest.mark.soak  # a Ray start; the reaper's start-up guard (farm/ray_runtime/reaper.py --starting)
+def test_kill_9_of_the_driver_while_ray_starts_leaves_no_agent_behind(tmp_path):
+    """The reaper that watches the raylet starts once ray.init returns: a kill -9 before
+    that left ray::DashboardAgent and ray::RuntimeEnvAgent running."""
+    (tmp_path / "c.toml").write_text(CAMPAIGN)
+    proc = popen("quantify", tmp_path / "c.toml", "--out", tmp_path / "out")
+    procs = wait_for(proc, lambda ps: bool(named(ps, "raylet")))  # ray.init is under way
+    deadline = time.monotonic() + 2  # the agents, if they come before ray.init returns
+    while not named(procs, "ray::RuntimeEnvAgent") and time.monotonic() < deadline:
+        procs = list({p.pid: p for p in procs + descendants(proc)}.values())
+        time.sleep(0.02)
+    proc.kill()
+    proc.wait()
+    deadline = time.monotonic() + 10
+    while alive(procs) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not alive(procs), [(p.pid, p.name()) for p in alive(procs)]
+
+
 def test_a_finished_campaign_exits_whole_and_leaves_no_ray_process_behind(tmp_path):
     (tmp_path / "c.toml").write_text(SHORT_CAMPAIGN)
     proc = popen("quantify", tmp_path / "c.toml", "--out", tmp_path / "out")

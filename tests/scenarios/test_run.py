@@ -41,6 +41,23 @@ def test_user_scenario_from_module_path_and_nan_is_reported_with_the_sample_inde
         run_scenario(sc, starts, 5, make_action_policy("uniform", sc), RunStreams.of(0, [7, 8]))
 
 
+def test_a_subclass_that_rewrites_step_alone_is_simulated_by_its_step():
+    """LeadFollow's vectorized step_into never calls step: a user subclass that rewrote
+    step alone was simulated with lead-follow's dynamics under the user's name."""
+    from scenarios.lead_follow import LeadFollow
+
+    mine, parent = make_scenario("user_scenarios:HalfLead", "idm"), make_scenario("lead-follow", "idm")
+    states = np.array([[10.0, 10.0, 40.0], [5.0, 15.0, 20.0]])
+    actions = np.array([[3.0], [-5.0]])
+    out = np.empty((3, 2))
+    mine.step_into(states, actions, None, out)  # what the farm simulates with
+    assert np.array_equal(out.T, LeadFollow.step(parent, states, 0.5 * actions, None))  # its super().step: no loop
+    assert not np.array_equal(out.T, parent.step(states, actions, None))
+    runs = [run_scenario(sc, states, 30, make_action_policy("uniform", sc), RunStreams.of(0, [0, 1]))
+            for sc in (mine, parent)]
+    assert not np.array_equal(runs[0].trajectories, runs[1].trajectories)
+
+
 def test_unknown_scenario_names_the_field():
     with pytest.raises(ValueError, match="scenario.name: unknown scenario 'lead-folow'"):
         make_scenario("lead-folow")
