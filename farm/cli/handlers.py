@@ -103,7 +103,7 @@ def cmd_resume(args) -> int:
     CampaignDir(out).open("quantify")
     cfg = CampaignDir(out).frozen_config().with_overrides(_overrides(args))
     done = Summary.finished(out)
-    if done is not None:
+    if done is not None and not quantification.finishing_interrupted(out):
         print(f"{out}: the campaign has finished (result hash {done['result_hash']}); nothing to resume")
         return EXIT_OK
     quantification.run(cfg, out, resume=True, progress=Progress(mode=_mode(args)))
