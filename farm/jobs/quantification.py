@@ -27,7 +27,7 @@ from farm.reports.progress import Progress
 from farm.jobs.resources import check_quantify
 from farm.reports.status import StatusWriter, read_status
 from farm.directory.storage import CampaignDir, CampaignError
-from farm.reports.summary import Summary, summarize
+from farm.reports.summary import Summary, budget_used_up, summarize
 
 __all__ = ["Stopped", "run"]
 
@@ -82,13 +82,21 @@ def run(cfg: Config, out: Path, *, resume: bool = False, force: bool = False, pr
             directory.freeze_config(cfg, config_text)
         for side in sides:
             side.run(progress, status)
-        progress.close()
+        progress.close(_ending(cfg, sides))
         status.write({"state": "finishing"})
         summary = finish(cfg, out, {side.side: side for side in sides})
         status.write({"state": "done", "result_hash": summary.result_hash})
         return summary
     finally:
         directory.unlock()
+
+
+def _ending(cfg: Config, sides: list[SideCampaign]) -> str:
+    """How the runs ended: all done, or the budget used up (then nothing is certified)."""
+    spent = [side.campaign.counters for side in sides if not side.campaign.counters.converged]
+    if not spent:
+        return "all runs done"
+    return budget_used_up(cfg.quantify.budget, sum(c.committed for c in spent), sum(c.runs_simulated for c in spent))
 
 
 def _refuse_a_changed_config(directory: CampaignDir, cfg: Config) -> None:

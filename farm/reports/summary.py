@@ -153,6 +153,13 @@ class Summary(JsonFile):
 
 
 
+def budget_used_up(budget: int, committed: int, simulated: int) -> str:
+    """How a campaign stopped by ``quantify.budget`` ended, in one line (the CLI's end
+    lines): the runs went on the budget, not on the last round's N_eps rule."""
+    return (f"quantify.budget of {budget:,} runs used up ({committed:,} committed, {simulated:,} simulated) "
+            f"before the last round ended: the set is NOT certified")
+
+
 def summarize(cfg: Config, sides: dict, safe_sets: dict[str, SafeSet], guarantees: dict) -> Summary:
     """The summary of a finished campaign. ``sides``: side -> its finished campaign
     (``farm.jobs.side_campaign.SideCampaign``: campaign, algorithm, scenario, policy;
