@@ -178,7 +178,9 @@ def summarize(cfg: Config, sides: dict, safe_sets: dict[str, SafeSet], guarantee
         epsilon=cfg.quantify.epsilon,
         beta=cfg.quantify.beta,
         n_eps=campaign.n_eps,
-        certification_attempts=c.attempts,
+        # the sampled certification's checks; a deterministic one runs every centre once and
+        # checks nothing (its counter counts the changes it made: coordinator/driver/phase.py)
+        certification_attempts=0 if main.algorithm.enumerates else c.attempts,
         n_eps_final=campaign.quiet_needed() if c.attempts and not main.algorithm.enumerates else campaign.n_eps,
         runs_certification=sum(k.runs_certification for k in counters),
         delta_final=total.finest,
