@@ -205,3 +205,27 @@ def test_a_kill_while_finishing_after_the_summary_is_finished_by_resume_without_
     assert {p: p.read_bytes() for p in kept} == kept
     again = cli("resume", str(out))
     assert again.returncode == 0 and "nothing to resume" in again.stdout
+
+
+def test_a_kill_while_finishing_before_the_summary_is_finished_by_resume_with_the_same_holdout(tmp_path):
+    """A kill after the last checkpoint and before summary.json: resume writes every result
+    file again from the checkpoint, the holdout too (its runs are in no checkpoint)."""
+    from farm import config as config_mod
+    from farm.jobs.quantification import run
+
+    out = tmp_path / "out"
+    toml = lead_follow_toml(delta_min=4.0).replace("horizon = 30", "horizon = 30\nholdout_runs = 300")
+    run(config_mod.parse(toml, "c.toml"), out)
+    want = json.loads((out / "summary.json").read_text())
+    assert want["holdout"]["runs"] == 300
+    for name in ("summary.json", "safe_set.parquet"):
+        (out / name).unlink()
+    shutil.rmtree(out / "plots")
+    (out / "status.json").write_text(json.dumps({"state": "finishing"}))
+    segments = {p: p.read_bytes() for p in (out / "ledger").glob("*.parquet")}
+    r = cli("resume", str(out))
+    assert r.returncode == 0, r.stderr
+    got = json.loads((out / "summary.json").read_text())
+    assert got["result_hash"] == want["result_hash"] and got["holdout"] == want["holdout"]
+    assert (out / "safe_set.parquet").exists() and any((out / "plots").iterdir())
+    assert {p: p.read_bytes() for p in (out / "ledger").glob("*.parquet")} == segments  # no campaign run again
