@@ -30,6 +30,7 @@ from pathlib import Path
 
 from farm import config as config_mod
 from farm.jobs.quantification import run
+from targets import check, finish
 
 TARGETS = {0.25: (120.0, None), 0.125: (45.0, 1.5)}  # delta_min -> (s, GB)
 WHOLE_TARGET = (12.0, 0.8)  # issue 36, lead-follow band 0.125 end to end: (s, GB)
@@ -64,15 +65,18 @@ def main() -> None:
     target_s, target_gb = TARGETS.get(args.delta_min, (None, None)) if args.scenario == "lead-follow" else (None, None)
     verdict = []
     if target_s:
-        verdict.append(f"target <= {target_s:.0f} s: {target_s / wall:.2f}x margin")
+        verdict.append(f"target <= {target_s:.0f} s: {target_s / wall:.2f}x margin, "
+                       f"{check(f'delta_min {args.delta_min:g}: <= {target_s:.0f} s', wall <= target_s)}")
     if target_gb:
-        verdict.append(f"target <= {target_gb} GB: {'met' if peak_gb <= target_gb else 'not met'}")
+        verdict.append(f"target <= {target_gb} GB: "
+                       f"{check(f'delta_min {args.delta_min:g}: <= {target_gb} GB', peak_gb <= target_gb)}")
     print(f"{args.scenario} {args.sv_policy} SPE campaign, delta 2 -> {args.delta_min:g}, certify "
           f"{not args.no_certify}, refine {args.refine}, executor {args.executor}: "
           f"{wall:.1f} s wall including result files and plots, peak memory {peak_gb:.2f} GB = "
           f"{peak_bytes / 2**30:.2f} GiB "
           f"({'; '.join(verdict) or 'no target'}); {s.runs_committed:,} committed runs, {s.boxes:,} boxes, "
           f"volume {s.volume_union:.0f}, result {s.result_hash}")
+    finish()
 
 
 def whole_command(cfg, args) -> None:
@@ -92,12 +96,13 @@ def whole_command(cfg, args) -> None:
     verdict = ""
     if args.scenario == "lead-follow" and args.delta_min == 0.125 and args.refine == "band" and not args.no_certify:
         target_s, target_gb = WHOLE_TARGET
-        verdict = (f" (target <= {target_s:.0f} s: {'met' if wall <= target_s else 'not met'}; <= {target_gb} GB: "
-                   f"{'met' if peak_gb <= target_gb else 'not met'})")
+        verdict = (f" (target <= {target_s:.0f} s: {check(f'whole command <= {target_s:.0f} s', wall <= target_s)}; "
+                   f"<= {target_gb} GB: {check(f'whole command <= {target_gb} GB', peak_gb <= target_gb)})")
     print(f"{args.scenario} {args.sv_policy} SPE campaign, delta 2 -> {args.delta_min:g}, refine {args.refine}, executor "
           f"{args.executor}, `python -m farm quantify` start to exit: {wall:.1f} s, peak memory {peak_gb:.2f} GB"
           f"{verdict}; {summary['runs_committed']:,} committed runs, {summary['boxes']:,} boxes, result "
           f"{summary['result_hash']}")
+    finish()
 
 
 if __name__ == "__main__":

@@ -21,6 +21,7 @@ import numpy as np
 from coordinator.lattice import Lattice
 from coordinator.spatial import PointIndex
 from farm.execution.memory import keep_freed_memory
+from targets import check, finish
 
 TARGET_QPS = 5e6
 TARGET_SLOPE = 1.15
@@ -122,12 +123,15 @@ def main() -> None:
             rate, alive, misses = query_rate(boxes, q)
             print(f"spatial index, {alive:>9,} boxes: {rate:.3g} trajectory-state queries/s "
                   f"(median of 7 passes; queries {label}, {misses:.0%} not settled by their home cell; "
-                  f"target {TARGET_QPS:.0e}: {rate / TARGET_QPS:.2f}x)")
+                  f"target {TARGET_QPS:.0e}: {rate / TARGET_QPS:.2f}x, "
+                  f"{check(f'{alive:,} boxes, {label}: >= {TARGET_QPS:.0e} queries/s', rate >= TARGET_QPS)})")
     marks, slope = campaign_scaling()
     for runs, secs in marks:
         print(f"  SPE coordinator time after {runs:>9,} committed runs: {secs:7.2f} s")
     print(f"SPE coordinator: log-log slope of total time against committed runs: {slope:.3f} "
-          f"(target <= {TARGET_SLOPE}); {marks[-1][0] / marks[-1][1]:,.0f} committed runs/s of coordinator time")
+          f"(target <= {TARGET_SLOPE}, {check(f'coordinator slope <= {TARGET_SLOPE}', slope <= TARGET_SLOPE)}); "
+          f"{marks[-1][0] / marks[-1][1]:,.0f} committed runs/s of coordinator time")
+    finish()
 
 
 if __name__ == "__main__":

@@ -19,6 +19,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 
 from bench_scaling import campaign_config, run_campaign  # noqa: E402
+from targets import check, finish  # noqa: E402
 
 
 def main() -> None:
@@ -44,8 +45,11 @@ def main() -> None:
               f"({r['main_cpu_s']:.2f} in its main thread, the rest Ray's own threads), workers busy "
               f"{r['worker_busy_s']:.1f} s: "
               f"{rates[-1]:,.0f} committed runs per coordinator-CPU-second (result {r['hash']})", flush=True)
-    print(f"median: {sorted(rates)[len(rates) // 2]:,.0f} committed runs per coordinator-CPU-second (target 300,000)")
+    median = sorted(rates)[len(rates) // 2]
+    verdict = check("committed runs per coordinator-CPU-second >= 300,000", median >= 300_000)
+    print(f"median: {median:,.0f} committed runs per coordinator-CPU-second (target 300,000: {verdict})")
     ray.shutdown()
+    finish()
 
 
 if __name__ == "__main__":

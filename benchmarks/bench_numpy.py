@@ -20,6 +20,7 @@ from farm.execution.process import build_simulator
 from scenarios.simulator import SimSpec
 from scenarios.streams import RunStreams
 from scenarios.rollout import run_scenario
+from targets import check, finish
 
 TARGET = 3e7
 
@@ -46,7 +47,9 @@ def main() -> None:
     for mode in ("uniform", "adversarial"):
         median, best, steps = measure(mode)
         print(f"numpy back end, lead-follow idm, actions {mode:11s}: {median:.3g} scenario-steps/s per core "
-              f"(median of 9; best {best:.3g}; {steps} steps per rollout; target {TARGET:.0e}: {median / TARGET:.2f}x)")
+              f"(median of 9; best {best:.3g}; {steps} steps per rollout; target {TARGET:.0e}: {median / TARGET:.2f}x, "
+              f"{check(f'numpy back end, actions {mode}: >= {TARGET:.0e} steps/s', median >= TARGET)})")
+    finish()
 
 
 if __name__ == "__main__":

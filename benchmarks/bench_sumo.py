@@ -18,6 +18,8 @@ import time
 
 import numpy as np
 
+from targets import check, finish
+
 TARGET = 1200.0  # scenarios/s per worker process
 KRAUSS = {"car_follow_model": "Krauss", "params": {"sigma": 0.0}}
 
@@ -60,7 +62,9 @@ def main() -> int:
             what = "all runs K=50  " if full else "starts ~ U(Sigma)"
             print(f"sumo back end, lead-follow Krauss, uniform actions, K=50, B={batch:5d}, {what}: "
                   f"{rate:7.0f} scenarios/s per process (mean run length {mean_len:.1f} states; "
-                  f"target {TARGET:.0f}: {rate / TARGET:.2f}x)")
+                  f"target {TARGET:.0f}: {rate / TARGET:.2f}x, "
+                  f"{check(f'B={batch}, {what.strip()}: >= {TARGET:.0f} scenarios/s', rate >= TARGET)})")
+    finish()
     return 0
 
 

@@ -11,6 +11,8 @@ import time
 
 import numpy as np
 
+from targets import check, finish
+
 
 def main() -> None:
     try:
@@ -41,9 +43,13 @@ def main() -> None:
         rates[workers] = runs / wall
         ex.close()
         print(f"sumo back end on Ray, {workers} worker(s): {rates[workers]:,.0f} scenarios/s "
-              f"({rates[workers] / workers:,.0f} per worker; K = 50; target >= 1,200 per worker)")
-    print(f"sumo back end: speed-up of 2 workers over 1: {rates[2] / rates[1]:.2f}x (target >= 1.8x)")
+              f"({rates[workers] / workers:,.0f} per worker; K = 50; target >= 1,200 per worker: "
+              f"{check(f'{workers} worker(s): >= 1,200 scenarios/s per worker', rates[workers] / workers >= 1200)})")
+    speedup = rates[2] / rates[1]
+    print(f"sumo back end: speed-up of 2 workers over 1: {speedup:.2f}x "
+          f"(target >= 1.8x: {check('2 workers >= 1.8x one', speedup >= 1.8)})")
     ray.shutdown()
+    finish()
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ docs/virtual.json (rendered into docs/virtual.md).
     python benchmarks/bench_virtual.py [--seeds 0 1 2 3] [--workers 1 32 256 1000] [--run-time 1.0 0.1]
     python benchmarks/bench_virtual.py --seeds 1 --merge    # adds seed 1's rows to docs/virtual.json
     python benchmarks/bench_virtual.py --render
+    python benchmarks/bench_virtual.py --no-write    # print only (benchmarks/run_all.py); exit 1 on a missed target
 
 ``--free-coordinator`` asks what the counting rule itself allows: the same campaigns with a
 coordinator that costs no simulated time (no CPU charged, no call cost) and applies changes
@@ -32,6 +33,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent / "experiments"))
 
 from experiment import machine_stamp  # noqa: E402
+from targets import check, finish  # noqa: E402
 
 DOCS = HERE.parent / "docs"
 TARGETS = {(1.0, 32): 28, (1.0, 256): 200, (1.0, 1000): 600, (0.1, 1000): 500}  # issue 32
@@ -92,6 +94,7 @@ def main() -> None:
                          "rows to docs/virtual.json's 'free' (default --workers 1000)")
     ap.add_argument("--outstanding", type=int, nargs="+", default=None,
                     help="with --free-coordinator: changes applied past holds at once (default: the campaign's)")
+    ap.add_argument("--no-write", action="store_true", help="print only (no docs/virtual.json)")
     ap.add_argument("--merge", action="store_true",
                     help="keep docs/virtual.json's other rows (runs of other seeds or run times, e.g. in parallel)")
     args = ap.parse_args()
@@ -110,10 +113,17 @@ def main() -> None:
                 one = one or row
                 row["speedup"] = round(one["virtual_elapsed_s"] / row["virtual_elapsed_s"], 1)
                 rows.append(row)
+                target = TARGETS.get((run_time, workers))
+                verdict = check(f"{run_time:g} s runs, {workers} workers, seed {seed}: >= {target}x one worker",
+                                row["speedup"] >= target) if target else None
                 print(f"run {run_time:g} s, seed {seed}, {workers:>4} workers: {row['virtual_elapsed_s']:>10,.1f} s "
-                      f"to the result ({row['speedup']:.1f}x one worker), utilisation {row['utilisation']:.2f}, "
+                      f"to the result ({row['speedup']:.1f}x one worker"
+                      f"{f'; target >= {target}x: {verdict}' if target else ''}), utilisation {row['utilisation']:.2f}, "
                       f"coordinator {row['coordinator_cpu_s']:.1f} CPU-s, {row['committed']:,} committed "
                       f"(result {row['result_hash']})", flush=True)
+    if args.no_write:
+        finish()
+        return
     path = DOCS / "virtual.json"
     before = json.loads(path.read_text()) if path.exists() else {}
     if args.merge and before:
@@ -123,6 +133,7 @@ def main() -> None:
     path.write_text(json.dumps({"meta": machine_stamp(cpus=os.cpu_count()), "rows": rows,
                                 **({"free": free} if free else {})}, indent=1) + "\n")
     print(render())
+    finish()
 
 
 def free_rows(args, workers: list[int]) -> None:

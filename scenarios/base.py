@@ -242,8 +242,12 @@ class Scenario(ABC):
         return out
 
     def label(self, name: str) -> str:
-        """Axis label of a state variable, with its unit if known: "p10 [m]"."""
-        unit = self.units.get(name)
+        """Axis label of a state variable: its name, what it is and its unit where the
+        scenario says (``state_words``, ``units``): "v0 (the SV's speed, m/s)"; "p10 [m]"
+        with a unit only, "x" with neither."""
+        unit, words = self.units.get(name), self.state_words.get(name)
+        if words:
+            return f"{name} ({words}, {unit})" if unit else f"{name} ({words})"
         return f"{name} [{unit}]" if unit else name
 
     def views(self) -> list[View]:

@@ -26,7 +26,7 @@ class Fleet3(Scenario):
     adversarial_actions = np.array([[-5.0, -3.0]])  # lead brakes hardest, follower least
     noise_width = 3
     units = {"v0": "m/s", "v1": "m/s", "v2": "m/s", "p10": "m", "p20": "m"}
-    state_words = {"v0": "the SV's speed", "v1": "the lead's", "v2": "the follower's",
+    state_words = {"v0": "the SV's speed", "v1": "the lead's speed", "v2": "the follower's speed",
                    "p10": "lead minus SV position", "p20": "follower minus SV position (front to front)"}
     action_words = {"u1": "the lead vehicle's acceleration", "u2": "the following vehicle's acceleration"}
     action_units = {"u1": "m/s^2", "u2": "m/s^2"}

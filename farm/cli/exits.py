@@ -24,7 +24,7 @@ OK, FINDING, USER, BUG, INFRASTRUCTURE, STOPPED = 0, 1, 2, 3, 4, 130
 DEBUG = "SCENARIO_FARM_DEBUG"  # set to 1: tracebacks, and Ray's log lines on stderr
 
 TABLE = (
-    (OK, "done: certified, or the campaign finished"),
+    (OK, "done: certified, or the campaign finished (a used-up quantify.budget: not certified, its last lines say)"),
     (FINDING, "a finding: a counterexample (validate, replay), a refuted Gamma* (falsify)"),
     (USER, "your input: a config value, a flag, a file or directory, your scenario's code (one line names it; "
            "nothing was changed)"),

@@ -14,7 +14,7 @@ from farm.jobs import quantification
 from farm.reports import status
 from farm.reports.estimate_report import EstimateReport, describe as describe_estimate, estimate_dirs
 from farm.reports.progress import Progress
-from farm.reports.summary import Summary
+from farm.reports.summary import Summary, budget_used_up
 from farm.reports.holdout import describe_holdout
 from farm.reports.truncations import lines as truncation_lines
 from scenarios.errors import ConfigError, ScenarioError
@@ -103,7 +103,7 @@ def cmd_resume(args) -> int:
     CampaignDir(out).open("quantify")
     cfg = CampaignDir(out).frozen_config().with_overrides(_overrides(args))
     done = Summary.finished(out)
-    if done is not None:
+    if done is not None and not quantification.finishing_interrupted(out):
         print(f"{out}: the campaign has finished (result hash {done['result_hash']}); nothing to resume")
         return EXIT_OK
     quantification.run(cfg, out, resume=True, progress=Progress(mode=_mode(args)))
@@ -129,6 +129,9 @@ def _print_summary(out: Path, summary=None) -> None:
         print(f"{'truncated':>18}: {line}")
     if summary.holdout:
         print(f"{'holdout':>18}: {describe_holdout(summary.holdout)}")
+    if not summary.converged:
+        budget = CampaignDir(out).frozen_config().quantify.budget
+        print(f"{'budget':>18}: {budget_used_up(budget, summary.runs_committed, summary.runs_simulated)}")
     print(f"{'guarantee':>18}: {summary.guarantee}")
     if summary.guarantee_formal:
         print(f"{'formally':>18}: {summary.guarantee_formal}")

@@ -240,9 +240,10 @@ def _recorded_holder(fd: int) -> tuple[int | None, bool]:
 
 
 class Ledger:
-    """Committed runs as Parquet segments: sample_index, round, delta, one column per
-    state variable (the start state), outcome, steps, margin (the run's smallest distance to
-    a failure facet: negative for a failure), changed, counted, discarded, replacement. Each segment's
+    """Committed runs, and runs discarded unseen (``discarded``), as Parquet segments:
+    sample_index, round, delta, one column per state variable (the start state), outcome,
+    steps, margin (the run's smallest distance to a failure facet: negative for a failure),
+    changed, counted, discarded, replacement. Each segment's
     sha256 goes into the checkpoint, so a changed or swapped segment is noticed."""
 
     def __init__(self, directory: Path, state_names):
@@ -308,7 +309,7 @@ class Ledger:
 
 
 def read_ledger(directory: Path, columns=None, filter=None) -> pa.Table:
-    """The committed runs of DIR/ledger, every segment, as one table (``columns`` and a
+    """The runs of DIR/ledger (committed, and discarded unseen), every segment, as one table (``columns`` and a
     pyarrow.dataset ``filter`` as ``Dataset.to_table`` takes them); a missing ledger or a
     damaged segment is a one-line CampaignError naming it."""
     ds = lazy.pyarrow_dataset

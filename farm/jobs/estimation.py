@@ -202,5 +202,6 @@ def _figure(out: Path, parts: EstimateSetup, report: EstimateReport) -> None:
     table = pq.read_table(out / "ledger", columns=[*names, "outcome"])
     starts = np.column_stack([table.column(n).to_numpy() for n in names])
     failed = pc.equal(table.column("outcome"), "failure").to_numpy(zero_copy_only=False)
-    lazy.estimate_figure.draw_estimate(out / "failures.png", names, parts.scenario.units, starts, failed, report)
+    lazy.estimate_figure.draw_estimate(out / "failures.png", names, {n: parts.scenario.label(n) for n in names},
+                                       starts, failed, report)
 

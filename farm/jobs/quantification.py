@@ -16,6 +16,7 @@ from pathlib import Path
 
 from coordinator.guarantee import quantified, refined
 from coordinator.margin.refinement import MarginRefinement
+from coordinator.safe_set import SafeSet
 from farm import config as config_mod, lazy
 from farm.jobs.campaign_setup import side_facets
 from farm.execution.process import build_simulator, close_simulator, spec_of
@@ -24,9 +25,9 @@ from farm.jobs.side_campaign import SideCampaign, Stopped
 from farm.directory.files import atomic_write, write_json
 from farm.reports.progress import Progress
 from farm.jobs.resources import check_quantify
-from farm.reports.status import StatusWriter
+from farm.reports.status import StatusWriter, read_status
 from farm.directory.storage import CampaignDir, CampaignError
-from farm.reports.summary import Summary, summarize
+from farm.reports.summary import Summary, budget_used_up, summarize
 
 __all__ = ["Stopped", "run"]
 
@@ -37,7 +38,8 @@ def run(cfg: Config, out: Path, *, resume: bool = False, force: bool = False, pr
 
     Everything is checked before anything is written: the config, the scenario, the back
     end, the actions, and when resuming the checkpoints. ``resume`` continues a stopped or
-    killed campaign (a finished one is left untouched and its summary returned); ``force``
+    killed campaign (a finished one is left untouched and its summary returned, but for
+    the figures and final status a kill while finishing left unwritten); ``force``
     replaces a campaign directory. ``config_text``: the config as the user gave it (kept
     as ``config.toml``)."""
     out = Path(out)
@@ -48,11 +50,12 @@ def run(cfg: Config, out: Path, *, resume: bool = False, force: bool = False, pr
         # killed before its first file: "continue" means start (a plain `resume DIR` has no
         # config to start from and still says "not a campaign directory")
         resume, force = False, True
+    finished = None
     if resume:
         directory.open("quantify")
         _refuse_a_changed_config(directory, cfg)
         finished = Summary.finished(out)
-        if finished is not None:
+        if finished is not None and not finishing_interrupted(out):
             return finished
     checked = build_simulator(spec_of(cfg))
     close_simulator(checked, cfg.farm.chunk_timeout)  # the config check's simulator: a close that hangs, named now
@@ -62,6 +65,14 @@ def run(cfg: Config, out: Path, *, resume: bool = False, force: bool = False, pr
              for side, failure_facets in side_facets(cfg, scenario).items()]
     status = StatusWriter(out)
     try:
+        if finished is not None:
+            # killed while finishing, after summary.json (the last result file before the
+            # figures): the figures and the final status are all that is left to write
+            directory.lock()
+            directory.remove_stale_temp_files()
+            draw({side.side: side.scenario for side in sides}, out, _saved_safe_sets(out, sides), finished)
+            status.write({"state": "done", "result_hash": finished.result_hash})
+            return finished
         if resume:
             directory.lock(announce=False)
             for side in sides:  # every checkpoint is checked before anything is written
@@ -73,13 +84,21 @@ def run(cfg: Config, out: Path, *, resume: bool = False, force: bool = False, pr
             directory.freeze_config(cfg, config_text)
         for side in sides:
             side.run(progress, status)
-        progress.close()
+        progress.close(_ending(cfg, sides))
         status.write({"state": "finishing"})
         summary = finish(cfg, out, {side.side: side for side in sides})
         status.write({"state": "done", "result_hash": summary.result_hash})
         return summary
     finally:
         directory.unlock()
+
+
+def _ending(cfg: Config, sides: list[SideCampaign]) -> str:
+    """How the runs ended: all done, or the budget used up (then nothing is certified)."""
+    spent = [side.campaign.counters for side in sides if not side.campaign.counters.converged]
+    if not spent:
+        return "all runs done"
+    return budget_used_up(cfg.quantify.budget, sum(c.committed for c in spent), sum(c.runs_simulated for c in spent))
 
 
 def _refuse_a_changed_config(directory: CampaignDir, cfg: Config) -> None:
@@ -127,11 +146,31 @@ def finish(cfg: Config, out: Path, sides: dict[str, SideCampaign]) -> Summary:
         if side.campaign.adversary is not None:
             file = "adversary.json" if name == "total" else f"adversary_{name}_side.json"
             write_json(out / file, side.campaign.adversary.report(side.scenario))
-    summary.write(out)
-    for name, side in sides.items():
-        if name == "total":
-            lazy.plots.draw(out / "plots", side.scenario, safe_sets[name], summary)
-        else:
-            lazy.plots.draw(out / "plots" / f"{name}_side", side.scenario, safe_sets[name],
-                 replace(summary, algorithm=f"{name} side"))
+    summary.write(out)  # the last result file: once it is there, a resume only draws (finishing_interrupted)
+    draw({name: side.scenario for name, side in sides.items()}, out, safe_sets, summary)
     return summary
+
+
+def draw(scenarios: dict, out: Path, safe_sets: dict, summary: Summary) -> None:
+    """The figures of a finished campaign: ``scenarios`` and ``safe_sets``, side -> its
+    scenario and its set ("total" and fleet3's sides)."""
+    for name, scenario in scenarios.items():
+        if name == "total":
+            lazy.plots.draw(out / "plots", scenario, safe_sets[name], summary)
+        else:
+            lazy.plots.draw(out / "plots" / f"{name}_side", scenario, safe_sets[name],
+                            replace(summary, algorithm=f"{name} side"))
+
+
+def finishing_interrupted(out: Path) -> bool:
+    """Was the campaign in ``out`` stopped after its summary.json and before its figures
+    and final status (a kill while finishing)? Then a resume finishes it."""
+    return (read_status(out) or {}).get("state") == "finishing"
+
+
+def _saved_safe_sets(out: Path, sides: list[SideCampaign]) -> dict:
+    """The sets ``finish`` wrote, read back (side -> SafeSet)."""
+    return {side.side: SafeSet.from_parquet(out / ("safe_set.parquet" if side.side == "total"
+                                                    else f"safe_set_{side.side}_side.parquet"),
+                                            side.scenario.state_names)
+            for side in sides}

@@ -63,6 +63,10 @@ class SideCampaign:
         restored = self._restored
         if restored is not None and restored.driver.counters.done:
             self.campaign = build_campaign(self.cfg, self.algorithm, self.simulator, None, restored=restored)
+            if self.side == "total":
+                # killed while finishing, before summary.json: the holdout's runs are in no
+                # checkpoint; the same seeded runs again give the same report
+                self.holdout = self._holdout_again(progress)
             return self.campaign
         farm_cfg = self.cfg.farm
         self.directory.mkdir(parents=True, exist_ok=True)
@@ -99,6 +103,21 @@ class SideCampaign:
         gc.collect()  # what reference cycles still hold of the released state, before the heap is trimmed
         release_freed_memory()
         return self.campaign
+
+    def _holdout_again(self, progress: Progress) -> dict | None:
+        """The holdout of a finished campaign read back, on an executor of its own."""
+        if self.cfg.quantify.holdout_runs <= 0:
+            return None
+        stop = stop_on_signals()
+        with stop:
+            executor = make_executor(self.cfg.farm, self.spec, check_step_bound=self.cfg.quantify.boundary,
+                                     stop=stop.event, notify=progress.line)
+            try:
+                return self._holdout(executor, progress)
+            except Interrupted:
+                raise Stopped("stopped while finishing (the holdout's runs); resume finishes it") from None
+            finally:
+                executor.close()
 
     def _holdout(self, executor, progress: Progress) -> dict | None:
         """``quantify.holdout_runs`` fresh runs from uniform starts in Sigma, on the

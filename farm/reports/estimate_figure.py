@@ -8,6 +8,7 @@ set's boundary are sampled far more densely than their mass; the bars say by how
 
 from __future__ import annotations
 
+import textwrap
 from itertools import combinations
 from pathlib import Path
 
@@ -22,11 +23,13 @@ from farm.directory.files import atomic_write  # noqa: E402
 
 SHOWN = 20_000  # runs drawn at most (failures first): a scatter of millions says no more
 PLANES = 3  # pairs of state variables at most
+LABEL_CHARS = 38  # an axis label's line on a 4.6-inch panel
 
 
-def estimate_figure(state_names, units: dict, starts: np.ndarray, failed: np.ndarray, report):
+def estimate_figure(state_names, labels: dict, starts: np.ndarray, failed: np.ndarray, report):
     """The figure: ``starts`` (R, n) of the committed runs, ``failed`` (R,) bool, and the
-    estimate's ``report`` (its strata and interval)."""
+    estimate's ``report`` (its strata and interval); ``labels``: state name -> its axis
+    label (``Scenario.label``: what it is and its unit)."""
     n = len(state_names)
     planes = list(combinations(range(n), 2))[:PLANES] if n > 1 else [(0, 0)]
     fig, axes = plt.subplots(1, len(planes) + 1, figsize=(4.6 * (len(planes) + 1), 4.2))
@@ -35,8 +38,8 @@ def estimate_figure(state_names, units: dict, starts: np.ndarray, failed: np.nda
     for ax, (x, y) in zip(axes, planes):
         ax.scatter(starts[shown_ok, x], starts[shown_ok, y], s=2, c="#b0b0b0", label="no failure", rasterized=True)
         ax.scatter(starts[shown_bad, x], starts[shown_bad, y], s=3, c="#d62728", label="failure", rasterized=True)
-        ax.set_xlabel(_label(state_names[x], units))
-        ax.set_ylabel(_label(state_names[y], units))
+        ax.set_xlabel(_label(state_names[x], labels))
+        ax.set_ylabel(_label(state_names[y], labels))
     axes[0].legend(loc="best", fontsize=8, markerscale=4)
     strata = report.strata
     runs = np.array([s["runs"] for s in strata], dtype=float)
@@ -57,13 +60,12 @@ def estimate_figure(state_names, units: dict, starts: np.ndarray, failed: np.nda
     return fig
 
 
-def _label(name: str, units: dict) -> str:
-    unit = units.get(name)
-    return f"{name} [{unit}]" if unit else name
+def _label(name: str, labels: dict) -> str:
+    return "\n".join(textwrap.wrap(labels.get(name, name), LABEL_CHARS))
 
 
-def draw_estimate(path: Path, state_names, units: dict, starts, failed, report) -> Path:
-    fig = estimate_figure(state_names, units, starts, failed, report)
+def draw_estimate(path: Path, state_names, labels: dict, starts, failed, report) -> Path:
+    fig = estimate_figure(state_names, labels, starts, failed, report)
     try:
         atomic_write(Path(path), lambda fh: fig.savefig(fh, format="png", dpi=110))
     finally:

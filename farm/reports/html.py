@@ -24,14 +24,17 @@ td,th{border:1px solid #ddd;padding:.25em .6em;text-align:right}th{background:#f
 td.k{text-align:left;color:#555}img{max-width:100%;border:1px solid #eee;margin:.5em 0}"""
 
 
-def _rounds(directory: Path) -> list[dict]:
-    """Runs, changes and N_eps-counted runs per round, from the ledger."""
-    table = read_ledger(directory, columns=["round", "delta", "changed", "counted"])
+def rounds_table(directory: Path) -> list[dict]:
+    """Committed runs, changes and N_eps-counted runs per round, from the ledger; beside
+    them the discarded runs the ledger also holds (simulated, never looked at: not in
+    summary.json's runs_committed)."""
+    table = read_ledger(directory, columns=["round", "delta", "changed", "counted", "discarded"])
     out = []
     for rnd in sorted(set(table.column("round").to_pylist())):
         rows = table.filter(pc.equal(table.column("round"), rnd))
-        out.append({"round": rnd, "delta": rows.column("delta")[0].as_py(), "runs": rows.num_rows,
-                    "changes": pc.sum(rows.column("changed").cast("int64")).as_py() or 0,
+        discarded = pc.sum(rows.column("discarded").cast("int64")).as_py() or 0
+        out.append({"round": rnd, "delta": rows.column("delta")[0].as_py(), "committed": rows.num_rows - discarded,
+                    "discarded": discarded, "changes": pc.sum(rows.column("changed").cast("int64")).as_py() or 0,
                     "counted": pc.sum(rows.column("counted").cast("int64")).as_py() or 0})
     return out
 
@@ -84,7 +87,7 @@ def write_html(directory, out: Path | None = None) -> Path:
     parts.append("<h2>Figures</h2>")
     for png in sorted((directory / "plots").rglob("*.png")):
         parts.append(_image(png, str(png.relative_to(directory))))
-    parts.append("<h2>Rounds</h2>" + _table(_rounds(directory)))
+    parts.append("<h2>Rounds</h2>" + _table(rounds_table(directory)))
     parts.append(_estimates(directory))
     parts.append("<h2>Truncated runs</h2><p>Committed runs that left Sigma through a truncating facet: they "
                  "end quietly and count as safe. A large share through a facet the study did not expect (a "

@@ -91,14 +91,14 @@ class Progress:
             self.stream.write(f"scenario-farm: {text}\n")
             self.stream.flush()
 
-    def close(self) -> None:
-        """The runs are over: stop the live line, and say what comes next (writing the
-        results and figures takes seconds to a minute on a large set; without a line a
-        job log would look stuck)."""
+    def close(self, ending: str = "all runs done") -> None:
+        """The runs are over: stop the live line, say how they ended (``ending``: e.g. a
+        used-up budget) and what comes next (writing the results and figures takes seconds
+        to a minute on a large set; without a line a job log would look stuck)."""
         if self._bar is not None:
             self._bar.stop()
             self._bar = None
-        self.line("all runs done; writing safe_set.parquet, summary.json and plots/")
+        self.line(f"{ending}; writing safe_set.parquet, summary.json and plots/")
 
 
 def _counter(s: dict) -> str:

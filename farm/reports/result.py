@@ -111,16 +111,18 @@ class QuantifyResult:
     def plot_failures(self, path=None) -> Path | None:
         """The recorded failing runs over the safe set (DIR/plots/failures.png); None if
         the campaign recorded none."""
-        runs = []
+        runs = {}
         for rec in sorted((self.directory / "recordings").glob("runs-*.mcap")):
             try:
-                runs += [r["trajectory"] for r in lazy.recording.read_recording(rec)["runs"].values()]
+                runs.update((index, r["trajectory"]) for index, r in lazy.recording.read_recording(rec)["runs"].items())
             except DataError as exc:  # a damaged recording must not hide the others (as in replay)
                 warnings.warn(f"skipped {exc}", stacklevel=2)
         if not runs:
             return None
+        shown = sorted(runs)[:64]
+        # labelled by sample index, as `scenario-farm replay DIR --sample N` takes them
         return lazy.plots.draw_failures(Path(path) if path else self.directory / "plots" / "failures.png", self._scenario(),
-                             self.safe_set, runs[:64])
+                                        self.safe_set, [runs[i] for i in shown], [f"sample {i}" for i in shown])
 
     def _scenario(self):
         return make_backend(spec_of(CampaignDir(self.directory).frozen_config()).scenario).scenario

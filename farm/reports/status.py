@@ -65,10 +65,11 @@ def _certification(campaign, counts) -> dict:
         return {"splits": counts["splits"], "leaves": counts["leaves"]}
     if not algorithm.certifying:
         return {}
-    out = {"certification_attempts": c.attempts, "runs_certification": c.runs_certification}
-    if algorithm.enumerates:
-        return {**out, "certified": counts.get("certified", 0), "centres": counts.get("boxes", 0)}
-    return {**out, "certification_phase": "closing" if algorithm.closing else "check"}
+    if algorithm.enumerates:  # no checks: every centre once (summary.json's certification_attempts is 0)
+        return {"runs_certification": c.runs_certification, "certified": counts.get("certified", 0),
+                "centres": counts.get("boxes", 0)}
+    return {"certification_attempts": c.attempts, "runs_certification": c.runs_certification,
+            "certification_phase": "closing" if algorithm.closing else "check"}
 
 
 def read_status(directory: Path) -> dict | None:

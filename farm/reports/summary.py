@@ -153,6 +153,13 @@ class Summary(JsonFile):
 
 
 
+def budget_used_up(budget: int, committed: int, simulated: int) -> str:
+    """How a campaign stopped by ``quantify.budget`` ended, in one line (the CLI's end
+    lines): the runs went on the budget, not on the last round's N_eps rule."""
+    return (f"quantify.budget of {budget:,} runs used up ({committed:,} committed, {simulated:,} simulated) "
+            f"before the last round ended: the set is NOT certified")
+
+
 def summarize(cfg: Config, sides: dict, safe_sets: dict[str, SafeSet], guarantees: dict) -> Summary:
     """The summary of a finished campaign. ``sides``: side -> its finished campaign
     (``farm.jobs.side_campaign.SideCampaign``: campaign, algorithm, scenario, policy;
@@ -171,7 +178,9 @@ def summarize(cfg: Config, sides: dict, safe_sets: dict[str, SafeSet], guarantee
         epsilon=cfg.quantify.epsilon,
         beta=cfg.quantify.beta,
         n_eps=campaign.n_eps,
-        certification_attempts=c.attempts,
+        # the sampled certification's checks; a deterministic one runs every centre once and
+        # checks nothing (its counter counts the changes it made: coordinator/driver/phase.py)
+        certification_attempts=0 if main.algorithm.enumerates else c.attempts,
         n_eps_final=campaign.quiet_needed() if c.attempts and not main.algorithm.enumerates else campaign.n_eps,
         runs_certification=sum(k.runs_certification for k in counters),
         delta_final=total.finest,

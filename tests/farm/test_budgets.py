@@ -4,11 +4,15 @@ sequence does not depend on where the budget cuts it), on both executors. The ro
 compared are the runs used; which in-flight runs were discarded unseen (and replaced)
 depends on the window, which on Ray follows the measured run time."""
 
+import subprocess
+import sys
+
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 import pytest
 
 from farm.api import quantify
+from small_campaign import lead_follow_toml
 
 
 def config(executor, budget):
@@ -43,3 +47,17 @@ def test_every_budget_commits_exactly_the_first_runs(tmp_path, unlimited, execut
         summary = quantify(config(executor, budget), out=out).summary
         assert summary["runs_committed"] == budget and not summary["converged"], budget
         assert used_runs(out).equals(unlimited.slice(0, budget)), budget
+
+
+def test_a_used_up_budget_says_so_at_the_end_and_certifies_nothing(tmp_path):
+    """The CLI's end lines name the budget and what was used, and say the set is not
+    certified (exit 0: the campaign finished, README's exit table)."""
+    toml = lead_follow_toml().replace("horizon = 30", "horizon = 30\nbudget = 300\nholdout_runs = 0")
+    (tmp_path / "c.toml").write_text(toml)
+    r = subprocess.run([sys.executable, "-m", "farm", "quantify", str(tmp_path / "c.toml"), "--out",
+                        str(tmp_path / "out")], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    used_up = "quantify.budget of 300 runs used up (300 committed"
+    assert used_up in r.stderr and "all runs done" not in r.stderr  # the progress's end line
+    assert f"budget: {used_up}" in r.stdout and "the set is NOT certified" in r.stdout
+    assert "guarantee: No guarantee" in r.stdout

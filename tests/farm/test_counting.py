@@ -10,6 +10,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from farm import quantify
+from farm.reports.html import rounds_table
 from small_campaign import lead_follow_toml
 
 WINDOWS = [(16, 1), (256, 2), (2048, 4)]
@@ -22,6 +23,12 @@ def _campaign(tmp_path, name, batch, depth, counting, mode="uniform"):
     quantify(toml, out=tmp_path / name, force=True)
     summary = json.loads((tmp_path / name / "summary.json").read_text())
     ledger = pq.read_table(tmp_path / name / "ledger").to_pandas()
+    # the HTML report's Rounds table counts the runs used and those discarded apart
+    rounds = rounds_table(tmp_path / name)
+    assert sum(r["committed"] for r in rounds) == int((~ledger.discarded).sum())
+    assert sum(r["discarded"] for r in rounds) == int(ledger.discarded.sum())
+    if counting == "sequential":  # every discarded index replaced: the runs used are the committed ones
+        assert sum(r["committed"] for r in rounds) == summary["runs_committed"]
     return summary, ledger
 
 
@@ -56,7 +63,9 @@ def test_sequential_counting_commits_the_same_runs_at_any_window(tmp_path, mode)
         _check_ledger(summary, ledger)
         used = ledger[~ledger.discarded].sort_values("sample_index")
         got[batch, depth] = summary, used.drop(columns=["replacement"]).reset_index(drop=True)
-        assert summary["counting"] == "sequential" and summary["certification_attempts"] >= 1
+        assert summary["counting"] == "sequential" and summary["runs_certification"] > 0
+        # a sampled certification's checks; a deterministic one (adversarial) runs every centre once, no check
+        assert (summary["certification_attempts"] >= 1) == (mode != "adversarial")
     (s0, l0), *rest = got.values()
     for s, table in rest:
         assert s["result_hash"] == s0["result_hash"] and s["runs_committed"] == s0["runs_committed"]

@@ -72,6 +72,11 @@ def texts(fig):
     return [t.get_text() for t in fig.findobj(Text) if t.get_text()]
 
 
+def flat(text):
+    """An axis label as one line (labels are wrapped to a panel's width)."""
+    return " ".join(text.split())
+
+
 def visible_axes(fig, projection=None):
     return [ax for ax in fig.axes if ax.get_visible() and (projection is None or ax.name == projection)]
 
@@ -110,9 +115,10 @@ def test_3d_axes_carry_units_a_colour_bar_and_limits_that_fit_the_surface():
     sc, safe_set = lead_follow_set()
     fig = plots.surface_figure(sc, safe_set)
     (ax,) = visible_axes(fig, "3d")
-    assert (ax.get_xlabel(), ax.get_ylabel(), ax.get_zlabel()) == ("v0 [m/s]", "v1 [m/s]", "p10 [m]")
+    assert [flat(t) for t in (ax.get_xlabel(), ax.get_ylabel(), ax.get_zlabel())] == [
+        "v0 (the SV's speed, m/s)", "v1 (the lead's speed, m/s)", "p10 (the gap from the SV's front to the lead's rear, m)"]
     colour_bars = [a for a in fig.axes if a is not ax]
-    assert len(colour_bars) == 1 and colour_bars[0].get_ylabel() == "smallest safe p10 [m]"
+    assert len(colour_bars) == 1 and flat(colour_bars[0].get_ylabel()) == f"smallest safe {sc.label('p10')}"
     assert ax.get_xlim() == (0.0, 20.0) and ax.get_ylim() == (0.0, 20.0)
     zmin, zmax = ax.get_zlim()
     # the boundary runs from 0 m (v0 <= v1) to 34 m (the box at v0 = 19, v1 = 1): the z axis
@@ -127,7 +133,7 @@ def test_slices_without_an_exploration_record_have_a_legend_units_and_two_distin
     panels = visible_axes(fig)
     assert len(panels) == 4
     for ax in panels:
-        assert (ax.get_xlabel(), ax.get_ylabel()) == ("v0 [m/s]", "p10 [m]")
+        assert (flat(ax.get_xlabel()), flat(ax.get_ylabel())) == (sc.label("v0"), sc.label("p10"))
     assert legend_texts(fig) == ["in the safe set", "not in the safe set"]
     safe, outside = (np.array(to_rgba(c)[:3]) for c in (plots.SAFE_COLOUR, plots.OUTSIDE_COLOUR))
     assert np.abs(safe - outside).max() > 0.4  # told apart at a glance
@@ -234,14 +240,14 @@ def test_the_rear_side_figures_show_the_rear_side_only():
     surfaces = plots.surface_figure(sc, safe_set, summary)
     (ax,) = visible_axes(surfaces, "3d")
     assert "rear" in ax.get_title() and "lead" not in ax.get_title()
-    assert ax.get_zlabel() == "p20 [m]"
-    assert [a.get_ylabel() for a in surfaces.axes if a is not ax] == ["largest safe p20 [m]"]
+    assert flat(ax.get_zlabel()) == sc.label("p20") == "p20 (follower minus SV position (front to front), m)"
+    assert [flat(a.get_ylabel()) for a in surfaces.axes if a is not ax] == [f"largest safe {sc.label('p20')}"]
     assert "rear side" in surfaces._suptitle.get_text()
     slices = plots.slices_figure(sc, safe_set, summary)
-    assert {a.get_ylabel() for a in visible_axes(slices)} == {"p20 [m]"}
+    assert {flat(a.get_ylabel()) for a in visible_axes(slices)} == {sc.label("p20")}
     key = _key(sc)  # what v1 and p10 are, said of every state: the rest is about the rear side only
-    flat = [" ".join(w.split()) for w in texts(surfaces) + texts(slices)]  # titles are wrapped to the figure
-    assert not any("lead" in w.replace(key, "") for w in flat)
+    lines = [flat(w) for w in texts(surfaces) + texts(slices)]  # titles are wrapped to the figure
+    assert not any("lead" in w.replace(key, "") for w in lines)
 
 
 def test_a_two_state_scenario_gets_slices_only_and_no_held_coordinates(tmp_path):
@@ -271,7 +277,7 @@ def test_overlay_writes_a_png_whose_legend_lists_every_set(tmp_path):
     fig = plots.overlay_figure(sc, [safe_set, wider], ["brake", "idm"])
     assert legend_texts(fig) == [f"brake ({len(safe_set)} boxes)", f"idm ({len(wider)} boxes)"]
     panels = visible_axes(fig)
-    assert len(panels) == 4 and all(ax.get_ylabel() == "p10 [m]" for ax in panels)
+    assert len(panels) == 4 and all(flat(ax.get_ylabel()) == sc.label("p10") for ax in panels)
     # each set is outlined in its own colour where its boundary crosses the panel
     outline_colours = {tuple(np.round(c.get_edgecolor()[0][:3], 3)) for c in panels[0].collections}
     assert len(outline_colours) == 2
@@ -287,7 +293,7 @@ def test_failures_writes_a_png_with_runs_and_their_starts(tmp_path):
     assert_png(path)
     fig = plots.failures_figure(sc, safe_set, runs, ["run 3", "run 9"])
     (ax,) = visible_axes(fig)
-    assert (ax.get_xlabel(), ax.get_ylabel()) == ("v0 [m/s]", "p10 [m]")
+    assert (flat(ax.get_xlabel()), flat(ax.get_ylabel())) == (sc.label("v0"), sc.label("p10"))
     assert {"start", "last state", "run 3", "run 9"} <= set(legend_texts(fig))
     starts = [line.get_xydata()[0] for line in ax.get_lines() if line.get_marker() == "o"]
     np.testing.assert_allclose(starts, [[18, 20], [15, 8]])
@@ -301,9 +307,20 @@ def test_failures_of_fleet3_get_one_panel_per_plane(tmp_path):
     run = np.tile([4.5, 1.5, 1.5, 9.5, -15.0], (10, 1))
     run[:, 3] = np.linspace(9.5, 4.8, 10)
     fig = plots.failures_figure(sc, safe_set, [run])
-    assert [(ax.get_xlabel(), ax.get_ylabel()) for ax in visible_axes(fig)] == [("v0 [m/s]", "p10 [m]"),
-                                                                               ("v0 [m/s]", "p20 [m]")]
+    assert [(flat(ax.get_xlabel()), flat(ax.get_ylabel())) for ax in visible_axes(fig)] == [
+        (sc.label("v0"), sc.label("p10")), (sc.label("v0"), sc.label("p20"))]
     assert_png(plots.draw_failures(tmp_path / "f.png", sc, safe_set, [run]))
+
+
+def test_failures_too_many_to_name_still_key_their_colours():
+    sc, safe_set = lead_follow_set()
+    runs = [np.column_stack([np.linspace(18, 12, 10), np.full(10, 2.0), np.linspace(20 - k, -1, 10)]) for k in range(12)]
+    fig = plots.failures_figure(sc, safe_set, runs, [f"sample {k}" for k in range(12)])
+    (key,) = [t for t in legend_texts(fig) if "failing runs" in t]
+    assert flat(key) == "12 failing runs, one colour each: sample 0 yellow-green to sample 11 dark red"
+    assert not {"sample 0", "sample 11"} & set(legend_texts(fig))  # not one entry per run
+    unnamed = plots.failures_figure(sc, safe_set, runs[:3])
+    assert "3 failing runs, one colour each" in legend_texts(unnamed)
 
 
 def _grid_points(grids: dict, fixed: dict, n: int) -> np.ndarray:

@@ -2,6 +2,7 @@
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -176,3 +177,55 @@ def test_a_deterministic_certification_stopped_then_resumed_with_another_window_
     assert summary["runs_committed"] == whole["runs_committed"]
     assert summary["runs_certification"] == whole["runs_certification"] > 1000
     np.testing.assert_array_equal(ledger_indices(tmp_path / "out"), ledger_indices(tmp_path / "whole"))
+
+
+def test_a_kill_while_finishing_after_the_summary_is_finished_by_resume_without_running_again(tmp_path):
+    """finish() writes the sets, then summary.json, then plots/, then status "done": a kill
+    between summary.json and the figures leaves status "finishing" and no plots; resume
+    draws them from the saved files and ends as the campaign would have (exit 0)."""
+    from farm import config as config_mod
+    from farm.jobs.quantification import run
+
+    out = tmp_path / "out"
+    one_round = lead_follow_toml(delta_min=4.0).replace("horizon = 30", "horizon = 30\nholdout_runs = 0")
+    run(config_mod.parse(one_round, "c.toml"), out)
+    figures = sorted(p.name for p in (out / "plots").iterdir())
+    shutil.rmtree(out / "plots")
+    status = json.loads((out / "status.json").read_text())
+    (out / "status.json").write_text(json.dumps({"state": "finishing", "updated": status["updated"],
+                                                 "started": status["started"]}))
+    kept = {p: p.read_bytes() for p in out.rglob("*") if p.is_file() and p.name not in ("status.json", ".lock")}
+    assert "stopped while finishing" in cli("status", str(out)).stdout
+    r = cli("resume", str(out))
+    assert r.returncode == 0, r.stderr
+    assert "nothing to resume" not in r.stdout and f"result_hash: {status['result_hash']}" in r.stdout
+    assert sorted(p.name for p in (out / "plots").iterdir()) == figures
+    assert json.loads((out / "status.json").read_text())["state"] == "done"
+    # no run again: the summary, the sets, the ledger and the checkpoint are as they were
+    assert {p: p.read_bytes() for p in kept} == kept
+    again = cli("resume", str(out))
+    assert again.returncode == 0 and "nothing to resume" in again.stdout
+
+
+def test_a_kill_while_finishing_before_the_summary_is_finished_by_resume_with_the_same_holdout(tmp_path):
+    """A kill after the last checkpoint and before summary.json: resume writes every result
+    file again from the checkpoint, the holdout too (its runs are in no checkpoint)."""
+    from farm import config as config_mod
+    from farm.jobs.quantification import run
+
+    out = tmp_path / "out"
+    toml = lead_follow_toml(delta_min=4.0).replace("horizon = 30", "horizon = 30\nholdout_runs = 300")
+    run(config_mod.parse(toml, "c.toml"), out)
+    want = json.loads((out / "summary.json").read_text())
+    assert want["holdout"]["runs"] == 300
+    for name in ("summary.json", "safe_set.parquet"):
+        (out / name).unlink()
+    shutil.rmtree(out / "plots")
+    (out / "status.json").write_text(json.dumps({"state": "finishing"}))
+    segments = {p: p.read_bytes() for p in (out / "ledger").glob("*.parquet")}
+    r = cli("resume", str(out))
+    assert r.returncode == 0, r.stderr
+    got = json.loads((out / "summary.json").read_text())
+    assert got["result_hash"] == want["result_hash"] and got["holdout"] == want["holdout"]
+    assert (out / "safe_set.parquet").exists() and any((out / "plots").iterdir())
+    assert {p: p.read_bytes() for p in (out / "ledger").glob("*.parquet")} == segments  # no campaign run again

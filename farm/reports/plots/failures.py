@@ -15,6 +15,9 @@ from farm.reports.plots.slices import _extent, _paint
 from farm.reports.plots.style import HIDDEN_SAMPLES, RESOLUTION, SAFE_COLOUR, _save
 
 
+MANY_RUNS = 8  # more runs than Dark2's distinct colours: a gradient instead
+
+
 def _projection(scenario, safe_set, x, y):
     """The safe set's shadow on the plane (x, y) as a grid: a run's projected start lies
     in it whatever its other coordinates, which no single slice could promise."""
@@ -45,16 +48,30 @@ def _core(scenario, safe_set, x, y, xs, ys, samples: int = HIDDEN_SAMPLES):
     return member.grid(grids, {}).reshape(len(xs), len(ys), -1).all(axis=2)
 
 
-def _draw_runs(ax, trajectories, labels, x, y) -> None:
+def _draw_runs(ax, trajectories, labels, x, y) -> list:
+    """Each run a line from its start (circle) to its last state (cross); -> the colours."""
     # up to 8 runs: Dark2's distinct colours; more: the warm end of turbo (adjacent runs
     # differ); neither is the safe set's blue
-    many = len(trajectories) > 8
+    many = len(trajectories) > MANY_RUNS
     colours = plt.get_cmap("turbo")(np.linspace(0.55, 1.0, len(trajectories))) if many else \
         [plt.get_cmap("Dark2")(k) for k in range(len(trajectories))]
     for t, colour, label in zip(trajectories, colours, labels):
         ax.plot(t[:, x], t[:, y], color=colour, linewidth=1.3, label=label)
         ax.plot(t[0, x], t[0, y], "o", color=colour, markeredgecolor="black", markersize=6)
         ax.plot(t[-1, x], t[-1, y], "X", color=colour, markeredgecolor="black", markersize=7)
+    return list(colours)
+
+
+def _runs_key(trajectories, labels, named: bool) -> str | None:
+    """The legend's line for runs not named one by one: how many, one colour each (and
+    the first and last label, when there are labels)."""
+    if named:
+        return None
+    n = len(trajectories)
+    text = f"{n} failing run{'s' * (n != 1)}, one colour each"
+    if labels is not None and n > MANY_RUNS:  # turbo's warm end, in the runs' order
+        text += f":\n{labels[0]} yellow-green\nto {labels[-1]} dark red"
+    return text
 
 
 def failures_figure(scenario, safe_set, trajectories, labels=None):
@@ -66,6 +83,7 @@ def failures_figure(scenario, safe_set, trajectories, labels=None):
     if labels is not None and len(labels) != len(trajectories):
         raise ValueError(f"failures: {len(labels)} labels for {len(trajectories)} trajectories")
     named = labels is not None and len(trajectories) <= 10  # a longer legend would bury the plot
+    runs_key = _runs_key(trajectories, labels, named)
     labels = [str(s) for s in labels] if named else [None] * len(trajectories)
     planes = _planes(scenario)
     fig, axs = plt.subplots(1, len(planes), figsize=(6 * len(planes) + 1.8, 5.2), squeeze=False, layout="constrained")
@@ -78,7 +96,7 @@ def failures_figure(scenario, safe_set, trajectories, labels=None):
         lo, hi = scenario.lower, scenario.upper
         ax.add_patch(Rectangle((lo[x], lo[y]), hi[x] - lo[x], hi[y] - lo[y], fill=False, linestyle="--",
                                edgecolor="0.3"))
-        _draw_runs(ax, trajectories, labels, x, y)
+        colours = _draw_runs(ax, trajectories, labels, x, y)
         ax.set_xlim(*_limits(lo[x], hi[x], trajectories, x))
         ax.set_ylim(*_limits(lo[y], hi[y], trajectories, y))
         ax.set_xlabel(_label(scenario, x))
@@ -97,6 +115,8 @@ def failures_figure(scenario, safe_set, trajectories, labels=None):
     handles = [h_ for h_ in handles if h_ is not None]
     handles += [Line2D([], [], color=line.get_color(), label=line.get_label())
                 for line in axs[0, 0].get_lines() if named and not line.get_label().startswith("_")]
+    if runs_key and trajectories:  # the runs' colours are keyed too, when they are too many to name
+        handles.append(Line2D([], [], color=colours[len(colours) // 2], linewidth=1.3, label=runs_key))
     name = " / ".join(str(p) for p in (scenario.name, getattr(scenario, "sv_policy_name", None)) if p)
     fig.suptitle(_with_key(f"{name}: {len(trajectories)} failing run{'s' * (len(trajectories) != 1)} "
                            f"over the safe set ({len(safe_set)} boxes, {safe_set.describe_widths()})", scenario, fig),

@@ -10,11 +10,13 @@ from farm.reports.plots.membership import _axis, _held
 from farm.reports.plots.style import LEVELS
 
 
+LABEL_CHARS = 34  # an axis label's line: a panel's width of a 4-inch panel at 9-10 points
+
+
 def _label(scenario, axis: int) -> str:
-    """Axis label with unit, "v0 [m/s]"."""
-    name = scenario.state_names[axis]
-    unit = getattr(scenario, "units", {}).get(name)
-    return f"{name} [{unit}]" if unit else name
+    """Axis label with what the state is and its unit (scenarios/base.py ``Scenario.label``:
+    "v0 (the SV's speed, m/s)"), wrapped to a panel's width."""
+    return "\n".join(textwrap.wrap(scenario.label(scenario.state_names[axis]), LABEL_CHARS))
 
 
 def _setting(scenario, axis: int, value: float) -> str:
