@@ -17,17 +17,19 @@ from pathlib import Path
 from coordinator.guarantee import quantified, refined
 from coordinator.margin.refinement import MarginRefinement
 from coordinator.safe_set import SafeSet
-from farm import config as config_mod, lazy
-from farm.jobs.campaign_setup import side_facets
-from farm.execution.process import build_simulator, close_simulator, spec_of
+from farm import config as config_mod
+from farm import lazy
 from farm.config import Config
-from farm.jobs.side_campaign import SideCampaign, Stopped
 from farm.directory.files import atomic_write, write_json
-from farm.reports.progress import Progress
-from farm.jobs.resources import check_quantify
-from farm.reports.status import StatusWriter, read_status
 from farm.directory.storage import CampaignDir, CampaignError
+from farm.execution.process import build_simulator, close_simulator, spec_of
+from farm.jobs.campaign_setup import side_facets
+from farm.jobs.resources import check_quantify
+from farm.jobs.side_campaign import SideCampaign, Stopped
+from farm.reports.progress import Progress
+from farm.reports.status import StatusWriter, read_status
 from farm.reports.summary import Summary, budget_used_up, summarize
+from scenarios.errors import InfrastructureError
 
 __all__ = ["Stopped", "run"]
 
@@ -153,13 +155,20 @@ def finish(cfg: Config, out: Path, sides: dict[str, SideCampaign]) -> Summary:
 
 def draw(scenarios: dict, out: Path, safe_sets: dict, summary: Summary) -> None:
     """The figures of a finished campaign: ``scenarios`` and ``safe_sets``, side -> its
-    scenario and its set ("total" and fleet3's sides)."""
-    for name, scenario in scenarios.items():
-        if name == "total":
-            lazy.plots.draw(out / "plots", scenario, safe_sets[name], summary)
-        else:
-            lazy.plots.draw(out / "plots" / f"{name}_side", scenario, safe_sets[name],
-                            replace(summary, algorithm=f"{name} side"))
+    scenario and its set ("total" and fleet3's sides). Drawn last, after the set and
+    summary.json: a drawing that runs out of memory (a large set under ``ulimit -v``)
+    loses no result, and the status left at "finishing" lets ``resume`` draw again."""
+    try:
+        for name, scenario in scenarios.items():
+            if name == "total":
+                lazy.plots.draw(out / "plots", scenario, safe_sets[name], summary)
+            else:
+                lazy.plots.draw(out / "plots" / f"{name}_side", scenario, safe_sets[name],
+                                replace(summary, algorithm=f"{name} side"))
+    except MemoryError:
+        raise InfrastructureError(
+            f"out of memory while drawing {out / 'plots'}: the set ({len(safe_sets['total']):,} boxes) and "
+            f"summary.json are written; resume draws the figures (with more memory)") from None
 
 
 def finishing_interrupted(out: Path) -> bool:

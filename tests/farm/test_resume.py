@@ -229,3 +229,33 @@ def test_a_kill_while_finishing_before_the_summary_is_finished_by_resume_with_th
     assert got["result_hash"] == want["result_hash"] and got["holdout"] == want["holdout"]
     assert (out / "safe_set.parquet").exists() and any((out / "plots").iterdir())
     assert {p: p.read_bytes() for p in (out / "ledger").glob("*.parquet")} == segments  # no campaign run again
+
+
+def test_figures_that_run_out_of_memory_lose_no_result_and_resume_draws_them(tmp_path, monkeypatch):
+    """A drawing past its memory (a large set under ``ulimit -v``) ends in one line, exit 4,
+    with the set and summary.json written; resume draws the figures."""
+    from farm import api, lazy
+    from farm.reports import plots
+    from scenarios.errors import InfrastructureError
+
+    config = tmp_path / "c.toml"
+    config.write_text(lead_follow_toml())
+    out = tmp_path / "out"
+
+    def out_of_memory(*args, **kwargs):
+        raise MemoryError  # what numpy raises past RLIMIT_AS
+
+    monkeypatch.setattr(lazy, "plots", type(sys)("plots_out_of_memory"), raising=False)
+    lazy.plots.draw = out_of_memory
+    with pytest.raises(InfrastructureError, match=r"out of memory while drawing .*summary\.json are written; "
+                                                  r"resume draws the figures"):
+        api.quantify(str(config), out)
+    assert (out / "safe_set.parquet").is_file() and (out / "summary.json").is_file()
+    assert not (out / "plots").exists()
+    assert json.loads((out / "status.json").read_text())["state"] == "finishing"
+    monkeypatch.setattr(lazy, "plots", plots)
+    r = subprocess.run([sys.executable, "-m", "farm", "resume", str(out), "--quiet"], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in (out / "plots").iterdir())  # drawn
+    assert json.loads((out / "status.json").read_text())["state"] == "done"
