@@ -84,8 +84,10 @@ class Scenario(ABC):
                       guarantee ("with the lead vehicle's acceleration held at -5 m/s^2")
       failure_words   what a failure is, as a verb (e.g. "collide")
       sides           named sub-studies: side name -> the failure facets that count
-                      (e.g. fleet3's {"lead": ("p10",), "rear": ("p20",)}); quantified
-                      alongside the total and reported as volume_<side>_side
+                      (e.g. fleet3's {"lead": ("p10",), "rear": ("p20",)}); each side is a
+                      campaign of its own after the total (more runs: runs_committed sums
+                      them), reported as volume_<side>_side; in a side's study another
+                      side's failure facet ends a run without a failure (side_failures)
       parameter_names state variables that are parameters of the domain (a friction
                       coefficient, a controller's time headway): constant during a run.
                       ``step`` keeps them (the generic ``step_into`` copies them through;

@@ -50,14 +50,21 @@ HANG_MARKER = "FARM_TEST_HANG"  # environment: a file that, while it exists, mak
 
 class Hanging(LeadFollow):
     """Lead-follow whose step sleeps for ever (a hung simulator) on a batch holding a state
-    in the corner v0 > 19, v1 < 1, p10 > 66 (the start state [19.5, 0.5, 68] is one), while
-    the file named by $FARM_TEST_HANG exists (unset: always). When it starts to hang it
-    creates that file's name + ".hung", so a test knows it hangs."""
+    in the corner v0 > 19, v1 < 1 (the start state [19.5, 0.5, 68] is one), while the file
+    named by $FARM_TEST_HANG exists (unset: always). When it starts to hang it creates that
+    file's name + ".hung", so a test knows it hangs.
+
+    The corner is wide enough that a run the small campaign of tests/farm/test_hangs.py
+    must commit starts in it (sample index 551 of 1,805): with p10 > 66 as well it held
+    only run 1937, drawn ahead past the campaign's end, which a Ray worker may never start
+    before the campaign is done (a loaded machine: exit 0, not 4). Not in the first batch
+    either (0-255, which the in-process executor runs before any run time is measured,
+    under a limit of 10 minutes)."""
 
     name = "hanging"
 
     def step_into(self, states, actions, noise, out):
-        corner = (states[:, 0] > 19.0) & (states[:, 1] < 1.0) & (states[:, 2] > 66.0)
+        corner = (states[:, 0] > 19.0) & (states[:, 1] < 1.0)
         if corner.any():
             marker = os.environ.get(HANG_MARKER)
             if marker:

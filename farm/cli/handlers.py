@@ -17,6 +17,7 @@ from farm.reports.progress import Progress
 from farm.reports.summary import Summary, budget_used_up
 from farm.reports.holdout import describe_holdout
 from farm.reports.truncations import lines as truncation_lines
+from farm.reports.truncations import side_lines
 from scenarios.errors import ConfigError, ScenarioError
 
 EXIT_OK, EXIT_COUNTEREXAMPLE = exits.OK, exits.FINDING
@@ -127,6 +128,8 @@ def _print_summary(out: Path, summary=None) -> None:
 
     for line in truncation_lines(summary):
         print(f"{'truncated':>18}: {line}")
+    for line in side_lines(summary):
+        print(f"{'side study':>18}: {line}")
     if summary.holdout:
         print(f"{'holdout':>18}: {describe_holdout(summary.holdout)}")
     if not summary.converged:

@@ -12,8 +12,8 @@ DESCRIPTION = "scenario-farm (also python -m farm): a thin layer over farm.api."
 
 
 def _add_farm_flags(p, seed=True):
-    p.add_argument("--workers", type=int, help="Ray actors; a local Ray takes at most 4 per CPU (overrides "
-                                               "farm.workers)")
+    p.add_argument("--workers", type=int, help="Ray actors; a local Ray takes at most 4 per CPU, more with "
+                                               "farm.waiting (overrides farm.workers)")
     p.add_argument("--address", help="'local' (start Ray here), 'auto' (join the cluster of RAY_ADDRESS or `ray "
                                      "start`), 'host:port' or 'ray://host:port'; one that answers nothing within 3 s "
                                      "is refused (farm.address)")

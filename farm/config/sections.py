@@ -177,7 +177,12 @@ class FarmConfig(Section):
     """[farm]: where and how runs are simulated."""
 
     executor: Annotated[Literal["ray", "local", "virtual"], Field(**_fixed())] = "local"
-    workers: Annotated[int, Field(ge=1, le=4096, **_fixed("Ray actors (a local Ray: at most 4 per CPU), or the virtual farm's simulated workers"))] = 2
+    workers: Annotated[int, Field(ge=1, le=4096, **_fixed("Ray actors (a local Ray: at most 4 per CPU, unless "
+                                                          "farm.waiting), or the virtual farm's simulated workers"))] = 2
+    waiting: Annotated[bool, Field(**_fixed(
+        "the simulator waits on something else (a remote simulator server, a hardware-in-the-loop rig) "
+        "rather than computing: a local Ray may then hold more than 4 actors per CPU, as many as "
+        "farm.max_memory_gb allows"))] = False
     address: Annotated[str, Field(min_length=1, **_fixed(
         "'local', 'auto', 'host:port' or 'ray://host:port' (must answer within 3 s)"))] = "local"
     batch_size: Annotated[int, Field(ge=1, le=10_000_000, description="runs per drawn batch")] = 1024

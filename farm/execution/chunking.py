@@ -49,7 +49,7 @@ SPREAD = 0.1  # chunk sizes' coefficient of variation below which a and b are no
 EXTRAPOLATE = 4  # the floor's chunks hold at most this many times the largest chunk measured
 LIMIT_FACTOR = 10.0  # a chunk may take this many times its expected time ...
 LIMIT_FLOOR_S = 5.0  # [s] ... plus this (a loaded machine, a garbage collection)
-REPLAY_FLOOR_S = 120.0  # [s] an experience replay's limit at least: its cost per run is not a chunk's
+REPLAY_FLOOR_S = 120.0  # [s] an experience replay's limit at least (a few runs): its cost per run is not a chunk's
 FIRST_RUN_LIMIT_S = 60.0  # [s] per run of a chunk before any chunk has come back (and a close())
 WORKERS_PER_LANE = 16  # workers per fast lane (an actor that takes only replacements)
 ONE_AT_A_TIME_S = 0.2  # [s] chunks at least this long are sent to an actor one at a time
@@ -80,6 +80,7 @@ class ChunkSizer:
         self.run_cost_s: float | None = None  # b: a worker's time per run
         self._call = self._calls = 0.0  # decayed sums: t_call = call / calls
         self._largest = 0  # runs of the largest chunk measured
+        self.replay_run_s: float | None = None  # an experience replay's seconds per run, the latest measured
 
     # -- measurements ----------------------------------------------------------------------
     def ran(self, runs: int, busy_s: float) -> None:
@@ -101,6 +102,11 @@ class ChunkSizer:
         elif self.chunk_cost_s is not None and mean_t > self.chunk_cost_s:
             a, b = self.chunk_cost_s, (mean_t - self.chunk_cost_s) / mean_c  # sizes alike: a kept
         self.chunk_cost_s, self.run_cost_s = a, max(b, 1e-9)
+
+    def replayed(self, runs: int, seconds: float) -> None:
+        """An experience replay took ``seconds`` for ``runs`` runs (on one worker)."""
+        if runs > 0 and seconds >= 0:
+            self.replay_run_s = seconds / runs
 
     def called(self, seconds: float) -> None:
         """The driver spent ``seconds`` on one chunk's call and result."""
@@ -194,9 +200,16 @@ class ChunkSizer:
 
     def replay_limit(self, runs: int) -> float:
         """[s] the time a round end's experience replay of ``runs`` runs may take: it
-        re-simulates stored runs up to their kept states, which the chunks' fit does not
-        predict (10x + 5 s failed one at load 16 here)."""
-        return self.chunk_timeout if self.chunk_timeout > 0 else max(REPLAY_FLOOR_S, self.limit(runs))
+        screens (or re-simulates) every kept state of its stored runs, which the chunks'
+        fit does not predict (10x + 5 s failed one at load 16 here), so its time per run
+        is the larger of a chunk's and the latest replay's, and the limit grows with the
+        runs: ``LIMIT_FACTOR`` times that, plus ``LIMIT_FLOOR_S``, at least
+        ``REPLAY_FLOOR_S`` (a fixed 120 s ended a 7-D campaign's replay of 118,566 runs
+        with exit 4, though nothing hung)."""
+        if self.chunk_timeout > 0:
+            return self.chunk_timeout
+        per_run = max(self.run_s or 0.0, self.replay_run_s or 0.0)
+        return max(REPLAY_FLOOR_S, LIMIT_FLOOR_S + LIMIT_FACTOR * runs * per_run)
 
     def limit(self, runs: int) -> float:
         """[s] the time a chunk of ``runs`` runs may take once its worker has started it."""

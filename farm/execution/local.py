@@ -101,7 +101,10 @@ class LocalExecutor(Executor):
         return lambda: (where() if where is not None else None) or runs
 
     def screen_stored(self, pieces, screen):
+        runs = sum(len(p.indices) for p in pieces)
+
         def work():
+            t0 = time.perf_counter()
             out = []
             for piece in pieces:
                 if piece.source is None:
@@ -110,9 +113,9 @@ class LocalExecutor(Executor):
                     rows = np.arange(len(piece.rows))
                     out.append(screen_piece(self.simulator, piece.source, dataclasses.replace(piece, rows=rows),
                                             screen))
+            self.sizer.replayed(runs, time.perf_counter() - t0)  # the next replay's limit follows it
             return out
 
-        runs = sum(len(p.indices) for p in pieces)
         # a round end's replay finishes before a stop is taken (interruptible=False)
         return self._thread.run(work, self.sizer.replay_limit(runs),
                                 self._what(f"{self._culprit}: experience replay of {runs} runs"), interruptible=False)

@@ -65,6 +65,8 @@ def run(cfg: Config, out: Path, *, resume: bool = False, force: bool = False, pr
     check_quantify(cfg, scenario.lower, scenario.upper)
     sides = [SideCampaign(cfg, side, out if side == "total" else out / "sides" / side, failure_facets)
              for side, failure_facets in side_facets(cfg, scenario).items()]
+    if len(sides) > 1:
+        progress.line(sides_line(scenario.name, [side.side for side in sides[1:]]))
     status = StatusWriter(out)
     try:
         if finished is not None:
@@ -101,6 +103,14 @@ def _ending(cfg: Config, sides: list[SideCampaign]) -> str:
     if not spent:
         return "all runs done"
     return budget_used_up(cfg.quantify.budget, sum(c.committed for c in spent), sum(c.runs_simulated for c in spent))
+
+
+def sides_line(scenario: str, names: list[str]) -> str:
+    """The start line of a campaign with sides: they are campaigns of their own, which a
+    user who only named the scenario did not ask for by name."""
+    return (f"sides: scenario {scenario!r} declares sides {', '.join(names)}: {1 + len(names)} campaigns, the total "
+            f"then each side's, up to about {1 + len(names)}x the runs of the total alone (platoon with 4 vehicles, 7-D: "
+            f"2.2x; runs_committed sums them); quantify.sides = false quantifies the total only")
 
 
 def _refuse_a_changed_config(directory: CampaignDir, cfg: Config) -> None:

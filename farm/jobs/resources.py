@@ -6,7 +6,9 @@ Both used to run until the machine gave out. The estimates here are worst cases 
 cell of the finest covering alive), so a refusal is never wrong about what was asked;
 the limit is ``farm.max_memory_gb`` (default: three quarters of this machine's memory).
 The farm is checked too: a local Ray gets at most ``ACTORS_PER_CPU`` actors per CPU of
-this machine, and a cluster is joined before any file is written.
+this machine, or, where the simulator waits on something else (``farm.waiting``: a remote
+simulator server, a hardware-in-the-loop rig), as many as fit the memory limit at
+``BYTES_PER_ACTOR`` each; a cluster is joined before any file is written.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import os
 import numpy as np
 
 from farm.config import Config, ConfigError
+from farm.execution.chunking import fast_lanes
 from farm.ray_runtime.session import connect
 
 # Measured: lead-follow idm under Gamma* at delta_min 0.125 peaked at 1.66 GB with 1.83 M
@@ -28,6 +31,10 @@ BYTES_PER_CENTRE = 256
 # each is a process that takes its memory and seconds to start; a few per CPU still hide
 # a simulator that waits rather than computes (docs/benchmarks.md, branch errors).
 ACTORS_PER_CPU = 4
+# A waiting simulator's actors cost memory, not CPU: each is a Ray worker process holding
+# the farm, numpy and the scenario. Measured (lead-follow numpy, after a 4,096-run chunk,
+# /proc via psutil): 136 MB resident, 66 MB its own (USS); counted with room for a chunk.
+BYTES_PER_ACTOR = 150e6
 
 
 def memory_limit_bytes(cfg: Config) -> float:
@@ -75,19 +82,38 @@ def machine_cpus() -> int:
         return os.cpu_count() or 1
 
 
+def waiting_workers_most(limit_bytes: float) -> int:
+    """The most workers of a waiting simulator whose actors, fast lanes included, fit
+    ``limit_bytes`` at ``BYTES_PER_ACTOR`` each (at least 1)."""
+    most = max(1, int(limit_bytes // BYTES_PER_ACTOR))
+    while most > 1 and (most + fast_lanes(most)) * BYTES_PER_ACTOR > limit_bytes:
+        most -= 1
+    return most
+
+
 def check_farm(cfg: Config) -> None:
-    """Refuse a local Ray with more actors than ``ACTORS_PER_CPU`` per CPU (ConfigError).
-    A cluster is joined now, before any file is written: an address that answers
-    nothing, or answers but is no Ray cluster, is refused with nothing to clean up."""
+    """Refuse a local Ray with more actors than ``ACTORS_PER_CPU`` per CPU, or, with
+    ``farm.waiting``, than the memory limit holds (ConfigError). A cluster is joined now,
+    before any file is written: an address that answers nothing, or answers but is no
+    Ray cluster, is refused with nothing to clean up."""
     farm = cfg.farm
     if farm.executor != "ray":
         return
     if farm.address == "local":
+        prefix = f"farm.workers: {farm.workers} actors on a local Ray of {machine_cpus()} CPUs; allowed"
+        if farm.waiting:
+            limit = memory_limit_bytes(cfg)
+            most = waiting_workers_most(limit)
+            if farm.workers > most:
+                raise ConfigError(f"{prefix} [1, {most}] (farm.waiting: each a process of about "
+                                  f"{_gb(BYTES_PER_ACTOR)}, within farm.max_memory_gb = {_gb(limit)}); for more, "
+                                  f"join a cluster with farm.address")
+            return
         most = ACTORS_PER_CPU * machine_cpus()
         if farm.workers > most:
-            raise ConfigError(f"farm.workers: {farm.workers} actors on a local Ray of {machine_cpus()} CPUs; allowed "
-                              f"[1, {most}] ({ACTORS_PER_CPU} per CPU: more only share the CPUs, each a process of "
-                              f"its own); for more, join a cluster with farm.address")
+            raise ConfigError(f"{prefix} [1, {most}] ({ACTORS_PER_CPU} per CPU: more only share the CPUs, each a "
+                              f"process of its own; a simulator that waits on a remote server: farm.waiting = "
+                              f"true); for more, join a cluster with farm.address")
         return
     connect(farm.address, farm.workers)
 

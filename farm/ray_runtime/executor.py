@@ -340,6 +340,7 @@ class RayExecutor(Executor):
             groups[g].append(i)
             load[g] += len(share.indices)
         calls = []
+        t0 = time.monotonic()
         for members in groups:
             if members:
                 call = self._replay_call([shares[i] for i in members], screen)
@@ -349,6 +350,8 @@ class RayExecutor(Executor):
         for members, call in calls:
             for i, piece_found in zip(members, self._read_replay(call)):
                 found[i] = piece_found
+        if calls:  # the actors replayed at once: the largest share took the time
+            self.sizer.replayed(max(call.runs for _, call in calls), time.monotonic() - t0)
         # back to one result per piece (re-simulated pieces came in shares)
         out, at = [], 0
         for piece in pieces:

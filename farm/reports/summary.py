@@ -26,7 +26,8 @@ SIDE_KEYS = ("volume", "volume_hull", "result_hash", "guarantee", "guarantee_for
 VIRTUAL_KEYS = ("virtual_elapsed_s", "utilisation", "virtual_waiting_s", "virtual_coordinator_s")
 # written only where they apply: an estimated volume's interval, margin refinement, a holdout
 OPTIONAL_KEYS = VIRTUAL_KEYS + ("refine", "volume_union_exact", "volume_union_interval", "volume_hull_exact",
-                                "volume_hull_interval", "volume_method", "half_widths_finest", "holdout")
+                                "volume_hull_interval", "volume_method", "half_widths_finest", "holdout",
+                                "side_failures")
 
 
 @dataclass(frozen=True)
@@ -110,6 +111,10 @@ class Summary(JsonFile):
     round_ends: list = field(default_factory=list)
     # committed runs that left Sigma through a truncating facet (counted safe), per facet
     truncations: dict = field(default_factory=dict)
+    # a scenario with sides: committed runs of a side's study that reached another side's
+    # failure facet (which that study leaves out: the run ends there, no failure), per
+    # facet and side study: {"p20 > -5": {"lead": 412}}
+    side_failures: dict | None = None
     scenario_farm_version: str = ""
     # the virtual farm (farm.executor = "virtual"): simulated time to the result, the
     # share of the workers' time spent on runs, and of the time to the result the head's
@@ -212,6 +217,7 @@ def summarize(cfg: Config, sides: dict, safe_sets: dict[str, SafeSet], guarantee
         if total.anisotropic and len(total) else None,
         round_ends=list(c.round_ends),
         truncations=_truncations(scenario, counters),
+        side_failures=_side_failures(scenario, sides),
         scenario_farm_version=__version__,
         **_virtual(sides),
         sides={name: SideSummary(volume=safe_sets[name].volume_union(bounds),
@@ -233,13 +239,29 @@ def _volumes(safe_set: SafeSet, bounds) -> dict:
 
 
 def _truncations(scenario, counters: list) -> dict[str, int]:
-    """Committed truncated runs per facet label, over the sides' campaigns."""
+    """Committed truncated runs per facet label, over the sides' campaigns; a facet that
+    is a failure of the scenario (another side's, in a side's study) is not a truncation
+    (``_side_failures``)."""
     totals = {}
     for k in counters:
-        for (facet, _), n in zip(scenario.facets(), k.truncations):
-            if n:
+        for (facet, failure), n in zip(scenario.facets(), k.truncations):
+            if n and not failure:
                 totals[facet.label] = totals.get(facet.label, 0) + int(n)
     return totals
+
+
+def _side_failures(scenario, sides: dict) -> dict | None:
+    """Committed runs of each side's study that ended on a failure facet of the scenario
+    that the side leaves out (another side's failure), per facet label and side; None
+    without sides."""
+    if len(sides) < 2:
+        return None
+    out: dict = {}
+    for name, side in sides.items():
+        for (facet, failure), n in zip(scenario.facets(), side.campaign.counters.truncations):
+            if n and failure:
+                out.setdefault(facet.label, {})[name] = int(n)
+    return out
 
 
 def _virtual(sides: dict) -> dict:

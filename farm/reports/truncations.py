@@ -24,3 +24,15 @@ def lines(summary: Summary) -> list[str]:
     for each facet with a noticeable share."""
     return [f"{runs} runs left through {facet} (truncated, counted safe; {share:.1%} of committed runs)"
             for facet, runs, share in shares(summary) if share >= NOTICEABLE_SHARE]
+
+
+def side_lines(summary: Summary) -> list[str]:
+    """With sides, the CLI's end lines for the runs of a side's study that reached another
+    side's failure facet (a noticeable share): no truncation, but a failure that study
+    leaves out; the total's study and that other side's count them as failures."""
+    committed = max(summary.runs_committed, 1)
+    return [f"{runs} runs of the {side} side's study reached {facet}, another side's failure (not one of the "
+            f"{side} side, whose study leaves that facet out; the total counts it; {runs / committed:.1%} of "
+            f"committed runs)"
+            for facet, by_side in (summary.side_failures or {}).items() for side, runs in by_side.items()
+            if runs / committed >= NOTICEABLE_SHARE]

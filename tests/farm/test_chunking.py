@@ -47,10 +47,20 @@ def test_a_slow_simulator_gets_one_run_chunks_and_a_limit_from_its_run_time():
 
 def test_an_experience_replay_gets_at_least_two_minutes_unless_the_user_fixes_the_limit():
     fast = measured(2, 0.007, 0.00001)  # numpy-like: a chunk's limit is a few seconds
-    assert fast.limit(30_000) < 10 and fast.replay_limit(30_000) == REPLAY_FLOOR_S
-    slow = measured(2, 0.01, 1.0)
-    assert slow.replay_limit(100) == slow.limit(100) > REPLAY_FLOOR_S  # the fit's limit when larger
+    assert fast.limit(30_000) < 10 and fast.replay_limit(3_000) == REPLAY_FLOOR_S
     assert measured(2, 0.01, 1.0, timeout=7.0).replay_limit(100) == 7.0  # farm.chunk_timeout
+
+
+def test_an_experience_replays_limit_grows_with_its_runs_at_the_measured_time_per_run():
+    """A 7-D replay of 118,566 runs met a fixed 120 s and ended its campaign with exit 4."""
+    sizer = measured(2, 0.007, 0.00001)
+    per_run = sizer.run_s  # the chunks' seconds per run, their cost per chunk shared out
+    assert sizer.replay_limit(118_566) == pytest.approx(LIMIT_FLOOR_S + LIMIT_FACTOR * 118_566 * per_run)
+    assert sizer.replay_limit(2 * 118_566) > 1.9 * sizer.replay_limit(118_566) > REPLAY_FLOOR_S  # no fixed cap
+    # a replay screens every kept state, slower per run than a chunk: the next limit follows the last replay
+    sizer.replayed(30_000, 36.0)  # 1.2 ms a run
+    assert sizer.replay_limit(118_566) == pytest.approx(LIMIT_FLOOR_S + LIMIT_FACTOR * 118_566 * 1.2e-3)
+    assert sizer.replay_limit(100) == REPLAY_FLOOR_S  # a few runs: the floor
 
 
 def test_a_chunk_holds_about_a_second():

@@ -4,6 +4,7 @@ keys in the same order and writes back byte for byte (its sides too); an older f
 reader of a campaign directory takes it; a file that is no summary is a one-line error."""
 
 import html
+import io
 import json
 import shutil
 
@@ -15,7 +16,10 @@ from farm.jobs.quantification import run
 from farm.reports.html import write_html
 from farm.reports.status import describe
 from farm.directory.storage import CampaignError
+from farm.reports.progress import Progress
 from farm.reports.summary import SideSummary, Summary
+from farm.reports.truncations import lines as truncation_lines
+from farm.reports.truncations import side_lines
 from scenarios.fleet3 import Fleet3
 
 # keys the first summary.json writer (before certification rounds) did not write
@@ -31,8 +35,31 @@ def fleet3(tmp_path_factory):
                                 "quantify": {"delta0": 3.0, "delta_min": 3.0, "epsilon": 0.01, "beta": 0.1,
                                              "horizon": 30},
                                 "farm": {"executor": "local", "batch_size": 256}})
-    returned = run(cfg, out, resume=False)
+    returned = run(cfg, out, resume=False, progress=Progress(stream=STARTED))
     return out, returned
+
+
+STARTED = io.StringIO()  # the fleet3 campaign's progress lines
+
+
+def test_sides_are_said_at_the_start_and_another_sides_failure_is_no_truncation_at_the_end(fleet3):
+    out, summary = fleet3
+    assert "sides: scenario 'fleet3' declares sides lead, rear: 3 campaigns" in STARTED.getvalue()
+    assert "quantify.sides = false" in STARTED.getvalue()
+    # a side's study that ends runs on the other side's failure facet counts them apart, never as truncations
+    assert summary.side_failures is not None and not {"p10 < 5", "p20 > -5"} & set(summary.truncations)
+    assert set(summary.side_failures.get("p10 < 5", {})) <= {"rear"}
+    assert set(summary.side_failures.get("p20 > -5", {})) <= {"lead"}
+
+
+def test_the_end_lines_call_another_sides_failure_what_it_is():
+    base = {"scenario": "fleet3", "algorithm": "spe", "boxes": 1, "result_hash": "h", "guarantee": "g"}
+    summary = Summary.from_json({**base, "runs_committed": 10_000, "truncations": {"v1 > 6": 300},
+                                 "side_failures": {"p20 > -5": {"lead": 412}, "p10 < 5": {"rear": 20}}})
+    assert truncation_lines(summary) == ["300 runs left through v1 > 6 (truncated, counted safe; 3.0% of committed runs)"]
+    assert side_lines(summary) == ["412 runs of the lead side's study reached p20 > -5, another side's failure (not "
+                                   "one of the lead side, whose study leaves that facet out; the total counts it; "
+                                   "4.1% of committed runs)"]  # 0.2 %: not said
 
 
 def test_a_real_summary_reads_back_key_for_key_and_writes_back_byte_for_byte(fleet3, tmp_path):
