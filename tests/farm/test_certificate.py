@@ -45,8 +45,8 @@ def test_a_real_certificate_reads_back_key_for_key_and_writes_back_byte_for_byte
 def test_an_older_certificate_reads_and_replay_takes_the_counterexample_through_it(tmp_path):
     cert = validate_toy(tmp_path / "v", "eps", {"domain": {"x": [4.0, 6.0]}})
     assert not cert.certified and cert.counterexample["sample_index"] == cert.n_run - 1
-    ok, text = replay(tmp_path / "v", cert.n_run - 1)
-    assert ok and "replay reproduces the counterexample" in text
+    ok, finding, text = replay(tmp_path / "v", cert.n_run - 1)
+    assert ok and finding and "replay reproduces the counterexample" in text  # a finding: exit 1
     data = json.loads((tmp_path / "v" / "certificate.json").read_text())
     del data["guarantee_formal"]  # before it had its own key, the formal words were only "statement"
     data["reviewed_by"] = "someone"
