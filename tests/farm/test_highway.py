@@ -73,7 +73,10 @@ def test_reversing_vehicles_truncate_runs_that_collide_once_clamped(highway_on_p
 @pytest.mark.soak  # a minute; CI runs highway-env in the lateral case and the clamp test
 def test_highway_idm_quantified_on_ray_certified_and_compared_with_numpy(workdir, highway_on_path):
     cli = shutil.which("scenario-farm")
-    (workdir / "small.toml").write_text(small((workdir / "lead_follow_highway.toml").read_text()))
+    # refined everywhere: SPE's rounds and its certification by enumeration (margin
+    # refinement, the deterministic default, certifies without new runs)
+    (workdir / "small.toml").write_text(small((workdir / "lead_follow_highway.toml").read_text(),
+                                              **{"delta_min = 1.0": 'delta_min = 4.0\nrefine = "all"'}))
     r = run([cli, "quantify", "small.toml", "--out", "runs/hw"], workdir)
     assert r.returncode == 0, r.stderr
     summary = json.loads((workdir / "runs" / "hw" / "summary.json").read_text())
