@@ -28,16 +28,20 @@ class SPECertification:
         if self._edge is not None and self._edge[0] == self.version:
             return self._edge[1]
         count = self.vertices.count
-        ids = self.vertices.alive_ids()
-        near = self._near_boundary(ids)
+        # ``_near_boundary`` over every id at once, without gathering the alive ones' points:
+        # this runs after every change of a closing round
+        reach = self.scenario.step_bound() + self.delta
+        near = self._facet_near(count, reach).copy()
+        if self.failures.count:
+            near |= self._failure_distances()[:count] <= reach + self.delta
         if self.hole_ids.size:
             holes = self.vertices.points[self.hole_ids.view]
-            near |= self._holes.update(self.vertices.points, count, holes, len(holes))[ids] <= \
+            near |= self._holes.update(self.vertices.points, count, holes, len(holes))[:count] <= \
                 self.scenario.step_bound() + 2 * self.delta
-        mask = np.zeros(count, dtype=bool)
-        mask[ids[near]] = True
+        alive = self.vertices.alive[:count]
+        mask = alive & near
         if not mask.any():
-            mask[ids] = True
+            mask = alive.copy()
         if self._edge is not None:
             old = self._edge[1]
             self._stable.touch(np.flatnonzero(mask[: len(old)] != old), self.version)

@@ -33,7 +33,12 @@ import numpy as np
 from scenarios.streams import PURPOSE_START, RunStreams
 
 MAX_TRIES = 64  # candidates a run examines before it draws directly from the law
-TRY_BLOCK = 8  # tries drawn at once for the runs still searching
+# tries drawn at once for the runs still searching, growing: a dense law accepts within the
+# first few, while a sparse one (a closing round's band, ~1 slot in 16) would otherwise take
+# eight passes of the same dozen array operations for a handful of runs (a replacement is
+# one run); tries past a run's first accepted one are drawn and never looked at
+TRY_BLOCKS = (8, 16, 40)
+assert sum(TRY_BLOCKS) == MAX_TRIES
 # examined slots kept per run (a run that examined more may move with any change): all of
 # them, so that a sparse law (a closing round's band: ~1 slot in 16 accepted) still moves
 # only the draws a change touched; results never depend on it, only what is re-drawn
@@ -222,14 +227,12 @@ class StableSampler:
         slots = np.zeros((b, MAX_TRIES), dtype=np.int64)
         vs = np.zeros((b, MAX_TRIES))
         searching = np.arange(b)
-        for first in range(0, MAX_TRIES, TRY_BLOCK):
+        first = 0
+        for k in TRY_BLOCKS:
             if len(searching) == 0:
                 break
-            k = min(TRY_BLOCK, MAX_TRIES - first)
-            rows = np.repeat(searching, k)
-            counters = np.tile(np.arange(first + 1, first + k + 1, dtype=np.uint64), len(searching))
-            u = streams.uniform_at(counters, PURPOSE_START, 0, rows=rows).reshape(-1, k)
-            v = streams.uniform_at(counters, PURPOSE_START, 1, rows=rows).reshape(-1, k)
+            uv = streams.uniform_grid(range(first + 1, first + k + 1), PURPOSE_START, 2, searching)
+            u, v = uv[:, :, 0], uv[:, :, 1]
             cand = np.minimum((u * self.cap).astype(np.int64), self.cap - 1)
             ok = law.accept(cand.ravel(), v.ravel()).reshape(-1, k)
             slots[searching, first : first + k] = cand
@@ -241,6 +244,7 @@ class StableSampler:
             tries[hit] = first + at[found] + 1
             tries[searching[~found]] = first + k
             searching = searching[~found]
+            first += k
         untracked = tries > TRACKED
         if len(searching):
             untracked[searching] = True
@@ -265,8 +269,11 @@ class StableSampler:
         if self.reborn[1] >= 0:
             out |= (draws.versions < self.reborn[1]) & (draws.now >= self.reborn[0])
         if len(draws):
-            slots = draws.slots
-            self._grow(max(int(slots.max()) + 1, 1))  # all -1 (drawn before a restore): one slot
+            # only the columns some draw examined: a dense law's draws examine a few of TRACKED
+            column_max = draws.slots.max(axis=0)
+            width = int(np.flatnonzero(column_max >= 0)[-1]) + 1 if column_max.max() >= 0 else 1
+            slots = draws.slots[:, :width]
+            self._grow(max(int(column_max.max()) + 1, 1))  # all -1 (drawn before a restore): one slot
             latest = np.where(slots >= 0, self.stamp[np.maximum(slots, 0)], -1).max(axis=1)
             touched = latest > draws.versions
             if law is not None:

@@ -18,6 +18,7 @@ that key reproduces the run.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
@@ -45,6 +46,27 @@ def mix64(z: np.ndarray) -> np.ndarray:
     z *= _C2
     z ^= z >> _S31
     return z
+
+
+@lru_cache(maxsize=64)
+def _seed_part(seed: int) -> np.ndarray:
+    part = mix64(np.array([(seed + _G_INT) % 2**64], dtype=np.uint64))
+    part.flags.writeable = False  # shared by every batch of the seed
+    return part
+
+
+@lru_cache(maxsize=16)
+def _purpose_offset(purpose: int) -> np.uint64:
+    return np.uint64((purpose * int(_G3) + _G_INT) % 2**64)
+
+
+@lru_cache(maxsize=64)
+def _grid_steps(start: int, stop: int, width: int) -> np.ndarray:
+    """(stop - start, width) the increments of draws (counter, lane) (read-only: shared)."""
+    steps = np.array([[(c * LANES + lane + 1) * _G_INT % 2**64 for lane in range(width)] for c in range(start, stop)],
+                     dtype=np.uint64)
+    steps.flags.writeable = False
+    return steps
 
 
 _UNIT = 1.0 / 9007199254740992.0  # 2**-53: a draw is its top 53 bits times this
@@ -93,10 +115,9 @@ class RunStreams:
     def _base(self, purpose: int) -> np.ndarray:
         base = self._bases.get(purpose)
         if base is None:
-            with np.errstate(over="ignore"):
-                seed_part = mix64(np.array([self.seed], dtype=np.uint64) + _G)
-                idx_part = mix64(self.indices * _G2 + np.uint64(purpose) * _G3 + _G)
-                base = mix64(seed_part ^ idx_part)
+            # array arithmetic wraps silently; the scalar terms are folded in Python integers
+            idx_part = mix64(self.indices * _G2 + _purpose_offset(purpose))
+            base = mix64(_seed_part(self.seed) ^ idx_part)
             self._bases[purpose] = base
         return base
 
@@ -133,3 +154,17 @@ class RunStreams:
             z = base + (counters * np.uint64(LANES) + np.uint64(lane + 1)) * _G
         z = mix64(z)
         return (z >> _S11) * _UNIT
+
+    def uniform_grid(self, counters: range, purpose: int, width: int, rows: np.ndarray) -> np.ndarray:
+        """(len(rows), len(counters), width) U[0, 1) doubles: entry [r, c, lane] equals
+        ``uniform(counters[c], purpose, width)[rows[r], lane]``. Every run asked at the
+        same counters (a sampler's block of tries): one gather of the runs' sub-streams and
+        the increments of (counter, lane) computed once, not per run."""
+        if not 0 < width <= LANES:
+            raise ValueError(f"width must be in [1, {LANES}]")
+        base = self._base(purpose)[rows]
+        steps = _grid_steps(counters.start, counters.stop, width)
+        z = base[:, None, None] + steps[None, :, :]  # uint64 arithmetic wraps, as SplitMix64 wants
+        z = mix64(z)
+        return (z >> _S11) * _UNIT
+
