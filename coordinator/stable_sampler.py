@@ -262,8 +262,8 @@ class StableSampler:
         only if its accepted try changed (rarely, a later try finds the same id), and
         renewed (its version set to ``version``) if it stands. Without, or for an untracked
         draw, flagged."""
-        if draws.fixed:
-            return np.zeros(len(draws), dtype=bool)
+        if draws.fixed or (len(draws) and int(draws.versions.min()) >= self.last):
+            return np.zeros(len(draws), dtype=bool)  # nothing changed since any of them was drawn
         whole = draws.versions < self.everything
         out = whole | (draws.untracked & (draws.versions < self.last))
         if self.reborn[1] >= 0:
