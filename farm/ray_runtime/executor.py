@@ -236,8 +236,8 @@ class RayExecutor(Executor):
         t0 = time.perf_counter()
         message = self.mirrors.message(actor, job.screen, job.fresh)
         job.sent = self.pool.slots[actor].synced
-        job.ref, job.visited_ref = self._actor(actor).run.remote(job.first, job.starts, message, job.actions,
-                                                                 job.indices)
+        job.ref, job.visited_ref = self._actor(actor).run.remote((job.first, job.starts, message, job.actions,
+                                                                  job.indices))
         job.fresh = False
         job.call_s += time.perf_counter() - t0
         self.pool.sent(job, actor)
