@@ -15,6 +15,7 @@ from coordinator.coverage import Coverage
 from coordinator.executor import ChunkSummary, screen_piece
 from farm import lazy
 from farm.execution.process import build_simulator
+from farm.ray_runtime import where
 from scenarios.simulator import SimSpec
 
 RESYNC = "resync"  # a worker's answer when its mirror cannot reach the chunk's version
@@ -31,6 +32,7 @@ def actor_class():
 
         def __init__(self, spec: dict, check_step_bound: bool):
             self.simulator = build_simulator(SimSpec(**spec), check_step_bound)
+            where.watch(self.simulator.backend, ray.get_runtime_context().get_actor_id())
             self.mirror: Coverage | None = None
             self.static = (None, None)
             self.busy_s = 0.0

@@ -32,6 +32,7 @@ from collections import deque
 from typing import Callable
 
 from farm.execution.waiting import POLL_S, WorkerError, stop_asked
+from farm.ray_runtime import where
 
 PING_S = 2.0  # [s] between asks whether a down actor is back
 POLL_QUIET_S = 0.005  # [s] between looks for finished calls outside a wait
@@ -277,9 +278,12 @@ class ActorPool:
 
     def _overran(self, actor: int, call: Call, seconds: float, limit: float) -> None:
         call.timeouts += 1
-        self._charge(call, f"did not finish within {limit:.3g} s")
-        self.ray.kill(self.slots[actor].handle, no_restart=False)
-        self._say(f"a Ray worker ran {call.what} for {seconds:.1f} s, over its limit of {limit:.3g} s "
+        handle = self.slots[actor].handle
+        stuck = where.told(handle._actor_id.hex())  # before the kill: a restarted actor forgets it
+        hung = f" (hung in {stuck})" if stuck else ""
+        self._charge(call, f"did not finish within {limit:.3g} s{hung}")
+        self.ray.kill(handle, no_restart=False)
+        self._say(f"a Ray worker ran {call.what} for {seconds:.1f} s{hung}, over its limit of {limit:.3g} s "
                   f"(farm.chunk_timeout): it is replaced and the runs go to another worker")
         self.lost(actor, charged=call)
 

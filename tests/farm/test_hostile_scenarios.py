@@ -90,7 +90,8 @@ def test_on_ray_a_hung_step_gives_up_after_max_retries_naming_the_run(ray_local)
     t0 = time.monotonic()
     try:
         with pytest.raises(WorkerError, match=r"back end 'per_run_simulators:HangsInStep': sample index 7 "
-                                              r"\(start state .* 2 times, on a different worker each time"):
+                                              r"\(start state .* \(hung in per_run_simulators:HangsInStep.step\(\) "
+                                              r"on sample index 7 .* 2 times, on a different worker each time"):
             for handle in ex.submit(7, np.array([[10.0, 10.0, 40.0]])):
                 ex.result(handle)
     finally:
