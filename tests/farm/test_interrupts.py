@@ -87,7 +87,10 @@ def test_signal_at_five_moments_then_resume_gives_the_uninterrupted_result(tmp_p
         else:  # stopped at a chunk boundary, checkpointed: exit 130 and one line saying so
             assert code == 130, stderr
             assert "Traceback" not in stderr and "stopped at" in stderr, stderr
-    assert interrupted == len(MOMENTS), f"only {interrupted} interruptions landed before the campaign ended"
+    # on Ray the chunks (a segment each) follow the measured run times, so a resumed run may
+    # reach its end in fewer segments than the reference did: the last moment may not land
+    landed = len(MOMENTS) if executor == "local" else len(MOMENTS) - 1
+    assert interrupted >= landed, f"only {interrupted} interruptions landed before the campaign ended"
     r = subprocess.run(quantify(config, out, "--resume"), capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     got, want = (json.loads((d / "summary.json").read_text()) for d in (out, whole))
