@@ -54,6 +54,20 @@ class RunBatch:
     def __len__(self) -> int:
         return len(self.indices)
 
+    @classmethod
+    def joined(cls, parts: list["RunBatch"]) -> "RunBatch":
+        """The runs of ``parts`` one after another as one batch: the same batch as if they
+        had been simulated together (a run depends on its key only)."""
+        steps = max(len(part.trajectories) for part in parts)
+        trajectories = np.empty((steps, sum(len(part) for part in parts), parts[0].trajectories.shape[2]))
+        at = 0
+        for part in parts:  # the steps past a part's longest run are past all of its runs' lengths
+            trajectories[: len(part.trajectories), at : at + len(part)] = part.trajectories
+            at += len(part)
+        return cls(np.concatenate([part.indices for part in parts]), trajectories,
+                   *(np.concatenate([getattr(part, name) for part in parts])
+                     for name in ("lengths", "outcomes", "exits", "margins")))
+
     def trajectory(self, row: int) -> np.ndarray:
         """(length, n) states of one run."""
         return self.trajectories[: self.lengths[row], row]

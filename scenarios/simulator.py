@@ -49,11 +49,13 @@ class Simulator:
         return self.policy.deterministic and self.scenario.disturbance == 0 and self.backend.deterministic
 
     def simulate(self, first_index: int, starts: np.ndarray, indices: np.ndarray | None = None,
-                 actions: dict | None = None) -> RunBatch:
+                 actions: dict | None = None, rest_follows: bool = False) -> RunBatch:
         """Runs ``first_index, first_index + 1, ...`` (or the given sample ``indices``)
         from ``starts``. ``actions``: the policy's adaptive state (``policy.state()``, e.g.
         the search mixture's weight schedule) as the coordinator has it now; None keeps
-        the last one given."""
+        the last one given. ``rest_follows``: these are the first runs of a batch whose
+        rest the next call simulates (an executor's one-run probe): the check of the step
+        bound in the first batch then covers the whole batch, not the probe alone."""
         if actions is not None:
             self.policy.load(actions)
         if indices is None:
@@ -70,7 +72,7 @@ class Simulator:
             raise
         except (Exception, SystemExit) as exc:  # a user scenario raised (or sys.exit): name the run, not the batch
             raise self._culprit(indices, starts, exc) from None
-        self._checked = True
+        self._checked = self._checked or not rest_follows
         keep = int(batch.lengths.max()) if len(batch) else 1  # only the rows some run used
         return RunBatch(batch.indices, np.ascontiguousarray(batch.trajectories[:keep]), batch.lengths,
                         batch.outcomes, batch.exits, batch.margins)
