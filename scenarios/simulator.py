@@ -90,6 +90,19 @@ class Simulator:
             except (Exception, SystemExit):  # noqa: BLE001 - any error narrows the search
                 hi = mid
         policy = isinstance(exc, PolicyError)
-        what = str(exc) if policy else f"scenario {self.scenario.name!r} raised {type(exc).__name__}: {exc}"
+        method = _method_left(self.scenario, exc)
+        what = str(exc) if policy else (f"scenario {self.scenario.error_name!r}{f': {method}()' if method else ''} "
+                                        f"raised {type(exc).__name__}: {exc}")
         return (PolicyError if policy else ScenarioError)(f"{what} on sample index {int(indices[lo])} (start state "
                                                           f"{starts[lo].tolist()})")
+
+
+def _method_left(scenario, exc: BaseException) -> str | None:
+    """The scenario's method that ``exc`` left (the innermost frame of the scenario's own
+    in its traceback: a user's ``step``, not the run loop's ``step_into`` around it), or None."""
+    method, tb = None, exc.__traceback__
+    while tb is not None:
+        if tb.tb_frame.f_locals.get("self") is scenario:
+            method = tb.tb_frame.f_code.co_name
+        tb = tb.tb_next
+    return method
