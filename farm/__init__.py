@@ -17,8 +17,6 @@ Results: ``SafeSet`` (the boxes: contains, volumes, result_hash, Parquet), ``Sum
 Runtime pieces: config, executors (in-process and Ray), campaign storage, CLI.
 """
 
-from scenarios.version import __version__
-
 __all__ = ["Certificate", "EstimateReport", "QuantifyResult", "SafeSet", "Summary", "__version__", "compare",
            "estimate", "export_openscenario",
            "load_config", "open_campaign", "plan", "quantify", "overlay", "validate"]
@@ -31,5 +29,9 @@ def __getattr__(name: str):
     if name in __all__:
         from farm import lazy  # (farm/lazy.py: every module imported when first used)
 
+        if name == "__version__":  # not with the package: it would load the scenarios package (numpy)
+            from scenarios.version import __version__
+
+            return __version__
         return getattr(lazy.api, name)
     raise AttributeError(f"module 'farm' has no attribute {name!r}")

@@ -1,3 +1,3 @@
-from farm.cli.commands import run
+from farm.cli.entry import run
 
 run()

@@ -167,7 +167,7 @@ class Scenario(ABC):
         if not (isinstance(disturbance, (int, float)) and disturbance >= 0 and np.isfinite(disturbance)):
             raise ConfigError(f"scenario.disturbance: {disturbance!r} is out of range; allowed [0, inf)")
         if disturbance and not self.noise_width:
-            raise ConfigError(f"scenario.disturbance: scenario {self.name!r} has no disturbance input; allowed: 0")
+            raise ConfigError(f"scenario.disturbance: scenario {self.error_name!r} has no disturbance input; allowed: 0")
         self.failure_facets = names
         self.disturbance = float(disturbance)
         self.lower = np.asarray(self.lower, dtype=float)
@@ -195,21 +195,31 @@ class Scenario(ABC):
         for what, names, lo, hi in (("Sigma", self.state_names, self.lower, self.upper),
                                     ("Gamma", self.action_names, self.action_lower, self.action_upper)):
             if lo.shape != (len(names),) or hi.shape != (len(names),):
-                raise ScenarioError(f"scenario {self.name!r}: {what}'s bounds have shapes {lo.shape} and {hi.shape}, "
+                raise ScenarioError(f"scenario {self.error_name!r}: {what}'s bounds have shapes {lo.shape} and {hi.shape}, "
                                     f"expected ({len(names)},): one per name in {tuple(names)}")
             bad = [i for i in range(len(names)) if not (np.isfinite(lo[i]) and np.isfinite(hi[i]) and lo[i] < hi[i])]
             if bad:
                 i = bad[0]
-                raise ScenarioError(f"scenario {self.name!r}: {what} must be a finite box; {names[i]} has bounds "
+                raise ScenarioError(f"scenario {self.error_name!r}: {what} must be a finite box; {names[i]} has bounds "
                                     f"[{lo[i]:g}, {hi[i]:g}], allowed finite lower < upper")
 
     def _parameter_axes(self) -> tuple[int, ...]:
         """The axes of ``parameter_names``: state variables, none of them a failure facet."""
         wrong = [p for p in self.parameter_names if p not in self.state_names or p in self.failure_sides]
         if wrong:
-            raise ScenarioError(f"scenario {self.name!r}: parameter {wrong[0]!r} must be a state variable and no "
+            raise ScenarioError(f"scenario {self.error_name!r}: parameter {wrong[0]!r} must be a state variable and no "
                                 f"failure facet (a parameter never changes, so it never crosses a facet)")
         return tuple(self.state_names.index(p) for p in self.parameter_names)
+
+    @property
+    def error_name(self) -> str:
+        """The scenario as errors name it: a class of this package by its ``name``
+        ('lead-follow'), a user's by ``module:Class`` (as its config names it), never by
+        a ``name`` it may have taken from the class it extends."""
+        cls = type(self)
+        if cls.__module__.split(".")[0] == "scenarios":
+            return self.name
+        return f"{cls.__module__}:{cls.__qualname__}"
 
     @property
     def external_sv(self) -> bool:
@@ -298,7 +308,7 @@ class Scenario(ABC):
         (and define ``step`` through it) to skip a copy of every state."""
         nxt = np.asarray(self.step(states, actions, noise))
         if nxt.shape != states.shape:
-            raise ScenarioError(f"scenario {self.name!r} step returned shape {nxt.shape}, expected {states.shape}")
+            raise ScenarioError(f"scenario {self.error_name!r} step returned shape {nxt.shape}, expected {states.shape}")
         out[...] = nxt.T
         self.hold_parameters(states, out)
 
@@ -313,7 +323,7 @@ class Scenario(ABC):
     def _require_sv_policy(self) -> None:
         """A functional step needs the SV's policy; a simulator back end brings its own."""
         if self._policy is None:
-            raise ScenarioError(f"scenario {self.name!r}: the SV is simulated by the back end; a functional step "
+            raise ScenarioError(f"scenario {self.error_name!r}: the SV is simulated by the back end; a functional step "
                                 f"needs an SV policy ({', '.join(self.sv_policies)})")
 
     def _step_via_into(self, states, actions, noise) -> np.ndarray:

@@ -54,6 +54,20 @@ class RunBatch:
     def __len__(self) -> int:
         return len(self.indices)
 
+    @classmethod
+    def joined(cls, parts: list["RunBatch"]) -> "RunBatch":
+        """The runs of ``parts`` one after another as one batch: the same batch as if they
+        had been simulated together (a run depends on its key only)."""
+        steps = max(len(part.trajectories) for part in parts)
+        trajectories = np.empty((steps, sum(len(part) for part in parts), parts[0].trajectories.shape[2]))
+        at = 0
+        for part in parts:  # the steps past a part's longest run are past all of its runs' lengths
+            trajectories[: len(part.trajectories), at : at + len(part)] = part.trajectories
+            at += len(part)
+        return cls(np.concatenate([part.indices for part in parts]), trajectories,
+                   *(np.concatenate([getattr(part, name) for part in parts])
+                     for name in ("lengths", "outcomes", "exits", "margins")))
+
     def trajectory(self, row: int) -> np.ndarray:
         """(length, n) states of one run."""
         return self.trajectories[: self.lengths[row], row]
@@ -95,7 +109,7 @@ def run_scenario(backend, starts: np.ndarray, horizon: int, policy, streams: Run
         raise ValueError(f"horizon: K must be >= 2, got {horizon}")
     starts = np.asarray(starts, dtype=float)
     if starts.ndim != 2 or starts.shape[1] != scenario.n:
-        raise ScenarioError(f"start states have shape {starts.shape}, scenario {scenario.name!r} needs (B, {scenario.n})")
+        raise ScenarioError(f"start states have shape {starts.shape}, scenario {scenario.error_name!r} needs (B, {scenario.n})")
     if len(streams) != len(starts):
         raise ScenarioError(f"{len(starts)} start states but {len(streams)} run streams")
     batch, n = starts.shape
@@ -223,7 +237,7 @@ def _check_step(scenario, bound, states, nxt, rows, streams, t) -> None:
         k, axis = np.unravel_index(int(np.argmax(over)), over.shape)
         run = int(rows[k])
         name = scenario.state_names[axis]
-        raise ScenarioError(f"scenario {scenario.name!r}: step_bound() = {scenario.step_bound():g} but sample index "
+        raise ScenarioError(f"scenario {scenario.error_name!r}: step_bound() = {scenario.step_bound():g} but sample index "
                             f"{int(streams.indices[run])} moved {moved[k, axis]:g} along {name} in step {t}, more than "
                             f"step_bounds() allows there ({scenario.step_bounds()[axis]:g}); they must bound every "
                             f"step (Assumption 1)")
@@ -233,6 +247,6 @@ def _raise_bad_state(scenario, nxt, rows, bad, streams, starts, t):
     row = int(np.nonzero(bad)[0][0])
     run = int(rows[row])
     raise ScenarioError(
-        f"scenario {scenario.name!r} produced a non-finite state at step {t} of sample index "
+        f"scenario {scenario.error_name!r} produced a non-finite state at step {t} of sample index "
         f"{int(streams.indices[run])} (start state {starts[run].tolist()}): {nxt[row].tolist()}"
     )

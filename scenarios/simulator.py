@@ -49,11 +49,13 @@ class Simulator:
         return self.policy.deterministic and self.scenario.disturbance == 0 and self.backend.deterministic
 
     def simulate(self, first_index: int, starts: np.ndarray, indices: np.ndarray | None = None,
-                 actions: dict | None = None) -> RunBatch:
+                 actions: dict | None = None, rest_follows: bool = False) -> RunBatch:
         """Runs ``first_index, first_index + 1, ...`` (or the given sample ``indices``)
         from ``starts``. ``actions``: the policy's adaptive state (``policy.state()``, e.g.
         the search mixture's weight schedule) as the coordinator has it now; None keeps
-        the last one given."""
+        the last one given. ``rest_follows``: these are the first runs of a batch whose
+        rest the next call simulates (an executor's one-run probe): the check of the step
+        bound in the first batch then covers the whole batch, not the probe alone."""
         if actions is not None:
             self.policy.load(actions)
         if indices is None:
@@ -70,7 +72,7 @@ class Simulator:
             raise
         except (Exception, SystemExit) as exc:  # a user scenario raised (or sys.exit): name the run, not the batch
             raise self._culprit(indices, starts, exc) from None
-        self._checked = True
+        self._checked = self._checked or not rest_follows
         keep = int(batch.lengths.max()) if len(batch) else 1  # only the rows some run used
         return RunBatch(batch.indices, np.ascontiguousarray(batch.trajectories[:keep]), batch.lengths,
                         batch.outcomes, batch.exits, batch.margins)
@@ -88,6 +90,19 @@ class Simulator:
             except (Exception, SystemExit):  # noqa: BLE001 - any error narrows the search
                 hi = mid
         policy = isinstance(exc, PolicyError)
-        what = str(exc) if policy else f"scenario {self.scenario.name!r} raised {type(exc).__name__}: {exc}"
+        method = _method_left(self.scenario, exc)
+        what = str(exc) if policy else (f"scenario {self.scenario.error_name!r}{f': {method}()' if method else ''} "
+                                        f"raised {type(exc).__name__}: {exc}")
         return (PolicyError if policy else ScenarioError)(f"{what} on sample index {int(indices[lo])} (start state "
                                                           f"{starts[lo].tolist()})")
+
+
+def _method_left(scenario, exc: BaseException) -> str | None:
+    """The scenario's method that ``exc`` left (the innermost frame of the scenario's own
+    in its traceback: a user's ``step``, not the run loop's ``step_into`` around it), or None."""
+    method, tb = None, exc.__traceback__
+    while tb is not None:
+        if tb.tb_frame.f_locals.get("self") is scenario:
+            method = tb.tb_frame.f_code.co_name
+        tb = tb.tb_next
+    return method

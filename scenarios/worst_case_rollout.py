@@ -37,7 +37,7 @@ def safe_until_standstill(scenario: Scenario, points: np.ndarray, max_steps: int
             if len(active) == 0:
                 break
         else:
-            raise ScenarioError(f"scenario {scenario.name!r}: adversarial rollouts did not come to a standstill within "
+            raise ScenarioError(f"scenario {scenario.error_name!r}: adversarial rollouts did not come to a standstill within "
                                 f"{max_steps} steps; its reference_safe() cannot use safe_until_standstill")
         out[lo : lo + chunk] = safe
     return out

@@ -136,3 +136,18 @@ class ExitsInStep(LeadFollow):
 
     def step_into(self, states, actions, noise, out):
         raise SystemExit(0)
+
+
+class JumpsHigh(UnitSquare):
+    """Its step_bound() holds below a = 0.5 only: a run started higher jumps 0.4 along b
+    per step, four times the bound (a wrong sigma-bar that the first batch's check catches)."""
+
+    name = "jumps-high"
+
+    def step_bound(self):
+        return 0.1
+
+    def step(self, states, actions, noise):
+        out = states.copy()
+        out[:, 1] += np.where(states[:, 0] > 0.5, 0.4, 0.01)
+        return out

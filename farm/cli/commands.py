@@ -21,7 +21,7 @@ from farm.cli import exits
 from farm.cli.native_stderr import install as quiet_native_stderr, keep_standard_fds
 from farm.cli.parser import build_parser
 from farm.execution.memory import keep_freed_memory
-from farm.jobs.signals import STOP_SIGNALS, catch
+from farm.jobs.signals import STOP_SIGNALS, catch, release_stops, stops_held
 from farm.ray_runtime import watch as ray_watch
 from farm.ray_runtime.session import exit_now, exit_process
 
@@ -47,7 +47,10 @@ def main(argv=None) -> int:
     # left them, and the exit says "stopped"
     for signum in (signal.SIGTERM, signal.SIGHUP):
         catch(signum, _terminate)
+    release_stops()  # SIGINT: Python's KeyboardInterrupt again (farm/cli/entry.py held it while this module loaded)
     try:
+        if stops_held():  # a signal while this module loaded (farm/cli/entry.py)
+            return exits.interrupted()
         return _main(argv)
     except KeyboardInterrupt:  # before a command ran
         return exits.interrupted()

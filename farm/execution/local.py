@@ -7,8 +7,9 @@ the coordinator's wait for it wakes for a stop within a fraction of a second, an
 up on a chunk that overruns its time limit (derived from the measured run time as on
 Ray, or farm.chunk_timeout) with the same one-line error as the Ray executor, naming the
 user call it hangs in (a per-run simulator's reset, step or close). As on Ray, the first
-chunk is a single run (the probe: it is simulated again with its batch, so no result
-changes), timed under the first-run limit (farm/execution/chunking.py). A thread cannot
+run is simulated alone (the probe), timed under the first-run limit
+(farm/execution/chunking.py); its result is joined to the rest of its batch's, the same
+as if they had been simulated together (a run depends on its key only). A thread cannot
 be cancelled, so there is no retry: the stuck thread stays until the process ends.
 """
 
@@ -25,6 +26,7 @@ from coordinator.experience_replay import select
 from farm.execution.chunking import ChunkSizer
 from farm.execution.process import build_simulator, close_simulator
 from farm.execution.waiting import InThread, culprit, name_runs
+from scenarios.rollout import RunBatch
 from scenarios.simulator import SimSpec
 
 
@@ -64,35 +66,38 @@ class LocalExecutor(Executor):
 
     def result(self, handle: int) -> Chunk:
         first_index, starts, screen, actions, indices = self._jobs.pop(handle)
+        probed = None
         if self.sizer.run_s is None and len(starts) > 1:
-            self._probe(first_index, starts, actions, indices)
+            probed = self._probe(first_index, starts, actions, indices)
+        rest = slice(0 if probed is None else 1, None)  # the probe's run is not simulated again
+        rest_indices = None if indices is None else indices[rest]
 
         def work():
             t0 = time.perf_counter()
-            batch = self.simulator.simulate(first_index, starts, indices=indices, actions=actions)
-            done = ChunkSummary.of(batch, screen)
-            self.sizer.ran(len(starts), time.perf_counter() - t0)
+            batch = self.simulator.simulate(first_index + rest.start, starts[rest], indices=rest_indices,
+                                            actions=actions)
+            done = ChunkSummary.of(batch if probed is None else RunBatch.joined([probed, batch]), screen)
+            self.sizer.ran(len(starts) - rest.start, time.perf_counter() - t0)
             return done
 
-        what = self._what(name_runs(self._culprit, first_index, starts, indices))
-        summary, visited = self._thread.run(work, self.sizer.limit(len(starts)), what)
+        what = self._what(name_runs(self._culprit, first_index + rest.start, starts[rest], rest_indices))
+        summary, visited = self._thread.run(work, self.sizer.limit(len(starts) - rest.start), what)
         return summary.chunk(lambda: visited, lambda rows, takes: _compact(visited, rows, takes))
 
-    def _probe(self, first_index, starts, actions, indices) -> None:
+    def _probe(self, first_index, starts, actions, indices) -> RunBatch:
         """The batch's first run alone, timed under the first-run limit: a simulator that
-        hangs at once is named within it, and the batch gets a measured limit. The step
-        bound is checked on the whole batch still (a run depends on its key only)."""
-        checked = self.simulator._checked
+        hangs at once is named within it, and the rest of the batch gets a measured limit.
+        The step bound is checked on the whole batch still."""
+        index = None if indices is None else indices[:1]
 
         def work():
             t0 = time.perf_counter()
-            self.simulator.simulate(first_index, starts[:1], indices=None if indices is None else indices[:1],
-                                    actions=actions)
+            batch = self.simulator.simulate(first_index, starts[:1], indices=index, actions=actions, rest_follows=True)
             self.sizer.ran(1, time.perf_counter() - t0)
+            return batch
 
-        self._thread.run(work, self.sizer.limit(1),
-                         self._what(name_runs(self._culprit, first_index, starts[:1], indices)))
-        self.simulator._checked = checked
+        return self._thread.run(work, self.sizer.limit(1), self._what(name_runs(self._culprit, first_index, starts[:1],
+                                                                               indices)))
 
     def _what(self, runs: str):
         """What a wait that overran names: the user call the simulator hangs in, if it

@@ -16,6 +16,7 @@ from coordinator.driver import Campaign
 from coordinator.holdout import holdout_report, holdout_starts
 from farm.directory import checkpoint
 from farm.directory.checkpoint import Stamp
+from farm.directory.files import read_json, write_json
 from farm.jobs.campaign_setup import build_algorithm, build_campaign
 from farm.execution.process import build_simulator, close_simulator, spec_of
 from farm.config import Config, config_hash
@@ -28,6 +29,8 @@ from farm.reports.status import StatusWriter
 from farm.directory.storage import CampaignError, Ledger
 from farm.execution.waiting import Interrupted
 from scenarios.errors import Stopped
+
+HOLDOUT_FILE = "holdout.json"  # a finished campaign's holdout, so that a resume before summary.json need not run it again
 
 
 class SideCampaign:
@@ -64,8 +67,8 @@ class SideCampaign:
         if restored is not None and restored.driver.counters.done:
             self.campaign = build_campaign(self.cfg, self.algorithm, self.simulator, None, restored=restored)
             if self.side == "total":
-                # killed while finishing, before summary.json: the holdout's runs are in no
-                # checkpoint; the same seeded runs again give the same report
+                # killed while finishing, before summary.json: the holdout saved with the last
+                # checkpoint (or, killed before it was written, the same seeded runs again)
                 self.holdout = self._holdout_again(progress)
             return self.campaign
         farm_cfg = self.cfg.farm
@@ -105,9 +108,14 @@ class SideCampaign:
         return self.campaign
 
     def _holdout_again(self, progress: Progress) -> dict | None:
-        """The holdout of a finished campaign read back, on an executor of its own."""
+        """The holdout of a finished campaign read back: its checkpoint (``HOLDOUT_FILE``),
+        else its runs again, on an executor of its own."""
         if self.cfg.quantify.holdout_runs <= 0:
             return None
+        saved = self._saved_holdout()
+        if saved is not None:
+            progress.line(f"holdout: {saved['runs']:,} runs read back from {HOLDOUT_FILE}")
+            return saved
         stop = stop_on_signals()
         with stop:
             executor = make_executor(self.cfg.farm, self.spec, check_step_bound=self.cfg.quantify.boundary,
@@ -130,7 +138,27 @@ class SideCampaign:
         outcomes = np.concatenate([executor.result(h).outcomes
                                    for h in executor.submit(0, starts, indices=indices.astype(np.int64))])
         inside = self.algorithm.result().contains(starts)
-        return holdout_report(inside, outcomes, self.simulator.deterministic)
+        report = holdout_report(inside, outcomes, self.simulator.deterministic)
+        write_json(self.directory / HOLDOUT_FILE, {**self._holdout_stamp(), "report": report})
+        return report
+
+    def _holdout_stamp(self) -> dict:
+        """What a saved holdout was run for: the same runs against the same set."""
+        return {"config_hash": self.config_hash, "seed": self.cfg.farm.seed, "runs": self.cfg.quantify.holdout_runs}
+
+    def _saved_holdout(self) -> dict | None:
+        """The holdout saved for this campaign's config, seed and run count; None if there
+        is none (killed before it was written) or it was run for other settings (a resume
+        may change quantify.holdout_runs); a damaged file is a one-line CampaignError."""
+        path = self.directory / HOLDOUT_FILE
+        if not path.exists():
+            return None
+        saved = read_json(path, required=("config_hash", "seed", "runs", "report"))
+        if {key: saved[key] for key in ("config_hash", "seed", "runs")} != self._holdout_stamp():
+            return None
+        if not isinstance(saved["report"], dict) or saved["report"].get("runs") != saved["runs"]:
+            raise CampaignError(f"{path}: report does not hold the holdout's {saved['runs']} runs (damaged?)")
+        return saved["report"]
 
     def save(self) -> None:
         """A checkpoint now (farm/directory/checkpoint.py)."""

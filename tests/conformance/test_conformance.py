@@ -86,7 +86,7 @@ def test_a_wrong_step_bound_is_an_error_naming_the_scenario(monkeypatch):
     monkeypatch.syspath_prepend(str(EXAMPLES))
     backend = make_backend({"name": "approach:Approach"})
     monkeypatch.setattr(type(backend.scenario), "step_bound", lambda self: 0.01)
-    with pytest.raises(ScenarioError, match=r"scenario 'approach': step_bound\(\) = 0.01 but sample index"):
+    with pytest.raises(ScenarioError, match=r"scenario 'approach:Approach': step_bound\(\) = 0.01 but sample index"):
         testing.check_step_bound(backend)
 
 

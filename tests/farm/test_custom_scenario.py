@@ -58,7 +58,7 @@ BROKEN = {
     "needs_an_argument": ("class Broken(Approach):\n    def __init__(self, wheelbase):\n        super().__init__()\n",
                           ["scenario.name", "could not be constructed", "sv_policy"]),
     "wrong_step_bound": ("class Broken(Approach):\n    def step_bound(self):\n        return 0.01\n",
-                         ["scenario 'approach': step_bound() = 0.01", "Assumption 1"]),
+                         ["scenario 'broken:Broken': step_bound() = 0.01", "Assumption 1"]),
     "not_a_scenario": ("class Broken:\n    pass\n", ["scenario.name", "Scenario"]),
 }
 

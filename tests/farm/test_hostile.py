@@ -365,7 +365,7 @@ CONFIG_CASES = [
      ["validate.epsilon: 2.0 is out of range"]),
     ("utf16", "validate", LF.encode("utf-16"), [], ["not UTF-8 text"]),
     ("infinite_sigma", "quantify", '[scenario]\nname = "user_scenarios:Unbounded"\n', [],
-     ["scenario 'unbounded': Sigma must be a finite box; b has bounds [0, inf]"]),
+     ["scenario 'user_scenarios:Unbounded': Sigma must be a finite box; b has bounds [0, inf]"]),
     ("scenario_init_raises", "validate", '[scenario]\nname = "user_scenarios:BrokenInit"\n', [],
      ["scenario.name: constructing 'user_scenarios:BrokenInit' raised RuntimeError: no licence server"]),
     ("scenario_without_bounds", "validate", '[scenario]\nname = "user_scenarios:NoBounds"\n', [],

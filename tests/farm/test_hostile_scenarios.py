@@ -46,7 +46,7 @@ def one_line(r, code, *words):
     (per_run("ExitsInStep"), ["per_run_simulators:ExitsInStep.step() raised SystemExit: 0 on sample index"]),
     (per_run("RaisesInClose"), ["per_run_simulators:RaisesInClose.close() raised RuntimeError: the licence server"]),
     ('[scenario]\nname = "user_scenarios:ExitsInStep"\nsv_policy = "idm"\n' + TINY,
-     ["scenario 'exits' raised SystemExit: 0 on sample index"]),
+     ["scenario 'user_scenarios:ExitsInStep': step_into() raised SystemExit: 0 on sample index"]),
 ], ids=["no_step", "step_raises", "step_sys_exit", "close_raises", "vectorized_sys_exit"])
 def test_user_code_that_raises_or_exits_is_the_users_error_in_one_line(tmp_path, text, words):
     r, _ = quantify(tmp_path, text)

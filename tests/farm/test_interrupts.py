@@ -149,3 +149,44 @@ def test_an_ignored_sighup_stays_ignored(tmp_path):
     finally:
         proc.send_signal(signal.SIGINT)
         proc.wait(60)
+
+
+# -- issue 54: a signal while the command starts ----------------------------------------------
+def first_line_s() -> float:
+    """[s] the fewest seconds a Python child takes to run its first line (the interpreter's
+    start and site): a signal before that kills any Python program by the default action,
+    which no code of ours can change."""
+    times = []
+    for _ in range(3):
+        t0 = time.monotonic()
+        proc = subprocess.Popen([sys.executable, "-c", "print(1, flush=True)"], stdout=subprocess.PIPE)
+        proc.stdout.read(1)
+        times.append(time.monotonic() - t0)
+        proc.communicate()
+    return min(times)
+
+
+@pytest.mark.parametrize("command", ["status", "quantify"])
+def test_a_signal_while_the_command_starts_stops_it_with_exit_130(tmp_path, command):
+    """SIGTERM 0-400 ms after Popen, while numpy and the rest load (up to a second), and
+    SIGINT at 200 ms: exit 130 and one "stopped" line, never 143 (SIGTERM's default action)
+    or a KeyboardInterrupt's traceback. Before the interpreter runs a line of ours only a
+    death by SIGTERM is possible (any Python program's): allowed below twice its start."""
+    (tmp_path / "c.toml").write_text(LONG)
+    args = ["status", str(tmp_path / "nothing")] if command == "status" else \
+        ["quantify", str(tmp_path / "c.toml"), "--out", str(tmp_path / "out")]
+    floor = first_line_s()
+    seen = []
+    for delay, signum in [(0.0, signal.SIGTERM), (0.05, signal.SIGTERM), (0.1, signal.SIGTERM),
+                          (0.2, signal.SIGTERM), (0.4, signal.SIGTERM), (0.2, signal.SIGINT)]:
+        proc = subprocess.Popen([sys.executable, "-m", "farm", *args], stdout=subprocess.DEVNULL,
+                                stderr=subprocess.PIPE, text=True)
+        time.sleep(delay)
+        proc.send_signal(signum)
+        stderr = proc.communicate(timeout=60)[1]
+        seen.append((delay, signum.name, proc.returncode))
+        if proc.returncode == -signal.SIGTERM and delay < 2 * floor:
+            continue  # the interpreter's own start: no line of ours ran
+        assert proc.returncode == 130, (delay, signum.name, proc.returncode, stderr, floor)
+        assert stderr.count("\n") == 1 and "stopped" in stderr and "Traceback" not in stderr, stderr
+    assert sum(code == 130 for *_, code in seen) >= 3, (seen, floor)

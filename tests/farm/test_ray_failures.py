@@ -108,7 +108,8 @@ def test_a_scenario_that_raises_on_a_ray_worker_is_our_one_line_not_rays_traceba
     proc = popen("quantify", tmp_path / "c.toml", "--out", tmp_path / "out")
     _, stderr = proc.communicate(timeout=600)
     assert proc.returncode == 2, stderr
-    our_line_only(stderr, "scenario-farm: error: ", "scenario 'raising' raised ValueError: boom on sample index")
+    our_line_only(stderr, "scenario-farm: error: ",
+                  "scenario 'user_scenarios:Raising': step() raised ValueError: boom on sample index")
 
 
 @pytest.mark.soak  # ~2.5 min; CI keeps kill -9 of the driver, a killed worker and a lost worker node's cluster

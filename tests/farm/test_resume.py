@@ -209,7 +209,8 @@ def test_a_kill_while_finishing_after_the_summary_is_finished_by_resume_without_
 
 def test_a_kill_while_finishing_before_the_summary_is_finished_by_resume_with_the_same_holdout(tmp_path):
     """A kill after the last checkpoint and before summary.json: resume writes every result
-    file again from the checkpoint, the holdout too (its runs are in no checkpoint)."""
+    file again from the checkpoint, the holdout read back from holdout.json (not run
+    again); without that file (killed before it was written) the same seeded runs again."""
     from farm import config as config_mod
     from farm.jobs.quantification import run
 
@@ -218,17 +219,32 @@ def test_a_kill_while_finishing_before_the_summary_is_finished_by_resume_with_th
     run(config_mod.parse(toml, "c.toml"), out)
     want = json.loads((out / "summary.json").read_text())
     assert want["holdout"]["runs"] == 300
-    for name in ("summary.json", "safe_set.parquet"):
-        (out / name).unlink()
-    shutil.rmtree(out / "plots")
-    (out / "status.json").write_text(json.dumps({"state": "finishing"}))
+    assert json.loads((out / "holdout.json").read_text())["report"] == want["holdout"]
     segments = {p: p.read_bytes() for p in (out / "ledger").glob("*.parquet")}
+
+    def killed_before_the_summary():
+        for name in ("summary.json", "safe_set.parquet"):
+            (out / name).unlink()
+        shutil.rmtree(out / "plots")
+        (out / "status.json").write_text(json.dumps({"state": "finishing"}))
+
+    for saved in (True, False):
+        killed_before_the_summary()
+        if not saved:
+            (out / "holdout.json").unlink()
+        r = cli("resume", str(out))
+        assert r.returncode == 0, r.stderr
+        said = r.stdout + r.stderr
+        assert ("holdout: 300 runs read back from holdout.json" in said) == saved
+        assert ("holdout: 300 fresh runs" in said) != saved  # simulated only without the file
+        got = json.loads((out / "summary.json").read_text())
+        assert got["result_hash"] == want["result_hash"] and got["holdout"] == want["holdout"]
+        assert (out / "safe_set.parquet").exists() and any((out / "plots").iterdir())
+        assert {p: p.read_bytes() for p in (out / "ledger").glob("*.parquet")} == segments  # no campaign run again
+    killed_before_the_summary()
+    (out / "holdout.json").write_text('{"config_hash": ')  # damaged: refused in one line naming it
     r = cli("resume", str(out))
-    assert r.returncode == 0, r.stderr
-    got = json.loads((out / "summary.json").read_text())
-    assert got["result_hash"] == want["result_hash"] and got["holdout"] == want["holdout"]
-    assert (out / "safe_set.parquet").exists() and any((out / "plots").iterdir())
-    assert {p: p.read_bytes() for p in (out / "ledger").glob("*.parquet")} == segments  # no campaign run again
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "holdout.json: not valid JSON" in r.stderr, r.stderr
 
 
 def test_figures_that_run_out_of_memory_lose_no_result_and_resume_draws_them(tmp_path, monkeypatch):

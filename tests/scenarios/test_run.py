@@ -97,3 +97,37 @@ def test_each_ended_run_records_the_facet_it_left_through():
     labels = [f.label for f, _ in sc.facets()]
     assert [labels[e] if e >= 0 else None for e in batch.exits] == ["p10 < 0", "v1 > 20", None, "v1 > 20"]
     assert sc.exits(np.array([[25.0, 25.0, -1.0], [25.0, 1.0, 80.0], [1.0, 1.0, 1.0]])).tolist() == [4, 1, -1]
+
+
+class Inherits(__import__("scenarios.lead_follow", fromlist=["LeadFollow"]).LeadFollow):
+    """A user's subclass that keeps its parent's name ('lead-follow') and breaks its step."""
+
+    def step_into(self, states, actions, noise, out):
+        raise ZeroDivisionError("user bug")
+
+
+@pytest.mark.parametrize("name, match", [
+    ("user_scenarios:Raising", r"scenario 'user_scenarios:Raising': step\(\) raised ValueError: boom on sample index 3 "),
+    ("user_scenarios:NaNScenario", r"scenario 'user_scenarios:NaNScenario' produced a non-finite state at step 1 of "
+                                   r"sample index 3 "),
+    ("user_scenarios:JumpsHigh", r"scenario 'user_scenarios:JumpsHigh': step_bound\(\) = 0.1 but sample index 3 "),
+    (f"{__name__}:Inherits", rf"scenario '{__name__}:Inherits': step_into\(\) raised ZeroDivisionError: user bug on "
+                             r"sample index 0 "),
+])
+def test_a_vectorized_user_scenarios_errors_name_its_class_not_the_name_it_inherits(name, match):
+    """As a per-run simulator's errors name ``module:Class.method()`` (scenarios/per_run.py)."""
+    from scenarios.simulator import SimSpec, Simulator
+
+    simulator = Simulator(SimSpec({"name": name, **({"sv_policy": "idm"} if "Inherits" in name else {})},
+                                  {"mode": "uniform"}, 5, 0))
+    assert simulator.scenario.error_name == name and "lead-follow" not in name
+    starts = np.tile(simulator.scenario.lower + 0.25 * (simulator.scenario.upper - simulator.scenario.lower), (6, 1))
+    if "Inherits" not in name:
+        starts[3, 0] = 0.8  # the row these break on
+    with pytest.raises(ScenarioError, match=match) as info:
+        simulator.simulate(0, starts)
+    assert "'lead-follow'" not in str(info.value)
+
+
+def test_a_scenario_of_this_package_is_named_by_its_name():
+    assert make_scenario("lead-follow", sv_policy="idm").error_name == "lead-follow"
