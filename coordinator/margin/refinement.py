@@ -13,6 +13,14 @@ when no box wants a split it may make, and the boxes that wanted one but were at
 round's delta are looked at again in the next round. Boxes far from the boundary keep
 the size they had: the runs go where the boundary is.
 
+The last round (at delta_min) places the boundary by the margin rather than by halving:
+a box whose claim is in doubt is bisected there only while it is more than one halving
+coarser than delta_min along some axis (the cut cannot finish it), and then
+``CUT_PASSES`` passes cut every box the boundary crosses at the margin's zero crossing
+along one axis (coordinator/margin/cut_rule.py): two runs per box, where halving down
+to delta_min on both sides of the boundary took four per box, wave after wave
+(docs/margin_refinement.md, "The last round cuts", has the measurements).
+
 The set is then certified without new runs (coordinator/margin/invariance.py): the
 largest set of claimed boxes whose centre runs visit only boxes of the set. A safe box
 is *claimed* when its centre's margin clears the change the margin may make across the
@@ -28,6 +36,7 @@ import numpy as np
 
 from coordinator.algorithm_settings import SPESettings
 from coordinator.margin.invariance import largest_invariant
+from coordinator.margin.cut_rule import CUT_PASSES, cuts
 from coordinator.margin.partition import Partition
 from coordinator.margin.split_rule import KAPPA, Neighbourhood, choose, first_order_change, wanted_axes
 from coordinator.margin.visits import Visits
@@ -66,6 +75,7 @@ class MarginRefinement:
         self.invariance_rounds = 0
         self.visits = Visits(scenario.n)
         self.splits = 0
+        self.cut_passes = 0  # passes of the last round's cuts made
 
     # -- the runs ------------------------------------------------------------------------------
     def starts(self, boxes: np.ndarray) -> np.ndarray:
@@ -100,7 +110,13 @@ class MarginRefinement:
             if len(children):
                 self.wave = children
                 return children
-            if self.delta <= self.settings.delta_min * (1 + 1e-12):
+            if self.final_round:
+                if self.cut_passes < CUT_PASSES:
+                    self.cut_passes += 1
+                    children = self._cut()
+                    if len(children):
+                        self.wave = children
+                        return children
                 self.finished = True
                 break
             self.round += 1
@@ -129,11 +145,15 @@ class MarginRefinement:
         """Split the boxes that want it and may; -> the children (the next wave). Every
         box is decided on the partition as it stands, before any of them splits."""
         masks = np.zeros(len(boxes), dtype=np.int64)
+        last = self.final_round
         for lo in range(0, len(boxes), DECIDE_BLOCK):
             part = boxes[lo : lo + DECIDE_BLOCK]
-            wanted, priority = wanted_axes(self._neighbourhood(part), self.settings.delta_min)
+            wanted, priority = wanted_axes(self._neighbourhood(part), self.settings.delta_min, last)
             wanted |= self._on_failure_facets(part)
-            splittable = self.partition.half_widths(part) > self.delta * (1 + 1e-9)
+            half_widths = self.partition.half_widths(part)
+            splittable = half_widths > self.delta * (1 + 1e-9)
+            if last:  # one halving from delta_min, a box is the cut's (the module's docstring)
+                splittable &= (half_widths.max(axis=1) > 2 * self.delta * (1 + 1e-9))[:, None]
             masks[lo : lo + DECIDE_BLOCK] = choose(wanted, priority, splittable)
             waiting = (wanted & ~splittable).any(axis=1) & (masks[lo : lo + DECIDE_BLOCK] == 0)
             self.blocked = np.union1d(self.blocked, part[waiting])
@@ -144,6 +164,25 @@ class MarginRefinement:
         self.visits.drop(boxes[split])
         self.splits += int(split.sum())
         self._fit(self.partition.size)
+        return children
+
+    def _cut(self) -> np.ndarray:
+        """One pass of the last round's cuts over the leaves (coordinator/margin/cut_rule.py);
+        -> the children (the next wave)."""
+        p = self.partition
+        leaves = p.leaves()
+        found = []
+        for lo in range(0, len(leaves), DECIDE_BLOCK):
+            part = leaves[lo : lo + DECIDE_BLOCK]
+            cut, axis, at = cuts(self._neighbourhood(part), p.lo[part], p.hi[part])
+            found.append((part[cut], np.left_shift(np.int64(1), axis[cut]), at[cut]))
+        boxes = np.concatenate([f[0] for f in found])
+        if not len(boxes):
+            return boxes
+        children = p.split(boxes, np.concatenate([f[1] for f in found]), np.concatenate([f[2] for f in found]))
+        self.visits.drop(boxes)
+        self.splits += len(boxes)
+        self._fit(p.size)
         return children
 
     def _on_failure_facets(self, boxes: np.ndarray) -> np.ndarray:
@@ -257,7 +296,7 @@ class MarginRefinement:
                     "box.index": self.index[:size].copy(), "wave": self.wave.copy(), "todo": self.todo.copy(),
                     "blocked": self.blocked.copy(),
                     "scalars": np.array([self.round, self.delta, self.finished, self.splits, self.wave_first,
-                                         self.wave_done], dtype=float)})
+                                         self.wave_done, self.cut_passes], dtype=float)})
         if self.kept is not None:
             out["kept"] = self.kept.copy()
         return out
@@ -272,9 +311,12 @@ class MarginRefinement:
         self.index = state["box.index"].astype(np.int64)
         self.wave, self.todo = state["wave"].astype(np.int64), state["todo"].astype(np.int64)
         self.blocked = state["blocked"].astype(np.int64)
-        rnd, delta, finished, splits, first, done = state["scalars"]
+        if state["scalars"].shape != (7,):
+            raise ValueError(f"scalars: shape {state['scalars'].shape}, expected (7,) (a checkpoint of an earlier "
+                             "margin refinement: start it again)")
+        rnd, delta, finished, splits, first, done, cut_passes = state["scalars"]
         self.round, self.delta, self.finished, self.splits = int(rnd), float(delta), bool(finished), int(splits)
-        self.wave_first, self.wave_done = int(first), int(done)
+        self.wave_first, self.wave_done, self.cut_passes = int(first), int(done), int(cut_passes)
         self.kept = state["kept"].astype(np.int64) if "kept" in state else None
         self.certifying = self.kept is not None
         self.visits = Visits(self.scenario.n)

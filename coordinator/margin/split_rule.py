@@ -14,6 +14,14 @@ A box needs refining along axis a when
 At most ``MAX_AXES`` axes split at once (a box crossed obliquely in many axes is
 refined over several waves, not into 2^n children at once), those whose label differs
 first, then by their share of the change.
+
+In the last round (at ``delta_min``) a box the boundary crosses is cut at the crossing
+instead (coordinator/margin/cut_rule.py): bisection is left only to the safe boxes whose
+claim is in doubt, those whose margin clears the claim's test (``m > KAPPA R``, first
+order) but not the split's, which trusts a coarse box less. A bisection there decides
+the claim with finer neighbours; a differing label or a margin near zero asks for the
+cut, which places the boundary for two runs where bisection down to ``delta_min`` on both
+of its sides took four per box and wave after wave.
 """
 
 from __future__ import annotations
@@ -73,11 +81,12 @@ def first_order_change(hood: Neighbourhood) -> np.ndarray:
     return (np.abs(gradient(hood)) * hood.half_width).sum(axis=1)
 
 
-def wanted_axes(hood: Neighbourhood, finest: float) -> tuple[np.ndarray, np.ndarray]:
+def wanted_axes(hood: Neighbourhood, finest: float, last_round: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """-> ((B, n) bool: the axes the boundary may cross, (B, n) float: each axis's
     priority, higher first: a differing label beats any share of the change). A box
     ``2^k`` times the ``finest`` half-width trusts its first-order estimate ``1 + k``
-    times less: the margin is a minimum over time, smooth only piece by piece."""
+    times less: the margin is a minimum over time, smooth only piece by piece.
+    ``last_round``: only the safe boxes whose claim is in doubt (the module's docstring)."""
     other = hood.exists & (hood.labels != hood.safe[:, None, None])
     differs = other.any(axis=2)
     h = hood.half_width
@@ -87,6 +96,9 @@ def wanted_axes(hood: Neighbourhood, finest: float) -> tuple[np.ndarray, np.ndar
     near = np.abs(hood.margin) <= KAPPA * coarse * spread
     share = change >= TAU * change.max(axis=1, keepdims=True)
     wanted = differs | (near[:, None] & share & (change > 0))
+    if last_round:
+        claimable = hood.margin > KAPPA * (np.abs(gradient(hood)) * h).sum(axis=1)  # refinement.claimed_leaves' test
+        wanted &= (hood.safe & claimable & near)[:, None]
     priority = change + np.where(differs, np.inf, 0.0)
     return wanted, priority
 

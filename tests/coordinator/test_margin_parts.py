@@ -5,8 +5,10 @@ import numpy as np
 import pytest
 
 from coordinator.box_index import BoxIndex
+from coordinator.margin.cut_rule import CUT_MIN_SHARE, CUT_SHIFT, cuts
 from coordinator.margin.invariance import largest_invariant
 from coordinator.margin.partition import Partition
+from coordinator.margin.split_rule import Neighbourhood
 from coordinator.safe_set import SafeSet
 from scenarios.base import FAILURE
 from scenarios.simulator import SimSpec, Simulator
@@ -121,3 +123,40 @@ def test_estimated_volumes_bracket_the_exact_ones():
     x = rng.uniform(s.lower.min(0), s.upper.max(0), (400_000, 3))
     brute = s.contains(x).mean() * np.prod(s.upper.max(0) - s.lower.min(0))
     assert union.low * 0.99 <= brute <= union.high * 1.01
+
+
+def _linear_hood(centres, h, g, b):
+    """Boxes of half-width h at ``centres`` among face neighbours of their own size, the
+    margin ``g . x + b`` (safe where positive)."""
+    B, n = centres.shape
+    margin = lambda x: x @ g + b  # noqa: E731
+    at = np.stack([centres - 2 * h, centres + 2 * h], axis=-1)  # (B, n, 2) along each axis
+    margins = np.zeros((B, n, 2))
+    for axis in range(n):
+        for side in range(2):
+            x = centres.copy()
+            x[:, axis] = at[:, axis, side]
+            margins[:, axis, side] = margin(x)
+    m = margin(centres)
+    return Neighbourhood(centres, np.broadcast_to(h, (B, n)).copy(), m, m > 0, np.ones((B, n, 2), dtype=bool), at,
+                         margins, margins > 0)
+
+
+def test_a_cut_lands_on_the_margins_zero_crossing_moved_to_the_safe_side():
+    g, h = np.array([0.2, -1.0, 0.1]), np.array([0.25, 0.25, 0.25])
+    centres = np.array([[1.0, 1.1, 1.0],  # m = 0.2 - 1.1 + 0.1 + 0.9 = 0.1: safe, unclaimed, crossed
+                        [1.0, 0.8, 1.0],  # m = 0.4: claimed (0.4 > KAPPA R = 0.1875): not cut
+                        [1.0, 1.3, 1.0],  # m = -0.1: failing, crossed
+                        [1.0, 2.0, 1.0]])  # m = -0.8: failing beyond the change across it: not cut
+    hood = _linear_hood(centres, h, g, 0.9)
+    cut, axis, at = cuts(hood, centres - h, centres + h)
+    assert cut.tolist() == [True, False, True, False] and (axis[cut] == 1).all()
+    other = abs(g[0]) * h[0] + abs(g[2]) * h[2]
+    crossing = 1.2  # g . x + 0.9 = 0 at the centres' other coordinates
+    # the safe side is where the margin grows: lower v1 here
+    assert np.allclose(at[cut, 1], crossing - CUT_SHIFT * other / abs(g[1]))
+    assert np.allclose(at[cut][:, [0, 2]], centres[cut][:, [0, 2]])
+    # a crossing within CUT_MIN_SHARE of a face is not cut: the box is all but on one side
+    near_face = np.array([[1.0, 1.2 + h[1] * (1 - CUT_MIN_SHARE) - 0.02, 1.0]])  # the cut 0.02 past its lower face
+    cut, _, _ = cuts(_linear_hood(near_face, h, g, 0.9), near_face - h, near_face + h)
+    assert not cut.any()
