@@ -6,10 +6,14 @@ certification took (closing rounds and checks), its checks (attempts) and the ac
 the exported set against the model-based reference (IoU, precision, recall on the compare
 grid), with quantify.certify on and off. Then the closing rounds' margin
 (quantify.certify_margin) swept on lead-follow, uniform Gamma, seeds 0-4 and 12 (the
-issue's seed). eps = 0.001, beta = 0.1, K = 50, in-process (the committed sequence does
-not depend on the executor).
+issue's seed). Then the seeds' spread (issue 54): lead-follow idm, uniform Gamma, seeds 0-9
+and 17-22 at the default margin, min / median / max of the ratio and of the checks.
+eps = 0.001, beta = 0.1, K = 50, in-process (the committed sequence does not depend on the
+executor).
 
-    python experiments/certification.py            # runs it (~2 h on 2 shared cores): docs/certification.json
+    python experiments/certification.py            # runs it (~2.5 h on 2 shared cores): docs/certification.json
+    python experiments/certification.py --spread   # the spread's seeds alone, into the JSON (resumes: a
+                                                   # campaign already in the JSON is not run again)
     python experiments/certification.py --render   # docs/certification.md from the JSON only
 """
 
@@ -32,6 +36,7 @@ SCENARIOS = {"lead-follow idm": ({"name": "lead-follow", "sv_policy": "idm"}, {"
 MODES = ["uniform", "search"]
 SEEDS = [0, 1, 2, 3, 4]
 SWEEP = {"case": "lead-follow idm", "mode": "uniform", "seeds": [0, 1, 2, 3, 4, 12], "margins": [1.0, 2.0, 4.0, 6.0, 8.0, 16.0]}
+SPREAD = {"case": "lead-follow idm", "mode": "uniform", "seeds": list(range(10)) + list(range(17, 23))}
 EPS, BETA = 0.001, 0.1
 
 
@@ -60,7 +65,29 @@ def run(case: str, mode: str, seed: int, certify: bool, truth: dict, margin: flo
     return row
 
 
+def spread(data: dict, truth: dict, path: Path) -> list[dict]:
+    """The spread's campaigns (``SPREAD``) at the default margin: those already among the
+    JSON's rows are taken from there, each new one is written to ``path`` as it ends (a
+    stopped run resumes)."""
+    data.setdefault("spread", [])
+    for seed in SPREAD["seeds"]:
+        for certify in (False, True):
+            have = [r for r in data["rows"] + data["sweep"] + data["spread"]
+                    if r["case"] == SPREAD["case"] and r["mode"] == SPREAD["mode"] and r["seed"] == seed
+                    and r["certify"] == certify and (not certify or r["margin"] == MARGIN)]
+            if not have:
+                data["spread"].append(run(SPREAD["case"], SPREAD["mode"], seed, certify, truth))
+                path.write_text(json.dumps(data, indent=1) + "\n")
+    return data["spread"]
+
+
 def study(args: list[str]) -> dict:
+    path = DOCS / "certification.json"
+    if args == ["--spread"]:
+        data = json.loads(path.read_text())
+        spread(data, {}, path)
+        print(render())
+        return data
     truth, rows, sweep = {}, [], []
     for case in SCENARIOS:
         for mode in MODES:
@@ -77,7 +104,8 @@ def study(args: list[str]) -> dict:
                        and not r["certify"] for r in rows + sweep):
                 sweep.append(run(SWEEP["case"], SWEEP["mode"], seed, False, truth))
     data = {"meta": machine_stamp(epsilon=EPS, beta=BETA, default_margin=MARGIN), "rows": rows, "sweep": sweep}
-    (DOCS / "certification.json").write_text(json.dumps(data, indent=1) + "\n")
+    path.write_text(json.dumps(data, indent=1) + "\n")
+    spread(data, truth, path)
     print(render())
     return data
 
@@ -169,9 +197,48 @@ def render() -> Path:
     out.append(f"| (uncertified) | 1 | - | {np.median([u['precision'] for u in unc]):.4f} | "
                f"{np.median([u['iou'] for u in unc]):.4f} |")
     out += ["", target]
+    out += _render_spread(data)
     path = DOCS / "certification.md"
     path.write_text("\n".join(out) + "\n")
     return path
+
+
+def _render_spread(data: dict) -> list[str]:
+    """The seeds' spread (issue 54's bars): one row per seed measured, then min / median / max."""
+    everything = data["rows"] + data["sweep"] + data.get("spread", [])
+    pairs = []
+    for seed in SPREAD["seeds"]:
+        try:
+            pairs.append(_pair(everything, SPREAD["case"], SPREAD["mode"], seed, data["meta"]["default_margin"]))
+        except StopIteration:  # not measured yet (``--spread`` resumes)
+            pass
+    if not pairs:
+        return []
+    seeds = [u["seed"] for u, _ in pairs]
+    missing = [s for s in SPREAD["seeds"] if s not in seeds]
+    out = ["", f"## The seeds' spread: {SPREAD['case']}, {SPREAD['mode']} Gamma, margin "
+           f"{data['meta']['default_margin']:g}", "",
+           "Issue 54's bars: at every seed at most 2.5x the uncertified runs and at most 15 checks, the median",
+           "ratio at most 1.6x, precision no worse. Seeds " + ", ".join(map(str, seeds))
+           + (f" (not measured yet: {', '.join(map(str, missing))})." if missing else "."), "",
+           "| seed | runs uncert. | runs cert. | ratio | attempts | precision uncert. -> cert. |",
+           "| ---: | ---: | ---: | ---: | ---: | --- |"]
+    for u, c in pairs:
+        out.append(f"| {u['seed']} | {u['committed']:,} | {c['committed']:,} | {c['committed'] / u['committed']:.2f} | "
+                   f"{c['attempts']} | {u['precision']:.4f} -> {c['precision']:.4f} |")
+    ratio = [c["committed"] / u["committed"] for u, c in pairs]
+    att = [c["attempts"] for _, c in pairs]
+    prec_u = [u["precision"] for u, _ in pairs]
+    prec_c = [c["precision"] for _, c in pairs]
+    out += ["", "| | min | median | max |", "| --- | ---: | ---: | ---: |",
+            f"| ratio | {min(ratio):.2f}x | {np.median(ratio):.2f}x | {max(ratio):.2f}x |",
+            f"| attempts | {min(att)} | {np.median(att):g} | {max(att)} |",
+            f"| precision uncertified | {min(prec_u):.4f} | {np.median(prec_u):.4f} | {max(prec_u):.4f} |",
+            f"| precision certified | {min(prec_c):.4f} | {np.median(prec_c):.4f} | {max(prec_c):.4f} |",
+            "", f"Bars met: every ratio <= 2.5x: {'yes' if max(ratio) <= 2.5 else 'NO'}; every attempts <= 15: "
+            f"{'yes' if max(att) <= 15 else 'NO'}; median ratio <= 1.6x: {'yes' if np.median(ratio) <= 1.6 else 'NO'}; "
+            f"precision no worse at every seed: {'yes' if all(c >= u for u, c in zip(prec_u, prec_c)) else 'NO'}."]
+    return out
 
 
 if __name__ == "__main__":
