@@ -104,7 +104,7 @@ class SPE(SPECertification, Algorithm):
         self._edge: tuple[int, np.ndarray] | None = None  # (version, mask): the closing law's candidates
         self._holes = FailureDistances(self.scenario.lower, self.scenario.upper)  # d(vertex, hole)
         self._edge_share: tuple[int, float] | None = None  # (version, its share of the alive centres)
-        self._facet_cache: tuple[float, np.ndarray] | None = None  # (reach, per id: near a failure facet)
+        self._facet_cache: tuple[float, np.ndarray, int] | None = None  # (reach, per id: near a failure facet, ids filled)
 
     def _add_roots(self, centres: np.ndarray) -> None:
         self._insert(centres)
@@ -135,32 +135,31 @@ class SPE(SPECertification, Algorithm):
         Sigma, so that boundary is made of pruned regions (within delta of PhiBar) and of
         Sigma's failure facets; truncating facets are not of concern."""
         reach = self.scenario.step_bound() + self.delta
-        pts = self.vertices.points[ids]
-        near = np.zeros(len(ids), dtype=bool)
-        for facet, failure in self.scenario.facets():
-            if failure:
-                near |= np.abs(pts[:, facet.axis] - facet.bound) <= reach
+        near = self._facet_near(self.vertices.count, reach)[ids]
         if self.failures.count:
             near |= self._failure_distances()[ids] <= reach + self.delta
         return near
 
     def _facet_near(self, count: int, reach: float) -> np.ndarray:
         """(count,) bool: the centres within ``reach`` of a failure facet (the part of
-        ``_near_boundary`` that never changes for a centre: kept, extended to new ids)."""
+        ``_near_boundary`` that never changes for a centre: kept per id, extended to new
+        ids in a buffer that doubles, so that inserts between draws cost their own ids)."""
         known = self._facet_cache
         if known is None or known[0] != reach:
-            known = (reach, np.zeros(0, dtype=bool))
-        near = known[1]
-        if len(near) < count:
-            pts = self.vertices.points[len(near):count]
-            fresh = np.zeros(len(pts), dtype=bool)
+            known = (reach, np.zeros(0, dtype=bool), 0)
+        _, buffer, filled = known
+        if filled < count:
+            if count > len(buffer):
+                buffer = np.concatenate([buffer[:filled], np.zeros(max(count, 2 * len(buffer)) - filled, dtype=bool)])
+            pts = self.vertices.points[filled:count]
+            fresh = buffer[filled:count]
+            fresh[:] = False
             for facet, failure in self.scenario.facets():
                 if failure:
                     fresh |= np.abs(pts[:, facet.axis] - facet.bound) <= reach
-            near = np.concatenate([near, fresh])
-            known = (reach, near)
-        self._facet_cache = known
-        return near[:count]
+            filled = count
+        self._facet_cache = (reach, buffer, filled)
+        return buffer[:count]
 
     def _candidate(self, ids: np.ndarray) -> np.ndarray:
         """May centre ``ids`` be drawn (prioritized sampling): alive, and in the boundary

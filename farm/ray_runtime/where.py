@@ -14,6 +14,7 @@ writes nothing; the error then names the runs, as before.
 from __future__ import annotations
 
 import threading
+import time
 
 NAMESPACE = "scenario_farm.where"
 POLL_S = 0.5
@@ -31,8 +32,8 @@ def watch(backend, actor_id: str) -> threading.Thread | None:
 
     def loop():
         seen, told = None, None
-        stop = threading.Event()
-        while not stop.wait(POLL_S):
+        while True:
+            time.sleep(POLL_S)
             now = where()
             try:
                 if now is not None and now == seen and now != told:
