@@ -80,17 +80,29 @@ class BoxIndex:
         return out
 
     def contains(self, points: np.ndarray) -> np.ndarray:
-        return self.locate(points) >= 0
+        """(P, n) -> (P,) bool: in some box. Unlike ``locate`` a point leaves the walk at its
+        first box found, which is what keeps heavily overlapping boxes (a covering widened past
+        its boxes) cheap for the points inside them."""
+        points = np.atleast_2d(np.asarray(points, dtype=float))
+        out = np.zeros(len(points), dtype=bool)
+        if len(self.lo) == 0:
+            return out
+        for lo in range(0, len(points), QUERY_BLOCK):
+            out[lo : lo + QUERY_BLOCK] = self._locate(points[lo : lo + QUERY_BLOCK], first_found=True) >= 0
+        return out
 
-    def _locate(self, points: np.ndarray) -> np.ndarray:
+    def _locate(self, points: np.ndarray, first_found: bool = False) -> np.ndarray:
         none = np.iinfo(np.int64).max
         out = np.full(len(points), none)
         query = np.arange(len(points))
         node = np.zeros(len(points), dtype=np.int64)
         while len(query):
             leaf = self.axis[node] < 0
-            self._check_leaves(points, query[leaf], node[leaf], out)
+            self._check_leaves(points, query[leaf], node[leaf], out, first_found)
             query, node = query[~leaf], node[~leaf]
+            if first_found:  # a point found on one path needs no other
+                open_ = out[query] == none
+                query, node = query[open_], node[open_]
             x = points[query, self.axis[node]]
             at = self.plane[node]
             go_left = x <= at + TOLERANCE
@@ -99,13 +111,19 @@ class BoxIndex:
             node = np.concatenate([self.left[node[go_left]], self.right[node[go_right]]])
         return np.where(out == none, -1, out)
 
-    def _check_leaves(self, points, query, node, out) -> None:
-        if len(query) == 0:
-            return
-        for j in range(int(self.count[node].max())):
-            has = self.count[node] > j
-            q = query[has]
-            box = self.boxes[self.first[node[has]] + j]
-            p = points[q]
+    def _check_leaves(self, points, query, node, out, first_found: bool = False) -> None:
+        """Each (query, leaf) pair against the leaf's boxes, one box rank j at a time; with
+        ``first_found`` a pair is dropped at its first hit."""
+        count = self.count[node]
+        for j in range(int(count.max()) if len(query) else 0):
+            has = count > j
+            if not has.all():
+                query, node, count = query[has], node[has], count[has]
+            if len(query) == 0:
+                return
+            box = self.boxes[self.first[node] + j]
+            p = points[query]
             hit = ((p >= self.lo[box] - TOLERANCE) & (p <= self.hi[box] + TOLERANCE)).all(axis=1)
-            np.minimum.at(out, q[hit], box[hit])
+            np.minimum.at(out, query[hit], box[hit])
+            if first_found and hit.any():
+                query, node, count = query[~hit], node[~hit], count[~hit]

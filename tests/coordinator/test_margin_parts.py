@@ -57,6 +57,19 @@ def test_the_box_index_finds_the_lowest_box_holding_a_point_as_brute_force_does(
     assert np.array_equal(BoxIndex(lo, hi).locate(q), expected)
 
 
+def test_the_box_index_says_which_points_heavily_overlapping_boxes_hold_as_brute_force_does():
+    # a covering widened past its boxes: most points lie in dozens of boxes, on shared faces too
+    rng = np.random.default_rng(5)
+    centres = rng.integers(0, 12, (3000, 5)) * 0.5
+    lo, hi = centres - 1.25, centres + 1.25
+    q = np.concatenate([rng.uniform(-2, 8, (4000, 5)), rng.integers(-4, 16, (1000, 5)) * 0.5 + 0.75])
+    inside = ((q[:, None, :] >= lo[None] - 1e-9) & (q[:, None, :] <= hi[None] + 1e-9)).all(axis=2)
+    index = BoxIndex(lo, hi)
+    assert 0.1 < inside.any(axis=1).mean() < 0.9
+    assert np.array_equal(index.contains(q), inside.any(axis=1))
+    assert np.array_equal(index.locate(q) >= 0, inside.any(axis=1))
+
+
 def test_the_fixpoint_drops_runs_that_leave_the_covering_and_those_that_lead_there():
     # boxes on a line: 0 [0,1], 1 [1,2], 2 [2,3] (failed), 3 [3,4]; run 0 visits box 1,
     # run 1 visits box 2 (failed: outside), run 3 stays home
