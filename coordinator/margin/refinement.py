@@ -38,7 +38,7 @@ from coordinator.algorithm_settings import SPESettings
 from coordinator.margin.invariance import largest_invariant
 from coordinator.margin.cut_rule import CUT_PASSES, cuts
 from coordinator.margin.partition import Partition
-from coordinator.margin.split_rule import KAPPA, Neighbourhood, choose, first_order_change, wanted_axes
+from coordinator.margin.split_rule import KAPPA, Neighbourhood, choose, first_order_change, spans_sigma, wanted_axes
 from coordinator.margin.visits import Visits
 from coordinator.safe_set import COVERING_MARGIN, SafeSet
 from scenarios.base import FAILURE, Scenario
@@ -148,13 +148,16 @@ class MarginRefinement:
         last = self.final_round
         for lo in range(0, len(boxes), DECIDE_BLOCK):
             part = boxes[lo : lo + DECIDE_BLOCK]
-            wanted, priority = wanted_axes(self._neighbourhood(part), self.settings.delta_min, last)
+            hood = self._neighbourhood(part)
+            wanted, priority = wanted_axes(hood, self.settings.delta_min, last)
             wanted |= self._on_failure_facets(part)
             half_widths = self.partition.half_widths(part)
             splittable = half_widths > self.delta * (1 + 1e-9)
+            lonely = spans_sigma(hood) & splittable
             if last:  # one halving from delta_min, a box is the cut's (the module's docstring)
                 splittable &= (half_widths.max(axis=1) > 2 * self.delta * (1 + 1e-9))[:, None]
-            masks[lo : lo + DECIDE_BLOCK] = choose(wanted, priority, splittable)
+            splittable |= lonely
+            masks[lo : lo + DECIDE_BLOCK] = choose(wanted | lonely, np.where(lonely, np.inf, priority), splittable)
             waiting = (wanted & ~splittable).any(axis=1) & (masks[lo : lo + DECIDE_BLOCK] == 0)
             self.blocked = np.union1d(self.blocked, part[waiting])
         split = masks > 0

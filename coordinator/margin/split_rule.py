@@ -11,6 +11,10 @@ A box needs refining along axis a when
   could reach zero inside it (``|m| <= KAPPA R``, with room for curvature), and axis a
   carries a fair share of that change (``|g_a| h_a >= TAU max_b |g_b| h_b``).
 
+An axis along which a box has no neighbour at all (it spans Sigma there: a parameter
+narrower than delta0) shows no change; it splits once the round's delta allows
+(``spans_sigma``), or the set would claim the whole axis from runs at its middle.
+
 At most ``MAX_AXES`` axes split at once (a box crossed obliquely in many axes is
 refined over several waves, not into 2^n children at once), those whose label differs
 first, then by their share of the change.
@@ -101,6 +105,14 @@ def wanted_axes(hood: Neighbourhood, finest: float, last_round: bool = False) ->
         wanted &= (hood.safe & claimable & near)[:, None]
     priority = change + np.where(differs, np.inf, 0.0)
     return wanted, priority
+
+
+def spans_sigma(hood: Neighbourhood) -> np.ndarray:
+    """(B, n) bool: the box has no neighbour on either side along the axis (it spans Sigma
+    there, as a parameter axis narrower than delta0 does): no neighbour shows how the
+    margin changes along it, so the gradient reads 0 there and only a split can tell.
+    Refinement splits such an axis once the round's delta allows it, whatever the margins."""
+    return ~hood.exists.any(axis=2)
 
 
 def choose(wanted: np.ndarray, priority: np.ndarray, splittable: np.ndarray) -> np.ndarray:

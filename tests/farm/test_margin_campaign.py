@@ -95,3 +95,29 @@ def test_a_campaign_stopped_in_a_wave_resumes_to_the_same_set(tmp_path, monkeypa
     monkeypatch.setattr(SideCampaign, "_observer", observer)
     resumed = run(parse(TOML.format(executor="local") + "batch_size = 64\n"), tmp_path / "stopped", resume=True)
     assert resumed.result_hash == whole.result_hash and resumed.runs_committed == whole.runs_committed
+
+
+def test_parameter_axes_narrower_than_delta0_are_refined_once_delta_allows(tmp_path):
+    # T (range 1.2) and mu (0.6) fit in one box at delta0 = 2: no neighbour shows the margin's
+    # change along them, so only the split rule's spans-Sigma clause refines them (before it,
+    # the set claimed every T and mu from runs at their middle: half-widths 0.6 and 0.3)
+    toml = """
+[scenario]
+name = "lead-follow-params"
+sv_policy = "idm"
+[actions]
+mode = "adversarial"
+[quantify]
+delta0 = 2.0
+delta_min = 0.5
+horizon = 120
+holdout_runs = 0
+[farm]
+executor = "local"
+"""
+    s = run(parse(toml), tmp_path / "p")
+    assert s.refine == "margin" and s.converged
+    safe = SafeSet.from_parquet(tmp_path / "p" / "safe_set.parquet", ("v0", "v1", "p10", "T", "mu"))
+    widths = safe.axis_half_widths
+    assert widths[:, 3].max() <= 0.3 + 1e-9  # T split once: 0.6 -> 0.3
+    assert np.allclose(widths[:, 4], 0.3)  # mu's whole range is narrower than delta_min: the user's resolution
