@@ -227,6 +227,11 @@ class Algorithm(ABC):
         """(F, n) start states of runs that failed and pruned (PhiBar), if kept."""
         return np.empty((0, self.coverage.n))
 
+    @property
+    def held(self) -> int:
+        """The centres held, alive or pruned: what the algorithm's memory follows."""
+        return self.vertices.count
+
     def counts(self) -> dict:
         return {"boxes": self.vertices.alive_count, "vertices": self.vertices.count, "delta": self.delta,
                 "round": self.round}

@@ -51,6 +51,7 @@ TARGETS = {("lead-follow", 0.125): (25_000, 12, 0.8, 0.998, 0.997), ("fleet3", 0
            ("platoon4", 0.5): (500_000, 1200, 4, 0.995, 0.97), ("platoon5", 1.0): (1_000_000, 1800, 6, 0.985, 0.955)}
 CASES = [("lead-follow", 0.125, "margin"), ("lead-follow", 0.125, "band"),
          ("lead-follow-params", 0.25, "margin"), ("lead-follow-params", 0.25, "band"),
+         ("lead-follow-params", 0.125, "margin"),
          ("fleet3", 0.25, "margin"), ("fleet3", 0.25, "band"),
          ("platoon4", 0.5, "margin"), ("platoon4", 1.0, "band"),
          ("platoon5", 1.0, "margin"), ("platoon5", 2.0, "band")]

@@ -273,6 +273,11 @@ class MarginRefinement:
         leaves = self.partition.leaves()
         return self.partition.centres(leaves[self.failed[leaves]])
 
+    @property
+    def held(self) -> int:
+        """The partition's boxes, leaves and split ones: what the refinement's memory follows."""
+        return self.partition.size
+
     def counts(self) -> dict:
         leaves = self.partition.leaves()
         out = {"boxes": int(np.count_nonzero(~self.failed[leaves])), "leaves": len(leaves),

@@ -25,7 +25,7 @@ EXIT_OK, EXIT_COUNTEREXAMPLE = exits.OK, exits.FINDING
 
 def _overrides(args) -> dict:
     return {f"farm.{k}": getattr(args, k, None) for k in ("workers", "address", "executor", "seed",
-                                                           "checkpoint_every")}
+                                                           "checkpoint_every", "max_memory_gb")}
 
 
 def cmd_validate(args) -> int:

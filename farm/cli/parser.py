@@ -52,6 +52,8 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--force", action="store_true", help="replace the campaign in --out (only a campaign directory)")
     p.add_argument("--checkpoint-every", type=float, help="seconds between checkpoints, at least 1 "
                                                           "(farm.checkpoint_every)")
+    p.add_argument("--max-memory-gb", type=float, help="the memory a campaign may hold, in GB; past it the campaign "
+                                                       "stops checkpointed (farm.max_memory_gb)")
     _add_farm_flags(p)
     _add_output_flags(p)
 
@@ -96,6 +98,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("resume", help="continue a stopped or killed campaign")
     p.add_argument("dir")
     p.add_argument("--checkpoint-every", type=float)
+    p.add_argument("--max-memory-gb", type=float, help="the memory a campaign may hold, in GB; past it the campaign "
+                                                       "stops checkpointed (farm.max_memory_gb)")
     _add_farm_flags(p, seed=False)
     _add_output_flags(p)
 

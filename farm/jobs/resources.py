@@ -5,6 +5,10 @@ than atoms, a validation domain 1e-7 wide at ``delta = 1e-9`` a lattice of 10^18
 Both used to run until the machine gave out. The estimates here are worst cases (every
 cell of the finest covering alive), so a refusal is never wrong about what was asked;
 the limit is ``farm.max_memory_gb`` (default: three quarters of this machine's memory).
+Refinement that follows the boundary (SPE with band or margin) cannot be bounded before
+its runs, short of the whole lattice at delta_min (a 5-D margin campaign that holds 40 k
+boxes would be refused for 27 M): its first round is checked here, and the boxes it holds
+as it runs (``MemoryGuard``).
 The farm is checked too: a local Ray gets at most ``ACTORS_PER_CPU`` actors per CPU of
 this machine, or, where the simulator waits on something else (``farm.waiting``: a remote
 simulator server, a hardware-in-the-loop rig), as many as fit the memory limit at
@@ -125,8 +129,53 @@ def check_quantify(cfg: Config, lower, upper) -> None:
     if q.delta0 > half * (1 + 1e-12):
         raise ConfigError(f"quantify.delta0: {q.delta0:g} is larger than Sigma (one box of half-width {half:g} "
                           f"covers it; every larger delta0 only adds rounds); allowed (0, {half:g}]")
-    _fits(cfg, "quantify.delta_min", q.delta_min, lower, upper, BYTES_PER_BOX, "may need {:.3g} boxes")
+    if follows_boundary(cfg):
+        # only the first round covers all of Sigma; the finer ones follow the boundary, whose
+        # size no one knows before the runs: MemoryGuard watches them as they grow
+        _fits(cfg, "quantify.delta0", q.delta0, lower, upper, BYTES_PER_BOX, "needs {:.3g} boxes in the first round")
+    else:
+        _fits(cfg, "quantify.delta_min", q.delta_min, lower, upper, BYTES_PER_BOX, "may need {:.3g} boxes")
     check_farm(cfg)
+
+
+def follows_boundary(cfg: Config) -> bool:
+    """SPE refining only near the boundary (band, margin): its boxes past the first round
+    are bounded by the boundary, not by the lattice at delta_min."""
+    return cfg.quantify.algorithm == "spe" and cfg.refinement() in ("band", "margin")
+
+
+def bytes_per_box(cfg: Config, n: int) -> float:
+    """What a held box costs: ``BYTES_PER_BOX``, and under margin refinement twice that with
+    the states of its run (K + 1 states of n floats, kept for the certificate's invariance
+    check and gathered once more by it). Measured: lead-follow-params at delta_min 0.125,
+    K = 120, peaked at 8.4 GB holding about 700 k boxes: 12 KB a box; this gives 11.7 KB."""
+    if cfg.refinement() == "margin":
+        return 2.0 * (BYTES_PER_BOX + 8.0 * n * (cfg.quantify.horizon + 1))
+    return float(BYTES_PER_BOX)
+
+
+class MemoryGuard:
+    """Stops a campaign whose held boxes pass ``farm.max_memory_gb`` (checked after every
+    committed chunk, so a stop lands at a checkpointable place): the campaign is then
+    checkpointed and ``over`` says why in one line, resumable with a higher limit."""
+
+    def __init__(self, cfg: Config, n: int):
+        self.limit = memory_limit_bytes(cfg)
+        self.per_box = bytes_per_box(cfg, n)
+        self.held = 0
+
+    def exceeded(self, held: int) -> bool:
+        if held * self.per_box > self.limit:
+            self.held = held
+            return True
+        return False
+
+    def over(self, committed: int, directory) -> ConfigError:
+        return ConfigError(
+            f"farm.max_memory_gb: the campaign holds {self.held:,} boxes (about {_gb(self.held * self.per_box)}), "
+            f"over the limit of {_gb(self.limit)}; stopped and checkpointed at {committed:,} committed runs: "
+            f"continue with `scenario-farm resume {directory} --max-memory-gb G` where G GB fit, or start again "
+            f"with a coarser quantify.delta_min")
 
 
 def check_validate(cfg: Config, lo, hi, is_set: bool) -> None:

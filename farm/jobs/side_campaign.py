@@ -18,6 +18,7 @@ from farm.directory import checkpoint
 from farm.directory.checkpoint import Stamp
 from farm.directory.files import read_json, write_json
 from farm.jobs.campaign_setup import build_algorithm, build_campaign
+from farm.jobs.resources import MemoryGuard
 from farm.execution.process import build_simulator, close_simulator, spec_of
 from farm.config import Config, config_hash
 from farm.execution.factory import make_executor
@@ -51,6 +52,9 @@ class SideCampaign:
         self.virtual = None  # the virtual farm's VirtualClock (farm/execution/virtual.py)
         self.holdout: dict | None = None  # fresh uniform runs against the set (coordinator/holdout.py)
         self._restored: checkpoint.Restored | None = None
+        self.memory = MemoryGuard(cfg, self.scenario.n)
+        # the directory `scenario-farm resume` takes: the total's, which holds the sides'
+        self.campaign_root = self.directory if side == "total" else self.directory.parent.parent
 
     def restore(self) -> None:
         """Load and check this campaign's checkpoint, if it has one (nothing is written)."""
@@ -101,6 +105,8 @@ class SideCampaign:
         self.save()
         if not done:
             status.update(self.side, self.campaign, state="stopped", force=True)
+            if self.memory.held:
+                raise self.memory.over(self.campaign.counters.committed, self.campaign_root)
             raise Stopped(f"stopped at {self.campaign.counters.committed} committed runs")
         self.algorithm.release()
         gc.collect()  # what reference cycles still hold of the released state, before the heap is trimmed
@@ -172,6 +178,8 @@ class SideCampaign:
         side = "" if self.side == "total" else f"{self.side} side: "
 
         def observe(campaign: Campaign) -> None:
+            if self.memory.exceeded(self.algorithm.held):
+                campaign.stop()
             if campaign.adversary is not None and len(campaign.adversary.history) > seen_updates[0]:
                 seen_updates[0] = len(campaign.adversary.history)
                 progress.line(f"{side}search: next round samples {campaign.adversary.policy.description}")

@@ -147,3 +147,46 @@ print(len(procs), sorted(set(listening)), len(listening))
     assert int(n_procs) >= 4  # gcs, raylet, workers: the check looked at Ray's own processes
     assert addresses and set(addresses) <= {"127.0.0.1", "::1", "::ffff:127.0.0.1"}, addresses
     assert "Token authentication" not in r.stderr  # the banner is kept out of local-mode output
+
+
+GAMMA_STAR = """
+[scenario]
+name = "lead-follow"
+sv_policy = "idm"
+[actions]
+mode = "adversarial"
+[quantify]
+delta0 = 2.0
+delta_min = 0.25
+holdout_runs = 0
+[farm]
+executor = "local"
+"""
+
+
+def test_boundary_refinement_is_watched_as_it_runs_and_resumes_past_a_raised_limit(tmp_path):
+    # margin refinement: the lattice at delta_min (the worst case, 6.3e5 boxes of 5 KB: 2.9 GB)
+    # is not what it holds, so a 1 GB limit does not refuse it up front; the boxes it holds
+    # pass 4 MB early: stopped, checkpointed, one line; a higher limit resumes it to the result
+    # a run without the limit gives
+    from farm.config import parse
+    from farm.jobs.resources import check_quantify
+    from scenarios.errors import ConfigError
+
+    lead_follow = make_backend({"name": "lead-follow", "sv_policy": "idm"}).scenario
+    fine = GAMMA_STAR.replace("delta_min = 0.25", "delta_min = 0.03125") + "max_memory_gb = 1.0\n"
+    check_quantify(parse(fine), lead_follow.lower, lead_follow.upper)
+    with pytest.raises(ConfigError, match="quantify.delta_min"):  # refined everywhere: the lattice is what it holds
+        check_quantify(parse(fine.replace("holdout_runs = 0", "holdout_runs = 0\nrefine = \"all\"")),
+                       lead_follow.lower, lead_follow.upper)
+    (tmp_path / "c.toml").write_text(GAMMA_STAR + "max_memory_gb = 0.004\n")
+    out = tmp_path / "out"
+    r = cli("quantify", str(tmp_path / "c.toml"), "--out", str(out))
+    one_line_error(r, "farm.max_memory_gb", "boxes", f"scenario-farm resume {out} --max-memory-gb")
+    assert (out / "checkpoint.npz").exists() and not (out / "summary.json").exists()
+    r = cli("resume", str(out), "--max-memory-gb", "2")
+    assert r.returncode == 0, r.stderr
+    (tmp_path / "d.toml").write_text(GAMMA_STAR)
+    assert cli("quantify", str(tmp_path / "d.toml"), "--out", str(tmp_path / "d")).returncode == 0
+    hashes = [json.loads((d / "summary.json").read_text())["result_hash"] for d in (out, tmp_path / "d")]
+    assert hashes[0] == hashes[1]
