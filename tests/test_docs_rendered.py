@@ -17,6 +17,7 @@ RENDERED = {  # renderer -> the docs it writes
     "experiments/window.py": ["window.md"],
     "experiments/coupling_bound.py": ["coupling_bound.md"],
     "experiments/certification.py": ["certification.md"],
+    "experiments/certification_tail.py": ["certification_tail.md"],
     "benchmarks/bench_virtual.py": ["virtual.md"],
     "benchmarks/bench_scaling.py": ["scaling.md"],
     "experiments/refinement.py": ["refinement.md"],
