@@ -69,27 +69,22 @@ class BoxIndex:
     def __len__(self) -> int:
         return len(self.lo)
 
-    def locate(self, points: np.ndarray) -> np.ndarray:
-        """(P, n) -> (P,) a box holding each point (the lowest id among those found), or -1."""
+    def locate(self, points: np.ndarray, first_found: bool = False) -> np.ndarray:
+        """(P, n) -> (P,) a box holding each point (the lowest id among those found), or -1.
+        ``first_found``: any box holding it instead, a point leaving the walk at its first box
+        found, which keeps heavily overlapping boxes (a covering widened past its boxes)
+        cheap for the points inside them."""
         points = np.atleast_2d(np.asarray(points, dtype=float))
         out = np.full(len(points), -1, dtype=np.int64)
         if len(self.lo) == 0:
             return out
         for lo in range(0, len(points), QUERY_BLOCK):
-            out[lo : lo + QUERY_BLOCK] = self._locate(points[lo : lo + QUERY_BLOCK])
+            out[lo : lo + QUERY_BLOCK] = self._locate(points[lo : lo + QUERY_BLOCK], first_found)
         return out
 
     def contains(self, points: np.ndarray) -> np.ndarray:
-        """(P, n) -> (P,) bool: in some box. Unlike ``locate`` a point leaves the walk at its
-        first box found, which is what keeps heavily overlapping boxes (a covering widened past
-        its boxes) cheap for the points inside them."""
-        points = np.atleast_2d(np.asarray(points, dtype=float))
-        out = np.zeros(len(points), dtype=bool)
-        if len(self.lo) == 0:
-            return out
-        for lo in range(0, len(points), QUERY_BLOCK):
-            out[lo : lo + QUERY_BLOCK] = self._locate(points[lo : lo + QUERY_BLOCK], first_found=True) >= 0
-        return out
+        """(P, n) -> (P,) bool: in some box."""
+        return self.locate(points, first_found=True) >= 0
 
     def _locate(self, points: np.ndarray, first_found: bool = False) -> np.ndarray:
         none = np.iinfo(np.int64).max

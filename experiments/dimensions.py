@@ -57,10 +57,14 @@ CASES = [("lead-follow", 0.125, "margin"), ("lead-follow", 0.125, "band"),
          ("platoon5", 1.0, "margin"), ("platoon5", 2.0, "band")]
 
 
+def _scenario_text(name: str) -> str:
+    """The [scenario] and [actions] tables of a case (Gamma*)."""
+    table = "\n".join(f"{k} = {json.dumps(v)}" for k, v in SCENARIOS[name][0].items())
+    return f"[scenario]\n{table}\n[actions]\nmode = \"adversarial\"\n"
+
+
 def config_text(name: str, delta_min: float, refine: str) -> str:
-    scenario = SCENARIOS[name][0]
-    table = "\n".join(f"{k} = {json.dumps(v)}" for k, v in scenario.items())
-    return (f"[scenario]\n{table}\n[actions]\nmode = \"adversarial\"\n"
+    return (_scenario_text(name) +
             f"[quantify]\ndelta0 = 2.0\ndelta_min = {delta_min}\nepsilon = 0.001\nbeta = 0.1\nhorizon = {HORIZONS.get(name, 50)}\n"
             f"budget = 40000000\nrefine = \"{refine}\"\nsides = false\n"
             f"[farm]\nexecutor = \"local\"\nseed = 0\n")
@@ -72,9 +76,7 @@ def _capped():
 
 def validation_text(name: str, delta_min: float, safe_set: Path) -> str:
     """A fresh VAL^delta of the exported set at the campaign's delta_min (its own covering)."""
-    scenario = SCENARIOS[name][0]
-    table = "\n".join(f"{k} = {json.dumps(v)}" for k, v in scenario.items())
-    return (f"[scenario]\n{table}\n[actions]\nmode = \"adversarial\"\n"
+    return (_scenario_text(name) +
             f"[validate]\nalgorithm = \"delta\"\nepsilon = 0.001\nbeta = 0.1\ndelta = {delta_min}\n"
             f"horizon = {HORIZONS.get(name, 50)}\n"
             f"domain_set = {json.dumps(str(safe_set))}\n[farm]\nexecutor = \"local\"\nseed = 7\n")

@@ -101,20 +101,8 @@ def test_parameter_axes_narrower_than_delta0_are_refined_once_delta_allows(tmp_p
     # T (range 1.2) and mu (0.6) fit in one box at delta0 = 2: no neighbour shows the margin's
     # change along them, so only the split rule's spans-Sigma clause refines them (before it,
     # the set claimed every T and mu from runs at their middle: half-widths 0.6 and 0.3)
-    toml = """
-[scenario]
-name = "lead-follow-params"
-sv_policy = "idm"
-[actions]
-mode = "adversarial"
-[quantify]
-delta0 = 2.0
-delta_min = 0.5
-horizon = 120
-holdout_runs = 0
-[farm]
-executor = "local"
-"""
+    toml = TOML.format(executor="local").replace('name = "lead-follow"', 'name = "lead-follow-params"') \
+        .replace("holdout_runs = 500", "horizon = 120\nholdout_runs = 0")
     s = run(parse(toml), tmp_path / "p")
     assert s.refine == "margin" and s.converged
     safe = SafeSet.from_parquet(tmp_path / "p" / "safe_set.parquet", ("v0", "v1", "p10", "T", "mu"))
