@@ -81,13 +81,15 @@ def refined(scenario, policy, *, horizon: int, boxes: int, covering: float, fine
 
 def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, horizon: int, n_eps: int,
                attempts: int, n_final: int, converged: bool, budget: int, enumerated: bool, boxes: int, uniform: bool, distribution: str,
-               escaped: int, adversarial: bool, coarsest: float | None = None) -> Guarantee:
+               escaped: int, adversarial: bool, coarsest: float | None = None, tolerance: int = 0,
+               seen: int = 0) -> Guarantee:
     """The guarantee of a quantified set. ``enumerated``: a deterministic system's final
     centres were each run once (VAL^delta); ``uniform``: the last N_eps runs were drawn
     uniformly over the final centres (a certification round); ``escaped``: counted runs
     that left Phi_delta toward a known failure (possible only without certification);
     ``attempts``/``n_final``: the sampled certification's checks and the runs the last
-    one needed (beta split over checks, coordinator/certification.py).
+    one needed (beta split over checks, coordinator/certification.py); ``tolerance``: the
+    violations that check could see and pass (the binomial test), ``seen`` those it saw.
     ``coarsest``: the largest box half-width, when boundary refinement left boxes coarser
     than ``delta`` inside the set."""
     cond, fail, t = _conditions(scenario, policy), scenario.failure_words, _horizon_s(scenario, horizon)
@@ -112,6 +114,15 @@ def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, h
         nn = (f"N = {n_final} runs, the need of certification attempt i = {attempts} (check i, after closing "
               f"rounds that spend no beta) with beta_i = 6 beta / (pi^2 i^2), so that the exported set keeps "
               f"confidence {1 - beta:g} over all attempts,")
+    if uniform and attempts and tolerance:
+        formal = (f"Phi is ({epsilon:g}, {delta:g})-almost robustly controlled forward invariant w.r.t. {gamma} "
+                  f"with confidence {1 - beta:g} ({nn} drawn i.i.d. from {distribution}, actions "
+                  f"{policy.description}, of which at most {tolerance} may fail or leave Phi_delta, the binomial "
+                  f"test P(Bin(N, {epsilon:g}) <= {tolerance}) <= beta_i: {seen} did, and the set was exported as "
+                  f"checked).")
+        plain = (f"With {confidence} confidence, at most {_percent(epsilon)} of scenarios {where}, {cond}, {fail} or "
+                 f"{_leave(delta, coarsest)} within {t}.")
+        return Guarantee(plain, formal)
     if escaped == 0:
         plain = (f"With {confidence} confidence, at most {_percent(epsilon)} of scenarios {where}, {cond}, {fail} or "
                  f"{_leave(delta, coarsest)} within {t}.")

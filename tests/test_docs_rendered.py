@@ -22,6 +22,7 @@ RENDERED = {  # renderer -> the docs it writes
     "benchmarks/bench_scaling.py": ["scaling.md"],
     "experiments/refinement.py": ["refinement.md"],
     "experiments/certified_sets.py": ["guarantee.md"],
+    "experiments/guarantee_check.py": ["guarantee.md"],
     "experiments/estimate.py": ["estimate.md"],
     "experiments/holdout_check.py": ["guarantee.md"],
     "experiments/dimensions.py": ["dimensions.md"],

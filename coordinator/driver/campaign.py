@@ -201,8 +201,9 @@ class Campaign:
                 if not self._may_apply(change):
                     break  # a held replacement changed the state first: the head went back
             c.committed += 1
-            self._change(change, chunk, pos)
-            rows.changed[pos] = True
+            applied = self._change(change, chunk, pos)
+            rows.changed[pos] = applied
+            rows.counted[pos] = not applied  # a violation the check tolerates: one of its runs
             pos += 1
         if self._rewound:  # the rows from the hold on are committed again
             self._rewound = False
@@ -259,15 +260,20 @@ class Campaign:
             rescreen = self._rescreens[chunk] = Rescreen(coverage, chunk.screening, chunk.outcomes, chunk.visited)
         return rescreen
 
-    def _change(self, event: Event, chunk: Chunk, row: int) -> None:
-        """Apply a run that changes the state; the streak starts again at the head."""
+    def _change(self, event: Event, chunk: Chunk, row: int) -> bool:
+        """Apply a run that changes the state; the streak starts again at the head. A
+        check's violation within its tolerance is only counted: the check goes on.
+        True if applied."""
         c = self.counters
+        if self.phase.tolerates(c):
+            return False
         self.algorithm.apply(event)
         self.recordings.offer(chunk, row, event.index, event.start)
         if self.phase.changed(c):
             self._law_switched = True
         c.changes += 1
         c.start_streak()
+        return True
 
     # -- replacements ------------------------------------------------------------------------
     def _use_replacement(self, r: Replacement, chunk: Chunk, row: int, held: bool = False) -> bool:
@@ -293,13 +299,13 @@ class Campaign:
         counted = not changes and r.index >= (past.streak_start if past is not None else c.streak_start)
         escaped = int(chunk.screening.escaped[row]) if counted else 0
         c.runs_replaced += 1
-        if changes:
-            self._change(Event.of_run(r.index, chunk, row, r.start, start_id[0], judged), chunk, row)
-        elif counted and past is None:  # (past a change, the streak it counts in has ended)
+        applied = changes and self._change(Event.of_run(r.index, chunk, row, r.start, start_id[0], judged), chunk, row)
+        counted |= changes and not applied  # a violation the check tolerates: one of its runs
+        if not changes and counted and past is None:  # (past a change, the streak it counts in has ended)
             c.quiet += 1
             c.escaped_in_streak += escaped
         self._log_rows(chunk, np.array([row]), r.index, r.start[None, :], start_id, CommitLog.REPLACEMENT,
-                       np.array([changes]), np.array([counted]), now=True)
+                       np.array([applied]), np.array([counted]), now=True)
         if held and not changes:
             self.held.applied_quiet({"runs_replaced": 1, "quiet": int(counted), "escaped_in_streak": escaped},
                                     streak_until=None if past is None else past.index)

@@ -4,8 +4,9 @@ lead to: the one place the driver reads the algorithm's round flags.
 A campaign runs the algorithm's rounds (delta decays round by round) and, with
 ``certify``, ends with certification (coordinator/certification.py) as its last round:
 every final centre once for a deterministic system (enumeration), otherwise closing
-rounds (which change the set and spend no beta) alternating with checks (which pass
-only if nothing changes). A campaign of one round (delta0 = delta_min) certifies from
+rounds (which change the set and spend no beta) alternating with checks (which change
+nothing: they pass with at most quantify.certify_tolerance violations, or fail at the
+next one, which is applied). A campaign of one round (delta0 = delta_min) certifies from
 its first run.
 """
 
@@ -76,6 +77,16 @@ class Phase:
                 counters.attempts = 1
             counters.certification_from = counters.committed
 
+    def tolerates(self, counters) -> bool:
+        """A check saw a violation: True if it is within quantify.certify_tolerance (counted,
+        not applied: the set stays the one checked, and the check's runs go on)."""
+        if not self.settled or self.algorithm.enumerates or \
+                counters.check_violations >= self.settings.certify_tolerance:
+            return False
+        counters.check_violations += 1
+        counters.violations_tolerated += 1
+        return True
+
     def changed(self, counters) -> bool:
         """A change was applied. True if it ended a check: a closing round follows, whose
         law moves every draw in flight (they are dropped as at a round end)."""
@@ -94,6 +105,7 @@ class Phase:
             counters.closing_ends.append(counters.committed)
             algorithm.begin_check()
             counters.attempts += 1
+            counters.check_violations = 0
             return After.CHECK
         counters.round_ends.append(counters.committed)
         counters.rounds_completed += 1

@@ -14,7 +14,7 @@ COUNTING = ("sequential", "deferred")
 @dataclass(frozen=True)
 class CampaignSettings:
     """The config's quantify.epsilon, beta, budget, certify, certify_margin,
-    farm.batch_size, pipeline_depth, counting, seed and record.quantify_runs; and two
+    certify_tolerance, farm.batch_size, pipeline_depth, counting, seed and record.quantify_runs; and two
     switches no config sets, for tests that show a part never changes a result:
     ``look_ahead`` (runs launched before the head needs them, coordinator/driver/lookahead.py)
     and ``speculate`` (changes applied past holds, coordinator/driver/speculation.py)."""
@@ -29,6 +29,7 @@ class CampaignSettings:
     record_limit: int = 0  # state-changing failures kept for the MCAP recording
     counting: str = "sequential"
     certify_margin: float = certification.MARGIN  # closing rounds aim at eps / margin
+    certify_tolerance: int = 0  # violations a check may see and pass (the config's default: certification.TOLERANCE)
     look_ahead: bool = True
     speculate: bool = True
 
@@ -47,9 +48,9 @@ class CampaignSettings:
         return 0 if self.counting == "sequential" else self.batch_size * self.pipeline_depth
 
     def certification_quiet(self, attempt: int) -> int:
-        """Quiet runs in a row that pass check ``attempt`` (1, 2, ...): beta split over the
-        checks, so that the set finally exported keeps it."""
-        return certification.check_quiet(self.epsilon, self.beta, attempt)
+        """Runs that pass check ``attempt`` (1, 2, ...) with at most ``certify_tolerance``
+        violations: beta split over the checks, so that the set finally exported keeps it."""
+        return certification.check_quiet(self.epsilon, self.beta, attempt, self.certify_tolerance)
 
     def closing_quiet(self, share: float) -> int:
         """Quiet runs in a row that end a closing round over an edge of ``share`` of the centres."""

@@ -38,6 +38,8 @@ class Counters:
     attempts: int = 0  # sampled certification: checks begun; deterministic: 1 + changes while certifying
     certification_from: int = -1  # the committed count when certification began (-1: it did not)
     closing_ends: list = field(default_factory=list)  # committed count at each closing round's end
+    check_violations: int = 0  # violations the current check saw within quantify.certify_tolerance
+    violations_tolerated: int = 0  # such violations over all checks (the passing check's: check_violations)
     truncations: list = field(default_factory=list)  # committed truncated runs per facet (Scenario.facets() order)
 
     def count_truncations(self, chunk: Chunk, rows: np.ndarray) -> None:

@@ -116,12 +116,14 @@ def _print_summary(out: Path, summary=None) -> None:
     """The main figures of the campaign in ``out`` (its summary.json, or ``summary``)."""
     summary = summary or Summary.read(out)
     keys = ["scenario", "sv_policy", "algorithm", "delta_final", "half_width_max", "rounds", "boxes", "volume_union", "volume_hull",
-            "runs_committed", "runs_certification", "certification_attempts", "runs_simulated", "steps_simulated",
+            "runs_committed", "runs_certification", "certification_attempts", "certification_check_violations",
+            "runs_simulated", "steps_simulated",
             "elapsed_s", "startup_s", "result_hash"]
     values = summary.to_json()
     for k in keys + [k for k in values if k.startswith("volume_") and k.endswith("_side")]:
-        if k in ("runs_certification", "certification_attempts") and not values.get(k):
-            continue  # no certification
+        if k in ("runs_certification", "certification_attempts", "certification_check_violations") \
+                and not values.get(k):
+            continue  # no certification (or a passing check that saw no violation)
         if k in values and not (k == "half_width_max" and values[k] == values.get("delta_final")):
             v = values[k]
             print(f"{k:>18}: {v:.6g}" if isinstance(v, float) else f"{k:>18}: {v}")

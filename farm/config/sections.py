@@ -10,7 +10,7 @@ from typing import Annotated, Literal
 from pydantic import BaseModel, ConfigDict, Field, create_model, field_validator, model_validator
 
 from coordinator.algorithm_settings import SPESettings
-from coordinator.certification import MARGIN as CERTIFY_MARGIN
+from coordinator.certification import MARGIN as CERTIFY_MARGIN, TOLERANCE as CERTIFY_TOLERANCE
 
 # [s] farm.checkpoint_every below this is raised to it, with a warning; the environment
 # variable lowers it for tests that interrupt a campaign at many moments
@@ -139,6 +139,11 @@ class _QuantifyBase(Section):
         "sampled certification: closing rounds end after N_eps(eps / (margin x edge share)) quiet runs near "
         "the failure-side boundary, so that a check (N_eps at eps, beta split over checks) usually passes "
         "at once (docs/certification.md)"), json_schema_extra={"hashed_when_default": False})] = CERTIFY_MARGIN
+    certify_tolerance: Annotated[int, Field(ge=0, le=20, description=(
+        "sampled certification: violations a check may see and still pass (the binomial test: its runs grow so "
+        "that a set above eps passes with probability at most beta_i; 0: N_eps in a row, as validate). The "
+        "checked set is exported unchanged (docs/certification.md)"),
+        json_schema_extra={"hashed_when_default": False})] = CERTIFY_TOLERANCE
 
     @model_validator(mode="after")
     def _delta_order(self):

@@ -26,7 +26,8 @@ def campaign_settings(cfg: Config) -> CampaignSettings:
     q, farm_cfg = cfg.quantify, cfg.farm
     return CampaignSettings(epsilon=q.epsilon, beta=q.beta, budget=q.budget, batch_size=farm_cfg.batch_size,
                             pipeline_depth=farm_cfg.pipeline_depth, seed=farm_cfg.seed, certify=q.certify,
-                            certify_margin=q.certify_margin, record_limit=cfg.record.quantify_runs, counting=farm_cfg.counting)
+                            certify_margin=q.certify_margin,
+                            certify_tolerance=q.certify_tolerance, record_limit=cfg.record.quantify_runs, counting=farm_cfg.counting)
 
 
 def build_algorithm(cfg: Config, simulator: Simulator) -> Algorithm | MarginRefinement:

@@ -138,7 +138,9 @@ def guarantee_of(cfg: Config, side: SideCampaign, delta: float):
                       enumerated=certified and algo.enumerates, boxes=algo.vertices.alive_count,
                       uniform=certified, distribution=campaign.final_distribution,
                       escaped=campaign.counters.escaped_in_streak, adversarial=cfg.actions.mode == "adversarial",
-                      coarsest=algo.result().coarsest if q.refine == "band" else None)
+                      coarsest=algo.result().coarsest if q.refine == "band" else None,
+                      tolerance=q.certify_tolerance if certified else 0,
+                      seen=campaign.counters.check_violations if certified else 0)
 
 
 def finish(cfg: Config, out: Path, sides: dict[str, SideCampaign]) -> Summary:

@@ -30,9 +30,11 @@ def actor_class():
         """Holds a scenario back end and a coverage mirror; simulates and screens
         whatever chunk it is sent."""
 
-        def __init__(self, spec: dict, check_step_bound: bool):
+        def __init__(self, spec: dict, check_step_bound: bool, where_key: str):
+            """``where_key``: the name the driver gave this actor, under which it says where
+            a per-run back end hangs (farm/ray_runtime/where.py)."""
             self.simulator = build_simulator(SimSpec(**spec), check_step_bound)
-            where.watch(self.simulator.backend, ray.get_runtime_context().get_actor_id())
+            where.watch(self.simulator.backend, where_key)
             self.mirror: Coverage | None = None
             self.static = (None, None)
             self.busy_s = 0.0

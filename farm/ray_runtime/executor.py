@@ -35,6 +35,7 @@ from coordinator.executor import Chunk, ChunkSummary, Executor
 from coordinator.experience_replay import Stored
 from farm import lazy
 from farm.execution.chunking import ChunkSizer, fast_lanes
+from farm.ray_runtime import where
 from farm.ray_runtime.actor import RESYNC, actor_class
 from farm.ray_runtime.mirror import Mirrors
 from farm.ray_runtime.pool import ActorPool, Call, check_started
@@ -112,8 +113,10 @@ class RayExecutor(Executor):
         # retries none of its calls: the pool sends them elsewhere.
         cls = actor_class().options(num_cpus=per_actor, max_restarts=-1, max_task_retries=0,
                                     scheduling_strategy="SPREAD")
-        handles = [cls.remote(dataclasses.asdict(self.spec), self._check_step_bound) for _ in range(self.workers)]
-        self.pool = ActorPool(ray, handles, self.sizer.limit, self.max_retries, self._stop, self._notify)
+        keys = [where.new_key() for _ in range(self.workers)]
+        handles = [cls.remote(dataclasses.asdict(self.spec), self._check_step_bound, key) for key in keys]
+        self.pool = ActorPool(ray, list(zip(handles, keys)), self.sizer.limit, self.max_retries, self._stop,
+                              self._notify)
         self.mirrors = Mirrors(ray, self.pool)
         self.startup_s = time.monotonic() - t0
         return self
@@ -205,7 +208,8 @@ class RayExecutor(Executor):
         of the runs."""
         lane = actor_class().options(num_cpus=0, max_restarts=-1, max_task_retries=0, scheduling_strategy="SPREAD")
         for _ in range(self._lanes):
-            self.pool.add(lane.remote(dataclasses.asdict(self.spec), self._check_step_bound), lane=True)
+            key = where.new_key()
+            self.pool.add(lane.remote(dataclasses.asdict(self.spec), self._check_step_bound, key), key, lane=True)
         self._lane = False
 
     def _send(self, first_index, starts, screen, actions, indices, rows) -> int:

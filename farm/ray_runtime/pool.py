@@ -70,6 +70,7 @@ class Slot:
     """One actor, as the driver knows it."""
 
     handle: object
+    where_key: str = ""  # the name it reports where it hangs under (farm/ray_runtime/where.py)
     lane: bool = False  # the fast lane: only urgent calls, unless no other actor is up
     queue: deque = dataclasses.field(default_factory=deque)  # Calls in the order the actor runs them
     started: float = 0.0  # when the head call started, as far as the driver knows
@@ -101,12 +102,13 @@ class Slot:
 class ActorPool:
     def __init__(self, ray, handles: list, limit: Callable[[int], float], max_retries: int,
                  stop: threading.Event | None = None, notify: Callable[[str], None] | None = None):
-        """``limit(runs)``: the seconds a call of ``runs`` runs may take once started."""
+        """``handles``: (actor handle, its where key) pairs; ``limit(runs)``: the seconds a call
+        of ``runs`` runs may take once started."""
         self.ray = ray
         self.slots: list[Slot] = []
         self.limit = limit
-        for handle in handles:
-            self.add(handle)
+        for handle, key in handles:
+            self.add(handle, key)
         self.max_retries = max_retries
         self.stop = stop
         self.notify = notify
@@ -118,9 +120,10 @@ class ActorPool:
         self._polled = 0.0
         self.held_back = 0  # calls that waited in the pool for an actor with room (a statistic)
 
-    def add(self, handle, lane: bool = False) -> None:
-        """One more actor; ``lane``: kept for urgent calls (a fast lane)."""
-        self.slots.append(Slot(handle, lane=lane))
+    def add(self, handle, where_key: str = "", lane: bool = False) -> None:
+        """One more actor, ``where_key`` the name it reports under; ``lane``: kept for
+        urgent calls (a fast lane)."""
+        self.slots.append(Slot(handle, where_key, lane=lane))
         # its start-up is the first thing it runs: the chunks' limits count from its end
         up = Call(0, "the worker's start-up", None, handle.pid.remote(), dropped=True, limit=STARTUP_LIMIT_S)
         self.sent(up, len(self.slots) - 1)
@@ -279,7 +282,7 @@ class ActorPool:
     def _overran(self, actor: int, call: Call, seconds: float, limit: float) -> None:
         call.timeouts += 1
         handle = self.slots[actor].handle
-        stuck = where.told(handle._actor_id.hex())  # before the kill: a restarted actor forgets it
+        stuck = where.told(self.slots[actor].where_key) if self.slots[actor].where_key else None  # before the kill
         hung = f" (hung in {stuck})" if stuck else ""
         self._charge(call, f"did not finish within {limit:.3g} s{hung}")
         self.ray.kill(handle, no_restart=False)

@@ -14,10 +14,17 @@ writes nothing; the error then names the runs, as before.
 from __future__ import annotations
 
 import threading
+import uuid
 import time
 
 NAMESPACE = "scenario_farm.where"
 POLL_S = 0.5
+
+
+def new_key() -> str:
+    """A fresh name for one actor's reports (the driver's own: not Ray's actor id, which
+    only a private attribute of the handle gives)."""
+    return uuid.uuid4().hex
 
 
 def watch(backend, actor_id: str) -> threading.Thread | None:

@@ -69,7 +69,8 @@ def _certification(campaign, counts) -> dict:
         return {"runs_certification": c.runs_certification, "certified": counts.get("certified", 0),
                 "centres": counts.get("boxes", 0)}
     return {"certification_attempts": c.attempts, "runs_certification": c.runs_certification,
-            "certification_phase": "closing" if algorithm.closing else "check"}
+            "certification_phase": "closing" if algorithm.closing else "check",
+            "certification_check_violations": c.check_violations}
 
 
 def read_status(directory: Path) -> dict | None:

@@ -67,6 +67,10 @@ class Summary(JsonFile):
     # split over checks); 0 and n_eps without certification
     certification_attempts: int = 0
     n_eps_final: int = 0
+    # violations the passing check saw, within quantify.certify_tolerance (the checked set is
+    # exported unchanged), and such violations over all its checks
+    certification_check_violations: int = 0
+    certification_violations_tolerated: int = 0
     # committed runs certification took: its closing rounds and checks (a deterministic
     # system: its last round, every final centre once); 0 without certification
     runs_certification: int = 0
@@ -187,6 +191,8 @@ def summarize(cfg: Config, sides: dict, safe_sets: dict[str, SafeSet], guarantee
         # checks nothing (its counter counts the changes it made: coordinator/driver/phase.py)
         certification_attempts=0 if main.algorithm.enumerates else c.attempts,
         n_eps_final=campaign.quiet_needed() if c.attempts and not main.algorithm.enumerates else campaign.n_eps,
+        certification_check_violations=0 if main.algorithm.enumerates else c.check_violations,
+        certification_violations_tolerated=sum(k.violations_tolerated for k in counters),
         runs_certification=sum(k.runs_certification for k in counters),
         delta_final=total.finest,
         half_width_max=total.coarsest,

@@ -1,13 +1,16 @@
 """Sampled certification (coordinator/certification.py): the last round is closing rounds
 and checks; closing rounds spend no beta, checks do; a real campaign ends on a passed
 check after a bounded number of attempts, accounts for the runs certification took, and
-exports a set a fresh validate certifies more often than not."""
+exports a set a fresh validate certifies more often than not; a check passes with at most
+quantify.certify_tolerance violations (the binomial test) and exports the set it checked."""
 
 import numpy as np
 import pytest
 
-from coordinator.certification import check_quiet, closing_quiet
-from coordinator.sample_size import n_eps, n_eps_attempt
+from scipy import stats
+
+from coordinator.certification import TOLERANCE, check_quiet, closing_quiet
+from coordinator.sample_size import n_eps, n_eps_allowing, n_eps_attempt
 from farm import api
 from farm import config as config_mod
 from farm.jobs.campaign_setup import build_algorithm, build_campaign
@@ -26,6 +29,31 @@ def test_closing_rounds_aim_at_eps_over_margin_and_shrink_with_the_band():
     assert closing_quiet(EPS, BETA, 16.0, 0.1) > closing_quiet(EPS, BETA, 4.0, 0.1)
     assert closing_quiet(EPS, BETA, 1.0, 1e-9) == n_eps(0.5, BETA)  # a tiny band: a few runs still close it
     assert [check_quiet(EPS, BETA, i) for i in (1, 2, 10)] == [n_eps_attempt(EPS, BETA, i) for i in (1, 2, 10)]
+
+
+@pytest.mark.parametrize("eps,beta", [(0.001, 0.1), (0.01, 0.05), (0.1, 0.001)])
+def test_a_check_allowing_k_violations_runs_the_least_n_of_the_binomial_test(eps, beta):
+    assert n_eps_allowing(eps, beta, 0) == n_eps(eps, beta)
+    needs = [n_eps_allowing(eps, beta, k) for k in range(6)]
+    assert needs == sorted(set(needs))  # each violation allowed costs runs
+    for k, n in enumerate(needs):
+        # a set at exactly eps passes with probability at most beta, and with one run less more than beta
+        assert stats.binom.cdf(k, n, eps) <= beta < stats.binom.cdf(k, n - 1, eps)
+    assert n_eps_attempt(eps, beta, 3, 2) == n_eps_allowing(eps, beta * 6 / (np.pi**2 * 9), 2)
+
+
+def test_a_check_passes_with_violations_within_its_tolerance_and_exports_the_set_it_checked():
+    """Seed 1: the first check sees one violation. Allowing none, it fails and two closing
+    rounds and checks follow; allowing two, it passes, and the set exported is the one the
+    check began on (a campaign stopped there holds the same set)."""
+    strict, _, _, _ = run_in_process(_config(1, certify_tolerance=0))
+    tolerant, algo, _, _ = run_in_process(_config(1, certify_tolerance=2))
+    assert strict.attempts > 1 and strict.violations_tolerated == 0
+    assert tolerant.attempts == 1 and tolerant.check_violations == tolerant.violations_tolerated == 1
+    assert tolerant.closing_ends == strict.closing_ends[:1]  # the same first closing round
+    assert tolerant.committed - tolerant.closing_ends[0] == check_quiet(EPS, BETA, 1, 2) > check_quiet(EPS, BETA, 1, 0)
+    stopped, at_check, _, _ = run_in_process(_config(1, certify_tolerance=2, budget=tolerant.closing_ends[0]))
+    assert not stopped.converged and at_check.result().result_hash == algo.result().result_hash
 
 
 def run_in_process(cfg):
@@ -55,7 +83,10 @@ def test_a_certified_campaign_ends_on_a_passed_check_in_few_attempts(seed):
     # ended by a passed check after the last closing round: each check follows a closing round
     assert len(counters.round_ends) == algo.round + 1 and counters.round_ends[-1] == counters.committed
     assert len(counters.closing_ends) == counters.attempts
-    assert counters.committed - counters.closing_ends[-1] >= check_quiet(EPS, BETA, counters.attempts)
+    assert counters.committed - counters.closing_ends[-1] == check_quiet(EPS, BETA, counters.attempts, TOLERANCE)
+    # each failed check saw one violation past the tolerance; the passing one at most the tolerance
+    assert counters.check_violations <= TOLERANCE
+    assert counters.violations_tolerated == TOLERANCE * (counters.attempts - 1) + counters.check_violations
     uncertified, plain, _, _ = run_in_process(_config(seed, certify=False))
     assert uncertified.round_ends[: algo.round] == counters.round_ends[: algo.round]
     # it ran the last round by SPE's rule instead
