@@ -23,6 +23,7 @@ import argparse
 import fcntl
 import json
 import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -88,7 +89,7 @@ def _is(row: dict, case: str, mode: str, seed: int, certify: bool, margin=None, 
 def _append(path: Path, key: str, row: dict) -> None:
     """Add ``row`` to the JSON's list ``key``, under a lock: two processes may run parts of
     a spread side by side."""
-    with open(path.with_suffix(".lock"), "w") as lock:
+    with open(Path(tempfile.gettempdir()) / f"{path.name}.lock", "w") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)
         data = json.loads(path.read_text())
         data.setdefault(key, []).append(row)
