@@ -133,8 +133,9 @@ class _QuantifyBase(Section):
     holdout_runs: Annotated[int, Field(ge=0, le=10**8, json_schema_extra={"affects_result": False}, description=(
         "fresh runs from uniform starts in Sigma against the finished set (summary.json holdout: overclaims "
         "and misses with Clopper-Pearson intervals); 0: none"))] = 1000
-    certify: Annotated[bool, Field(description="end with a certification round (spe): the exported set "
-                                               "passes validate")] = True
+    certify: Annotated[bool, Field(description="end with a certification round (spe): the exported set is "
+                                               "checked as validate checks a set, eps and beta kept over all "
+                                               "its checks (docs/guarantee.md)")] = True
     certify_margin: Annotated[float, Field(ge=1.0, le=1e6, description=(
         "sampled certification: closing rounds end after N_eps(eps / (margin x edge share)) quiet runs near "
         "the failure-side boundary, so that a check (N_eps at eps, beta split over checks) usually passes "

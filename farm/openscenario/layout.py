@@ -11,7 +11,6 @@ an OpenSCENARIO position is a vehicle's reference point: its rear axle,
 
 from __future__ import annotations
 
-import itertools
 import re
 from dataclasses import dataclass
 
@@ -73,10 +72,20 @@ class Layout:
     def road_length(self, horizon_states: int) -> float:
         """Long enough for any start state in Sigma and the fastest travel in the horizon."""
         sc = self.scenario
-        corners = np.array(list(itertools.product(*zip(sc.lower, sc.upper))), dtype=float)
-        s, v = self.place(corners)
-        travel = (float(np.max(v, initial=0.0)) + SPEED_MARGIN) * self.dt * max(horizon_states - 1, 1)
-        return float(np.ceil((float(s.max()) + self.length + travel + FRONT_MARGIN) / 10.0) * 10.0)
+        (_, s_max), (_, v_max) = (affine_range(lambda x, k=k: self.place(x)[k], sc.lower, sc.upper) for k in (0, 1))
+        travel = (max(float(v_max.max()), 0.0) + SPEED_MARGIN) * self.dt * max(horizon_states - 1, 1)
+        return float(np.ceil((float(s_max.max()) + self.length + travel + FRONT_MARGIN) / 10.0) * 10.0)
+
+
+def affine_range(f, lower: np.ndarray, upper: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The least and greatest value of each column of ``f`` ((T, n) -> (T, R), affine in
+    the state, as ``Layout.affine`` checks before anything is written) over the box
+    [lower, upper]: from n + 1 evaluations, not the box's 2^n corners."""
+    mid, half = (lower + upper) / 2, (upper - lower) / 2
+    f0 = f(mid[None])[0]
+    slopes = f(mid + np.eye(len(mid))) - f0  # (n, R): column j's change per unit of axis i
+    reach = np.abs(slopes).T @ half
+    return f0 - reach, f0 + reach
 
 
 def layout_of(scenario) -> Layout:
@@ -90,7 +99,6 @@ def layout_of(scenario) -> Layout:
         raise NotALaneScenario(f"export --xosc: state variable {bad[0]!r} is not an OpenSCENARIO parameter name "
                                f"([A-Za-z_][A-Za-z0-9_]*)")
     length = float(scenario.vehicle_length)
-    corners = np.array(list(itertools.product(*zip(scenario.lower, scenario.upper))), dtype=float)
-    fronts, _ = scenario.to_vehicles(corners)
-    sv_front = BACK_MARGIN + length - float(fronts.min())  # the rearmost rear bumper at BACK_MARGIN
+    front_min, _ = affine_range(lambda x: scenario.to_vehicles(x)[0], scenario.lower, scenario.upper)
+    sv_front = BACK_MARGIN + length - float(front_min.min())  # the rearmost rear bumper at BACK_MARGIN
     return Layout(scenario, tuple(scenario.vehicle_roles), length, sv_front, float(scenario.dt))

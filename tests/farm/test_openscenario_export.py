@@ -2,6 +2,7 @@
 export validated against the ASAM OpenSCENARIO 1.0 / 1.2 and OpenDRIVE 1.5 schemas
 (xmlschema), and played back against the recorded runs."""
 
+import itertools
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -11,8 +12,10 @@ import pytest
 
 from coordinator.safe_set import SafeSet
 from farm.directory.recording import read_recording
+from farm.openscenario.layout import affine_range
 from scenarios.fleet3 import Fleet3
 from scenarios.lead_follow import LeadFollow
+from scenarios.registry import make_scenario
 from small_campaign import lead_follow_toml
 from xosc_reading import odr15, osc10, osc12, play, schema_errors
 
@@ -232,3 +235,16 @@ def test_validation_counterexample_and_certified_box_domain(tmp_path):
         ".//Act[@name='environment']//SpeedAction")
     assert hold.find("SpeedActionDynamics").get("value") == "3.0"
     assert hold.find(".//AbsoluteTargetSpeed").get("value") == "70.0"  # accelerating: towards the top speed
+
+
+@pytest.mark.parametrize("name", ["lead-follow", "fleet3"])
+def test_the_layouts_extremes_over_sigma_are_its_corners_without_visiting_them(name):
+    """The road's length and the SV's start come from the least and greatest position and
+    speed over Sigma: n + 1 evaluations of the affine layout give the corners' values."""
+    sc = make_scenario(name, "idm")
+    corners = np.array(list(itertools.product(*zip(sc.lower, sc.upper))), dtype=float)
+    for k in (0, 1):  # front positions, speeds
+        lo, hi = affine_range(lambda x: sc.to_vehicles(x)[k], sc.lower, sc.upper)
+        values = sc.to_vehicles(corners)[k]
+        np.testing.assert_allclose(lo, values.min(axis=0), atol=1e-9)
+        np.testing.assert_allclose(hi, values.max(axis=0), atol=1e-9)
