@@ -114,21 +114,18 @@ def quantified(scenario, policy, *, epsilon: float, beta: float, delta: float, h
         nn = (f"N = {n_final} runs, the need of certification attempt i = {attempts} (check i, after closing "
               f"rounds that spend no beta) with beta_i = 6 beta / (pi^2 i^2), so that the exported set keeps "
               f"confidence {1 - beta:g} over all attempts,")
-    if uniform and attempts and tolerance:
-        formal = (f"Phi is ({epsilon:g}, {delta:g})-almost robustly controlled forward invariant w.r.t. {gamma} "
-                  f"with confidence {1 - beta:g} ({nn} drawn i.i.d. from {distribution}, actions "
-                  f"{policy.description}, of which at most {tolerance} may fail or leave Phi_delta, the binomial "
-                  f"test P(Bin(N, {epsilon:g}) <= {tolerance}) <= beta_i: {seen} did, and the set was exported as "
-                  f"checked).")
+    tolerant = bool(uniform and attempts and tolerance)
+    if escaped == 0 or tolerant:
         plain = (f"With {confidence} confidence, at most {_percent(epsilon)} of scenarios {where}, {cond}, {fail} or "
                  f"{_leave(delta, coarsest)} within {t}.")
-        return Guarantee(plain, formal)
-    if escaped == 0:
-        plain = (f"With {confidence} confidence, at most {_percent(epsilon)} of scenarios {where}, {cond}, {fail} or "
-                 f"{_leave(delta, coarsest)} within {t}.")
+        drawn = f"drawn i.i.d. from {distribution}, actions {policy.description}"
+        if tolerant:
+            runs = (f"{nn} {drawn}, of which at most {tolerance} may fail or leave Phi_delta, the binomial test "
+                    f"P(Bin(N, {epsilon:g}) <= {tolerance}) <= beta_i: {seen} did, and the set was exported as checked")
+        else:
+            runs = f"{nn} in a row {drawn}, neither failed nor left Phi_delta"
         formal = (f"Phi is ({epsilon:g}, {delta:g})-almost robustly controlled forward invariant w.r.t. {gamma} "
-                  f"with confidence {1 - beta:g} ({nn} in a row drawn i.i.d. from {distribution}, actions "
-                  f"{policy.description}, neither failed nor left Phi_delta).")
+                  f"with confidence {1 - beta:g} ({runs}).")
         return Guarantee(plain, formal)
     plain = (f"With {confidence} confidence, at most {_percent(epsilon)} of scenarios {where}, {cond}, {fail} or "
              f"reach a state never seen before within {t}; {escaped} of the last {n_eps} runs did leave the set "

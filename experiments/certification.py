@@ -64,7 +64,7 @@ def run(case: str, mode: str, seed: int, certify: bool, truth: dict, margin: flo
         truth[case] = reference_safe(backend, grid(backend.scenario))
     m = compare_boxes(backend, safe_set, truth=truth[case])
     row = {"case": case, "mode": mode, "seed": seed, "certify": certify, "margin": margin if certify else None,
-           "tolerance": tolerance if certify else None, "violations_tolerated": c.violations_tolerated,
+           "tolerance": tolerance if certify else None, "violations_tolerated": c.violations_tolerated(tolerance) if certify else 0,
            "check_violations": c.check_violations,
            "committed": c.committed, "runs_certification": c.runs_certification, "attempts": c.attempts,
            "rounds": c.rounds_completed, "converged": c.converged, "boxes": len(safe_set),

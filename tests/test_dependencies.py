@@ -50,3 +50,16 @@ def test_the_version_has_one_source():
 
     out = subprocess.run([sys.executable, "-m", "farm", "--version"], capture_output=True, text=True, cwd=ROOT)
     assert out.stdout.strip() == f"scenario-farm {__version__}", out.stderr
+
+
+def test_a_cli_command_starts_without_the_heavy_imports_it_may_not_need():
+    """A refused config, `status` or `--help` pays the CLI's imports; scipy.stats alone was
+    1.6 s of them (docs/benchmarks.md), Ray and matplotlib more. They load where used."""
+    import subprocess
+    import sys
+
+    heavy = ("scipy.stats", "ray", "matplotlib", "pandas", "networkx", "mcap", "libsumo")
+    code = ("import sys; import farm.cli.commands, farm.api; "
+            f"print(','.join(m for m in {heavy!r} if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "", out.stdout

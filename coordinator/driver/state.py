@@ -39,7 +39,6 @@ class Counters:
     certification_from: int = -1  # the committed count when certification began (-1: it did not)
     closing_ends: list = field(default_factory=list)  # committed count at each closing round's end
     check_violations: int = 0  # violations the current check saw within quantify.certify_tolerance
-    violations_tolerated: int = 0  # such violations over all checks (the passing check's: check_violations)
     truncations: list = field(default_factory=list)  # committed truncated runs per facet (Scenario.facets() order)
 
     def count_truncations(self, chunk: Chunk, rows: np.ndarray) -> None:
@@ -59,6 +58,12 @@ class Counters:
         self.quiet = 0
         self.escaped_in_streak = 0
         self.streak_start = self.committed
+
+    def violations_tolerated(self, tolerance: int) -> int:
+        """Violations the sampled checks counted without applying them: every failed check
+        tolerated ``tolerance`` and applied the next; the current one has tolerated
+        ``check_violations``."""
+        return tolerance * max(self.attempts - 1, 0) + self.check_violations
 
     @property
     def runs_certification(self) -> int:
@@ -124,4 +129,6 @@ class DriverState:
                         for index, start_id, start, due in zip(arrays["replacements.index"],
                                                                arrays["replacements.start_id"],
                                                                arrays["replacements.start"], arrays["replacements.due"])]
-        return cls(Counters(**meta["counters"]), pending, replacements, meta.get("final_distribution", ""))
+        counters = dict(meta["counters"])
+        counters.pop("violations_tolerated", None)  # kept by checkpoints of 2026-11-28: now derived
+        return cls(Counters(**counters), pending, replacements, meta.get("final_distribution", ""))

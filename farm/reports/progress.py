@@ -115,8 +115,9 @@ def _what(s: dict) -> str:
     phase = s.get("certification_phase")
     if phase == "closing":
         return "closing"
-    if phase == "check":
-        return f"check {s['certification_attempts']}"
+    if phase == "check":  # with the violations it tolerated so far (quantify.certify_tolerance)
+        seen = s.get("certification_check_violations", 0)
+        return f"check {s['certification_attempts']}" + (f" ({seen} tolerated)" if seen else "")
     return "N_eps"
 
 

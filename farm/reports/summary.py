@@ -192,7 +192,8 @@ def summarize(cfg: Config, sides: dict, safe_sets: dict[str, SafeSet], guarantee
         certification_attempts=0 if main.algorithm.enumerates else c.attempts,
         n_eps_final=campaign.quiet_needed() if c.attempts and not main.algorithm.enumerates else campaign.n_eps,
         certification_check_violations=0 if main.algorithm.enumerates else c.check_violations,
-        certification_violations_tolerated=sum(k.violations_tolerated for k in counters),
+        certification_violations_tolerated=0 if main.algorithm.enumerates else
+        sum(k.violations_tolerated(cfg.quantify.certify_tolerance) for k in counters),
         runs_certification=sum(k.runs_certification for k in counters),
         delta_final=total.finest,
         half_width_max=total.coarsest,

@@ -11,7 +11,8 @@ from guarantee_check import BETA, EPS, experiment  # noqa: E402
 
 
 def test_false_certification_rate_is_at_most_beta():
-    r = experiment(seeds=300, b=4.0)
+    # the tolerant checks on 100 seeds (6,679 runs each; the docs' JSON has 300)
+    r = experiment(seeds=300, b=4.0, tolerant_seeds=100)
     assert r["true_violation_rate"] > EPS  # the domain really is not eps-almost invariant
     assert r["false_certification_rate"] <= BETA
     lo, hi = r["ci95"]

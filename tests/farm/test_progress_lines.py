@@ -30,3 +30,12 @@ def test_a_certifying_campaign_says_closing_or_which_check_and_what_certificatio
     assert any(" closing " in line and "(certification " in line for line in lines), lines
     assert any(" check 1 " in line for line in lines), lines
     assert summary["runs_certification"] > 0 and summary["certification_attempts"] >= 1
+
+
+def test_a_check_line_shows_the_violations_it_tolerated_so_far():
+    from farm.reports.progress import _counter
+
+    status = {"certification_phase": "check", "certification_attempts": 2, "n_eps_counter": 600,
+              "n_eps_needed": 7456, "runs_certification": 9000}
+    assert _counter(status).startswith("check 2 600/7,456 ")
+    assert _counter({**status, "certification_check_violations": 2}).startswith("check 2 (2 tolerated) 600/7,456 ")
