@@ -2,6 +2,7 @@
 work, Ray in local mode private to this machine, temp files of dead writers removed on
 resume, a set of another scenario refused, one damaged recording does not hide others."""
 
+import os
 import json
 import resource
 import subprocess
@@ -122,6 +123,8 @@ def test_stale_temp_files_are_removed_on_resume_and_damaged_recordings_skipped(t
 
 
 def test_local_ray_listens_on_loopback_only():
+    """... and is private whatever RAY_ADDRESS says: an address left in the environment (a
+    shell's export, a test process that ran ray.init) is not joined by "local"."""
     code = """
 import os, time, psutil, ray
 from farm.ray_runtime.session import connect
@@ -140,7 +143,8 @@ for p in procs:
         pass
 print(len(procs), sorted(set(listening)), len(listening))
 """
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=180)
+    env = {**os.environ, "RAY_ADDRESS": "127.0.0.1:1"}  # nothing listens there
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=180, env=env)
     assert r.returncode == 0, r.stderr
     n_procs, rest = r.stdout.strip().split(" ", 1)
     addresses = eval(rest.rsplit(" ", 1)[0])  # the printed list of listening addresses
