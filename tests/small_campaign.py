@@ -3,7 +3,8 @@ seconds on the local executor): one place for its TOML, so tests differ only in 
 they say they change."""
 
 
-def lead_follow_toml(*, delta_min=2.0, epsilon=0.01, horizon=30, executor="local", farm_extra="") -> str:
+def lead_follow_toml(*, delta_min=2.0, epsilon=0.01, horizon=30, executor="local", farm_extra="",
+                     quantify_extra="") -> str:
     return f"""
 [scenario]
 name = "lead-follow"
@@ -15,7 +16,7 @@ delta0 = 4.0
 delta_min = {delta_min!r}
 epsilon = {epsilon!r}
 horizon = {horizon}
-[farm]
+{quantify_extra}[farm]
 executor = "{executor}"
 batch_size = 256
 {farm_extra}"""

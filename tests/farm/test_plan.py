@@ -42,7 +42,8 @@ def test_a_plan_runs_every_count_and_each_is_the_real_campaign(tmp_path):
 
 
 def test_plan_says_what_is_wrong_and_replaces_only_a_plan(tmp_path):
-    (tmp_path / "c.toml").write_text(lead_follow_toml())
+    # what a plan refuses and replaces, not what it runs: the campaign without certification
+    (tmp_path / "c.toml").write_text(lead_follow_toml(quantify_extra="certify = false\n"))
     bad = cli("plan", tmp_path / "c.toml", "--out", tmp_path / "p", "--workers", "0", "--quiet")
     assert bad.returncode == 2 and "--workers: 0 is out of range; allowed [1, 4096]" in bad.stderr
     assert not (tmp_path / "p").exists()  # refused before anything was written

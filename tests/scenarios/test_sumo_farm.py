@@ -26,9 +26,11 @@ def sumo_config(executor="local", workers=1, sumo=KRAUSS, actions="uniform", **q
 
 
 def test_parallel_contract_holds_on_sumo(ray_local, tmp_path):
-    local = run(sumo_config(), tmp_path / "local", resume=False)
+    # checks allowing no violation: shorter, and the contract with the tolerance is
+    # tests/farm/test_parallel_contract.py's on numpy
+    local = run(sumo_config(certify_tolerance=0), tmp_path / "local", resume=False)
     for workers in (1, 2):
-        ray = run(sumo_config("ray", workers), tmp_path / f"ray{workers}", resume=False)
+        ray = run(sumo_config("ray", workers, certify_tolerance=0), tmp_path / f"ray{workers}", resume=False)
         assert ray["result_hash"] == local["result_hash"]
         assert ray["runs_committed"] == local["runs_committed"]
 
