@@ -116,6 +116,11 @@ class Executor(ABC):
 
     name: str = ""
     workers: int = 1
+    # runs go to workers when submitted and come back later (True), or are simulated when
+    # their result is asked for (False: every handle is ready). The driver then sends a
+    # pass's replacements together rather than one call per misprediction; results never
+    # depend on it
+    concurrent: bool = False
     notify = None  # takes a line for the user (e.g. a worker replaced), or None
 
     @abstractmethod

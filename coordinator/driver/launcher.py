@@ -53,6 +53,10 @@ class Launcher:
     def ready(self, handle) -> bool:
         return self.executor.ready(handle)
 
+    @property
+    def concurrent(self) -> bool:
+        return self.executor.concurrent
+
     def cancel(self, handle) -> None:
         self.executor.cancel(handle)
 

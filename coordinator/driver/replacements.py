@@ -151,8 +151,12 @@ class ReplacementQueue:
         return found
 
     def back(self, r: Replacement) -> bool:
-        """Is replacement ``r``'s run back (fetched without waiting for a worker)?"""
+        """Is replacement ``r``'s run back (fetched without waiting for a worker)? On a
+        concurrent executor one not sent yet is not: it goes out with the pass's others
+        at the next fill (a call per misprediction cost the driver more than its runs)."""
         if r.group is None:
+            if self.launcher.concurrent:
+                return False
             self.send()
         group = r.group
         while group.find(r.position) is None:

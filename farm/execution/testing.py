@@ -107,7 +107,8 @@ def check_ready(make_executor: MakeExecutor, spec: SimSpec) -> None:
     worker (the driver polls it to commit on past a replacement that is not back): once
     true it stays true, and it changes nothing a chunk holds. On a real clock it becomes
     true by waiting alone; on a simulated one, once the clock passed the chunk's end (a
-    later chunk's result read). Replacement batches (``indices``) answer it too."""
+    later chunk's result read). Replacement batches (``indices``) answer it too. An executor
+    that is not ``concurrent`` has every handle ready as soon as it is submitted."""
     starts = _starts(spec, 300)
     executor = make_executor(spec)
     name = type(executor).__name__
@@ -115,6 +116,9 @@ def check_ready(make_executor: MakeExecutor, spec: SimSpec) -> None:
     try:
         handles = executor.submit(0, starts[:200])
         replacements = executor.submit(5000, starts[200:], indices=np.arange(5000, 5100, dtype=np.int64))
+        # one that is not ``concurrent`` simulates when asked: every handle is ready at once
+        assert executor.concurrent or all(executor.ready(h) for h in handles + replacements), \
+            f"{name}: not concurrent, yet a chunk is not ready when submitted"
         if simulated:  # a chunk it calls ready is read without the clock waiting for it
             got, again, said = [], [], []
             for h in replacements + handles:

@@ -81,6 +81,7 @@ class _Job:
 
 class VirtualExecutor(Executor):
     name = "virtual"
+    concurrent = True
 
     def __init__(self, spec: SimSpec, workers: int, run_time: float, jitter: float = 0.0, call_cost: float = 0.001,
                  pipeline_depth: int = 2, check_step_bound: bool = False, lanes: int | None = None):

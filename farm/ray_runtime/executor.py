@@ -67,6 +67,7 @@ class _Job(Call):
 
 class RayExecutor(Executor):
     name = "ray"
+    concurrent = True
 
     def __init__(self, spec: SimSpec, workers: int, address: str = "local", max_retries: int = 3,
                  check_step_bound: bool = False, pipeline_depth: int = 1, chunk_timeout: float = 0.0,

@@ -81,8 +81,9 @@ def start_local(num_cpus: int, extra_path: str | None = None) -> None:
         with _loopback_only(), _workers_path(extra_path):
             # address "local": a new Ray here; without it ray.init joins RAY_ADDRESS or the
             # latest `ray start` of this machine (a stale export, a parent that ran ray.init)
-            ray.init(address="local", num_cpus=num_cpus, include_dashboard=False, log_to_driver=False, configure_logging=False,
-                     _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1", _system_config=RAY_SYSTEM_CONFIG)
+            ray.init(address="local", num_cpus=num_cpus, include_dashboard=False, log_to_driver=False,
+                     configure_logging=False, _node_ip_address="127.0.0.1", dashboard_host="127.0.0.1",
+                     _system_config=RAY_SYSTEM_CONFIG)
         _start_reaper(ray)
     finally:
         if guard is not None:  # Ray is up and watched (or did not start): the guard steps down

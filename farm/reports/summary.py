@@ -161,7 +161,6 @@ class Summary(JsonFile):
         return record_from_json(cls, data, source, REQUIRED, sides=sides)
 
 
-
 def budget_used_up(budget: int, committed: int, simulated: int) -> str:
     """How a campaign stopped by ``quantify.budget`` ended, in one line (the CLI's end
     lines): the runs went on the budget, not on the last round's N_eps rule."""
@@ -179,6 +178,9 @@ def summarize(cfg: Config, sides: dict, safe_sets: dict[str, SafeSet], guarantee
     c = campaign.counters
     bounds = (scenario.lower, scenario.upper)
     counters = [side.campaign.counters for side in sides.values()]
+    # the sampled certification's checks; a deterministic one runs every centre once and
+    # checks nothing (its counter counts the changes it made: coordinator/driver/phase.py)
+    checked = not main.algorithm.enumerates
     return Summary(
         scenario=cfg.scenario.name,
         sv_policy=scenario.sv_policy_name,
@@ -187,13 +189,11 @@ def summarize(cfg: Config, sides: dict, safe_sets: dict[str, SafeSet], guarantee
         epsilon=cfg.quantify.epsilon,
         beta=cfg.quantify.beta,
         n_eps=campaign.n_eps,
-        # the sampled certification's checks; a deterministic one runs every centre once and
-        # checks nothing (its counter counts the changes it made: coordinator/driver/phase.py)
-        certification_attempts=0 if main.algorithm.enumerates else c.attempts,
-        n_eps_final=campaign.quiet_needed() if c.attempts and not main.algorithm.enumerates else campaign.n_eps,
-        certification_check_violations=0 if main.algorithm.enumerates else c.check_violations,
-        certification_violations_tolerated=0 if main.algorithm.enumerates else
-        sum(k.violations_tolerated(cfg.quantify.certify_tolerance) for k in counters),
+        certification_attempts=c.attempts if checked else 0,
+        n_eps_final=campaign.quiet_needed() if c.attempts and checked else campaign.n_eps,
+        certification_check_violations=c.check_violations if checked else 0,
+        certification_violations_tolerated=sum(k.violations_tolerated(cfg.quantify.certify_tolerance)
+                                               for k in counters) if checked else 0,
         runs_certification=sum(k.runs_certification for k in counters),
         delta_final=total.finest,
         half_width_max=total.coarsest,

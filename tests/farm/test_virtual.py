@@ -217,3 +217,31 @@ def test_a_campaign_stopped_while_changes_are_applied_past_holds_resumes_to_the_
             for name in ("stopped", "whole")]  # (not the runs discarded unseen: their timing is the executor's)
     for name in columns:
         assert used[0].column(name).to_pylist() == used[1].column(name).to_pylist(), name
+
+
+def test_a_concurrent_executor_gets_a_passs_replacements_in_one_call():
+    # a misprediction's replacement is not sent at once on an executor whose workers run
+    # apart from the driver (Executor.concurrent): a Ray call per misprediction cost the
+    # driver more than its runs (docs/benchmarks.md). Which call carries a replacement
+    # changes no result
+    def replacement_calls(concurrent: bool):
+        _, algorithm, executor, campaign = _virtual_campaign(8, 0.01)
+        executor.concurrent = concurrent
+        calls, submit = [], executor.submit
+
+        def recorded(first_index, starts, screen=None, actions=None, indices=None):
+            if indices is not None:
+                calls.append(len(indices))
+            return submit(first_index, starts, screen, actions, indices)
+
+        executor.submit = recorded
+        counters = campaign.run()
+        return calls, counters, algorithm.result().result_hash, _used_rows(campaign.log)
+
+    batched, counters, result, rows = replacement_calls(True)
+    each, counters_each, result_each, rows_each = replacement_calls(False)
+    assert counters.runs_replaced > 20
+    assert sum(batched) >= sum(each) * 0.9 and len(batched) < len(each), (len(batched), len(each))
+    assert result == result_each and counters.committed == counters_each.committed
+    for name in rows.keys() - {"kind"}:
+        assert np.array_equal(rows[name], rows_each[name]), name
