@@ -90,6 +90,7 @@ def lose_head(what: str, directory: str) -> None:
     (d / "c.toml").write_text(lead_follow_toml(executor="ray", farm_extra="workers = 3\nseed = 11\n"))
     out = d / "out"
     c, _ = cluster()
+    logs = Path(c.head_node.get_session_dir_path()) / "logs"
     cli = [sys.executable, "-m", "farm"]
     proc = subprocess.Popen([*cli, "quantify", str(d / "c.toml"), "--out", str(out), "--address", c.address,
                              "--checkpoint-every", "0"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
@@ -110,11 +111,14 @@ def lose_head(what: str, directory: str) -> None:
         code = "hung"
     took = time.monotonic() - t0
     stderr = proc.stderr.read()
+    # Ray's own lines for the driver (the CLI keeps them off stderr): why it ended, if not by our exit 4
+    driver_log = "".join(f.read_text(errors="replace")[-3000:] for f in logs.glob(f"python-core-driver-*_{proc.pid}.log"))
     c.shutdown()
     r = subprocess.run([*cli, "resume", str(out), "--address", "local", "--workers", "2", "--quiet"],
                        capture_output=True, text=True)
     summary = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else {}
     print(json.dumps({"segments_before": segments, "code": code, "seconds": took, "stderr": stderr[-3000:],
+                      "driver_log": driver_log if code != 4 else "",
                       "resume_code": r.returncode, "resume_stderr": r.stderr[-3000:],
                       "result_hash": summary.get("result_hash"), "config": str(d / "c.toml")}))
 

@@ -56,7 +56,7 @@ def test_a_lost_worker_node_is_survived_with_the_same_result(local):
 def test_a_lost_head_or_raylet_stops_with_our_line_and_exit_4_then_resume_completes(tmp_path, what):
     out = on_a_cluster(what, str(tmp_path))
     assert out["segments_before"] >= 2, out  # lost mid-campaign, after checkpoints
-    assert out["code"] == 4, (out["code"], out["stderr"])
+    assert out["code"] == 4, (out["code"], out["stderr"], out["driver_log"])
     last = out["stderr"].strip().splitlines()[-1]
     assert last.startswith("scenario-farm: infrastructure error:"), out["stderr"]
     assert out["seconds"] < 120, out
