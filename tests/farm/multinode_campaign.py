@@ -112,7 +112,8 @@ def lose_head(what: str, directory: str) -> None:
     took = time.monotonic() - t0
     stderr = proc.stderr.read()
     # Ray's own lines for the driver (the CLI keeps them off stderr): why it ended, if not by our exit 4
-    driver_log = "".join(f.read_text(errors="replace")[-3000:] for f in logs.glob(f"python-core-driver-*_{proc.pid}.log"))
+    driver_logs = logs.glob(f"python-core-driver-*_{proc.pid}.log")
+    driver_log = "".join(f.read_text(errors="replace")[-3000:] for f in driver_logs)
     c.shutdown()
     r = subprocess.run([*cli, "resume", str(out), "--address", "local", "--workers", "2", "--quiet"],
                        capture_output=True, text=True)
