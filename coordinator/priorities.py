@@ -17,6 +17,7 @@ import numpy as np
 BUCKETS_PER_AXIS = {1: 4096, 2: 64, 3: 16, 4: 8, 5: 6}
 RESORT_SHARE = 0.1  # re-sort when the unsorted tail exceeds this share of the vertices
 BRUTE_FORCE_PAIRS = 1 << 16  # vertex-failure pairs up to which new vertices skip the KD-tree
+LOWER_GROUP = 64  # new failures whose reach is worked out together (a (F, buckets) gap)
 
 
 def _linf(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -54,8 +55,9 @@ class FailureDistances:
             if self.track_lowered:  # every distance fell from infinity
                 self.lowered.append(np.arange(vertex_count))
         if failure_count > self.seen_failures and self.seen_vertices:
-            for f in failures[self.seen_failures : failure_count]:
-                self._lower_by(points, f)
+            fresh = failures[self.seen_failures : failure_count]
+            for at in range(0, len(fresh), LOWER_GROUP):
+                self._lower_by(points, fresh[at : at + LOWER_GROUP])
         if vertex_count > self.seen_vertices:
             d_new = self._nearest(points[self.seen_vertices : vertex_count], failures[:failure_count])
             if vertex_count > len(self._buffer):  # doubling: a copy per append cost O(vertices)
@@ -87,29 +89,35 @@ class FailureDistances:
 
         return cKDTree(failures).query(vertices, p=np.inf)[0]
 
-    def _lower_by(self, points: np.ndarray, f: np.ndarray) -> None:
-        """Lower the known distances by failure ``f``, skipping buckets it cannot reach."""
+    def _lower_by(self, points: np.ndarray, fs: np.ndarray) -> None:
+        """Lower the known distances by failures ``fs`` (F, n), skipping buckets none of
+        them can reach: at once, since a prune adds its holes together (a distance is the
+        min over failures, and a bucket's largest distance its max: the same values in
+        any order)."""
         if self._sorted:
-            # per axis: a (buckets, n) max over n is several times slower
-            gap = np.maximum(self._box_lo[:, 0] - f[0], f[0] - self._box_hi[:, 0])
-            for axis in range(1, len(f)):
-                np.maximum(gap, self._box_lo[:, axis] - f[axis], out=gap)
-                np.maximum(gap, f[axis] - self._box_hi[:, axis], out=gap)
+            # per axis: a (F, buckets, n) max over n is several times slower
+            gap = np.maximum(self._box_lo[None, :, 0] - fs[:, None, 0], fs[:, None, 0] - self._box_hi[None, :, 0])
+            for axis in range(1, fs.shape[1]):
+                np.maximum(gap, self._box_lo[None, :, axis] - fs[:, None, axis], out=gap)
+                np.maximum(gap, fs[:, None, axis] - self._box_hi[None, :, axis], out=gap)
             np.maximum(gap, 0.0, out=gap)
-            reach = np.flatnonzero(gap < self._bucket_max)
+            reach = np.flatnonzero((gap < self._bucket_max).any(axis=0))
             if len(reach):
                 lo, hi = self._starts[reach], self._starts[reach + 1]
                 counts = hi - lo
                 pos = np.repeat(lo - np.cumsum(counts) + counts, counts) + np.arange(int(counts.sum()))
                 ids = self._order[pos]
-                self._lower(points, ids, f)
+                self._lower(points, ids, fs)
                 new_max = np.maximum.reduceat(self.dist[ids], np.cumsum(counts) - counts)
                 self._bucket_max[reach] = new_max
         if self.seen_vertices > self._sorted:
-            self._lower(points, np.arange(self._sorted, self.seen_vertices), f)
+            self._lower(points, np.arange(self._sorted, self.seen_vertices), fs)
 
-    def _lower(self, points, ids, f) -> None:
-        gap = _linf(points[ids], f)
+    def _lower(self, points, ids, fs) -> None:
+        pts = points[ids]
+        gap = _linf(pts, fs[0])
+        for f in fs[1:]:
+            np.minimum(gap, _linf(pts, f), out=gap)
         before = self.dist[ids]
         fell = gap < before
         self.dist[ids[fell]] = gap[fell]

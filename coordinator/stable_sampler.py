@@ -39,6 +39,9 @@ MAX_TRIES = 64  # candidates a run examines before it draws directly from the la
 # one run); tries past a run's first accepted one are drawn and never looked at
 TRY_BLOCKS = (8, 16, 40)
 assert sum(TRY_BLOCKS) == MAX_TRIES
+# up to this many runs (a replacement, a few draws asked again) every try is drawn in one
+# block: the blocks' dozen array operations each cost more than the tries they skip
+SMALL_BATCH = 32
 # examined slots kept per run (a run that examined more may move with any change): all of
 # them, so that a sparse law (a closing round's band: ~1 slot in 16 accepted) still moves
 # only the draws a change touched; results never depend on it, only what is re-drawn
@@ -228,7 +231,7 @@ class StableSampler:
         vs = np.zeros((b, MAX_TRIES))
         searching = np.arange(b)
         first = 0
-        for k in TRY_BLOCKS:
+        for k in TRY_BLOCKS if b > SMALL_BATCH else (MAX_TRIES,):
             if len(searching) == 0:
                 break
             uv = streams.uniform_grid(range(first + 1, first + k + 1), PURPOSE_START, 2, searching)
@@ -262,28 +265,35 @@ class StableSampler:
         only if its accepted try changed (rarely, a later try finds the same id), and
         renewed (its version set to ``version``) if it stands. Without, or for an untracked
         draw, flagged."""
-        if draws.fixed or (len(draws) and int(draws.versions.min()) >= self.last):
+        versions = draws.versions
+        if draws.fixed or len(draws) == 0 or int(versions.min()) >= self.last:
             return np.zeros(len(draws), dtype=bool)  # nothing changed since any of them was drawn
-        whole = draws.versions < self.everything
-        out = whole | (draws.untracked & (draws.versions < self.last))
+        out = versions < self.everything
+        out |= draws.untracked & (versions < self.last)
         if self.reborn[1] >= 0:
-            out |= (draws.versions < self.reborn[1]) & (draws.now >= self.reborn[0])
-        if len(draws):
-            # only the columns some draw examined: a dense law's draws examine a few of TRACKED
-            column_max = draws.slots.max(axis=0)
-            width = int(np.flatnonzero(column_max >= 0)[-1]) + 1 if column_max.max() >= 0 else 1
-            slots = draws.slots[:, :width]
-            self._grow(max(int(column_max.max()) + 1, 1))  # all -1 (drawn before a restore): one slot
-            latest = np.where(slots >= 0, self.stamp[np.maximum(slots, 0)], -1).max(axis=1)
-            touched = latest > draws.versions
-            if law is not None:
-                ask = np.flatnonzero(touched & ~out)
-                if len(ask):
-                    stands = self._stands(draws, ask, law)
-                    touched[ask[stands]] = False
-                    if version is not None:
-                        draws.versions[ask[stands]] = version
-            out |= touched
+            out |= (versions < self.reborn[1]) & (draws.now >= self.reborn[0])
+        # the examined slots' stamps, only for the draws not flagged yet and older than the
+        # last stamp (no stamp is newer than that): most of a span is known or flagged
+        rows = np.flatnonzero(~out & (versions < self.last))
+        if len(rows) == 0:
+            return out
+        slots = draws.slots[rows]
+        # only the columns some draw examined: a dense law's draws examine a few of TRACKED
+        column_max = slots.max(axis=0)
+        if column_max[0] < 0:  # examined nothing known (drawn before a restore): one slot
+            self._grow(1)
+            return out
+        width = int(np.flatnonzero(column_max >= 0)[-1]) + 1
+        slots = slots[:, :width]
+        self._grow(int(column_max[:width].max()) + 1)
+        latest = np.where(slots >= 0, self.stamp[np.maximum(slots, 0)], -1).max(axis=1)
+        touched = rows[latest > versions[rows]]
+        if law is not None and len(touched):
+            stands = self._stands(draws, touched, law)
+            if version is not None:
+                versions[touched[stands]] = version
+            touched = touched[~stands]
+        out[touched] = True
         return out
 
     @staticmethod

@@ -31,6 +31,7 @@ class Phase:
         self.algorithm = algorithm
         self.settings = settings
         self.certify = settings.certify and algorithm.certifies
+        self._quiet: tuple[int, int, int] | None = None  # (version, attempts, quiet runs needed)
 
     @property
     def enumerating(self) -> bool:
@@ -53,7 +54,15 @@ class Phase:
         return self.certify and self.algorithm.certifying
 
     def quiet_needed(self, attempts: int) -> int:
-        """Indices in a row that must be resolved and quiet to end the current round."""
+        """Indices in a row that must be resolved and quiet to end the current round
+        (kept per state version: the head asks at every step of its walk, and a closing
+        round's edge share is the edge's size)."""
+        version = self.algorithm.version
+        if self._quiet is None or self._quiet[:2] != (version, attempts):
+            self._quiet = (version, attempts, self._quiet_needed(attempts))
+        return self._quiet[2]
+
+    def _quiet_needed(self, attempts: int) -> int:
         if self.algorithm.closing:
             return self.settings.closing_quiet(self.algorithm.closing_share())
         if self.algorithm.certifying:

@@ -16,6 +16,7 @@ from coordinator.executor import ChunkSummary, screen_piece
 from farm import lazy
 from farm.execution.process import build_simulator
 from farm.ray_runtime import where
+from farm.ray_runtime.packing import pack, unpack
 from scenarios.simulator import SimSpec
 
 RESYNC = "resync"  # a worker's answer when its mirror cannot reach the chunk's version
@@ -45,7 +46,8 @@ def actor_class():
         def run(self, chunk: tuple):
             """``chunk`` = (first_index, starts, message, actions, indices), one argument:
             Ray serializes each argument of a call on its own, and a chunk's five cost the
-            driver ~40 % more CPU per call than one tuple (docs/benchmarks.md)."""
+            driver ~40 % more CPU per call than one tuple (docs/benchmarks.md). Returns the
+            summary packed (farm/ray_runtime/packing.py) and the visited states."""
             first_index, starts, message, actions, indices = chunk
             t0 = time.perf_counter()
             screen = self._screen(message)
@@ -58,7 +60,7 @@ def actor_class():
             self.busy_s += busy
             self.tasks += 1
             self.runs += len(starts)
-            return summary, visited
+            return pack(summary), visited
 
         def _screen(self, message):
             kind, payload, base = message
@@ -76,8 +78,8 @@ def actor_class():
             # dropped by the coordinator, which then sends from what it knows was applied)
             if self.mirror is None or self.mirror.seq < base:
                 return RESYNC
-            for block in payload:
-                self.mirror.sync(ray.get(block) if isinstance(block, ray.ObjectRef) else block)
+            for block in payload:  # inline blocks come packed (farm/ray_runtime/packing.py)
+                self.mirror.sync(ray.get(block) if isinstance(block, ray.ObjectRef) else unpack(block))
             return self.mirror
 
         def revisit(self, first_index: int, starts: np.ndarray, actions=None, indices=None):

@@ -38,6 +38,7 @@ from farm.execution.chunking import ChunkSizer, fast_lanes
 from farm.ray_runtime import where
 from farm.ray_runtime.actor import RESYNC, actor_class
 from farm.ray_runtime.mirror import Mirrors
+from farm.ray_runtime.packing import unpack
 from farm.ray_runtime.pool import ActorPool, Call, check_started
 from farm.ray_runtime.session import connect
 from farm.execution.waiting import WorkerError, culprit, name_runs
@@ -312,6 +313,7 @@ class RayExecutor(Executor):
                 job.fresh = True
                 job.launch(job.actor)
                 continue
+            summary = unpack(summary)  # packed by the actor (farm/ray_runtime/packing.py)
             slot = self.pool.slots[job.actor]
             if job.sent is not None:  # the actor's mirror has reached what was sent
                 known = slot.confirmed

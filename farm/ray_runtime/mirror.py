@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from coordinator.coverage import Coverage, Reset
+from farm.ray_runtime.packing import pack
 
 INLINE_BYTES = 1 << 16  # change blocks up to this size travel inside the task call
 
@@ -63,9 +64,9 @@ class Mirrors:
         if key not in self._blocks:
             self._blocks = {k: v for k, v in self._blocks.items() if k[2] == now[2]}  # older ranges are done
             changes = screen.changes_since(sent[2])
-            # a small block goes inside the call (Ray inlines it; a put costs the driver
-            # ~1 ms), a large one once into the object store for every actor that needs it
-            self._blocks[key] = changes if _nbytes(changes) <= INLINE_BYTES else self.ray.put(changes)
+            # a small block goes inside the call, packed (Ray inlines it; a put costs the
+            # driver ~1 ms), a large one once into the object store for every actor that needs it
+            self._blocks[key] = pack(changes) if _nbytes(changes) <= INLINE_BYTES else self.ray.put(changes)
         self._since_trim += 1
         if self._since_trim >= len(self.pool.slots):  # a look at every actor: about once a wave
             self._trim(screen)
