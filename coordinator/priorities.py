@@ -30,9 +30,13 @@ def _linf(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 class FailureDistances:
-    def __init__(self, lower: np.ndarray, upper: np.ndarray, track_lowered: bool = False):
-        """``track_lowered``: keep the ids whose distance fell (``take_lowered``)."""
+    def __init__(self, lower: np.ndarray, upper: np.ndarray, track_lowered: bool = False, cap: float = np.inf):
+        """``track_lowered``: keep the ids whose distance fell (``take_lowered``).
+        ``cap``: distances are min(d, cap), for a caller that only asks whether d is below
+        a radius under ``cap`` (exact there): a new failure then reaches only the buckets
+        within ``cap`` of it, not every vertex whose nearest failure is far."""
         self.track_lowered = track_lowered
+        self.cap = float(cap)
         self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
         n = len(self.lower)
         self.per_axis = BUCKETS_PER_AXIS.get(n, 4)
@@ -59,7 +63,8 @@ class FailureDistances:
             for at in range(0, len(fresh), LOWER_GROUP):
                 self._lower_by(points, fresh[at : at + LOWER_GROUP])
         if vertex_count > self.seen_vertices:
-            d_new = self._nearest(points[self.seen_vertices : vertex_count], failures[:failure_count])
+            d_new = np.minimum(self._nearest(points[self.seen_vertices : vertex_count], failures[:failure_count]),
+                               self.cap)
             if vertex_count > len(self._buffer):  # doubling: a copy per append cost O(vertices)
                 grown = np.empty(max(vertex_count, 2 * len(self._buffer)))
                 grown[: self.seen_vertices] = self.dist

@@ -102,7 +102,7 @@ class SPE(SPECertification, Algorithm):
         self._law_cache: tuple | None = None
         self._law_kind: tuple | None = None
         self._edge: tuple[int, np.ndarray] | None = None  # (version, mask): the closing law's candidates
-        self._holes = FailureDistances(self.scenario.lower, self.scenario.upper)  # d(vertex, hole)
+        self._holes: FailureDistances | None = None  # min(d(vertex, hole), cap): ``SPECertification._edge_mask``
         self._edge_share: tuple[int, float] | None = None  # (version, its share of the alive centres)
         self._facet_cache: tuple[float, np.ndarray, int] | None = None  # (reach, per id: near a failure facet, ids filled)
 

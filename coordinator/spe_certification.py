@@ -9,6 +9,7 @@ import numpy as np
 
 from coordinator.certification import CHECK, CLOSING
 from coordinator.coverage import Strict
+from coordinator.priorities import FailureDistances
 
 
 class SPECertification:
@@ -35,9 +36,11 @@ class SPECertification:
         if self.failures.count:
             near |= self._failure_distances()[:count] <= reach + self.delta
         if self.hole_ids.size:
+            radius = self.scenario.step_bound() + 2 * self.delta
+            if self._holes is None or self._holes.cap != 2 * radius:  # only "within radius" is asked
+                self._holes = FailureDistances(self.scenario.lower, self.scenario.upper, cap=2 * radius)
             holes = self.vertices.points[self.hole_ids.view]
-            near |= self._holes.update(self.vertices.points, count, holes, len(holes))[:count] <= \
-                self.scenario.step_bound() + 2 * self.delta
+            near |= self._holes.update(self.vertices.points, count, holes, len(holes))[:count] <= radius
         alive = self.vertices.alive[:count]
         mask = alive & near
         if not mask.any():

@@ -52,3 +52,48 @@ def test_a_local_ray_returns_chunk_summaries_inline_and_keeps_visited_states_in_
     lines = dict(line.split(" ", 1) for line in out.stdout.splitlines() if line.startswith(("sized", "chunk")))
     assert lines["sized"] == "True False", out.stdout + out.stderr[-3000:]
     assert lines["chunk"] == "1024 True False True", out.stdout + out.stderr[-3000:]
+
+
+def test_packed_summaries_and_change_blocks_give_what_the_simulator_and_screen_give_in_process(ray_local):
+    """A chunk's summary comes back packed in one buffer, and the coverage's small change
+    blocks go packed (farm/ray_runtime/packing.py): after a snapshot and then a change
+    block (a kill and a failure), the chunk the driver reads is, array for array, what
+    simulating and screening the same runs in this process gives."""
+    import dataclasses
+
+    import numpy as np
+
+    from coordinator.coverage import AddFailures, Coverage, Insert, Kill
+    from coordinator.executor import ChunkSummary
+    from farm.ray_runtime.executor import RayExecutor
+    from scenarios.simulator import Simulator, SimSpec
+
+    spec = SimSpec({"name": "lead-follow", "sv_policy": "idm"}, {"mode": "uniform"}, 50, 3)
+    sc = Simulator(spec).scenario
+    rng = np.random.default_rng(1)
+    coverage = Coverage(sc.n, 2.0, sc.lower, bounds=(sc.lower, sc.upper))
+    coverage.apply(Insert(rng.uniform(sc.lower, sc.upper, (400, sc.n))), 1)
+    starts = rng.uniform(sc.lower, sc.upper, (64, sc.n))
+    ex = RayExecutor(spec, 1, fast_lane=False).start()
+    messages = []
+    message_of = ex.mirrors.message
+    ex.mirrors.message = lambda *args, **kwargs: messages.append(message_of(*args, **kwargs)) or messages[-1]
+    try:
+        ex.sizer.ran(64, 0.01)  # as if measured: one chunk, no one-run probe first
+        for version, change in ((2, None), (3, Kill(np.arange(0, 400, 3))), (4, AddFailures(starts[:2]))):
+            if change is not None:
+                coverage.apply(change, version)
+            (handle,) = ex.submit(100 * version, starts, coverage)
+            job = ex._jobs[handle]
+            got = ex.result(handle)
+            want, _ = ChunkSummary.of(Simulator(spec).simulate(100 * version, starts), coverage)
+            for name in ("lengths", "outcomes", "last", "indices", "margins"):
+                assert np.array_equal(getattr(got, name), getattr(want, name)), (version, name)
+            for field in dataclasses.fields(want.screening):
+                a, b = getattr(got.screening, field.name), getattr(want.screening, field.name)
+                assert np.array_equal(a, b), (version, field.name)
+            assert job.sent[2] == coverage.seq  # the actor's mirror reached the coverage
+        assert [m[0] for m in messages] == ["snapshot", "changes", "changes"]
+        assert all(isinstance(block, bytes) for m in messages[1:] for block in m[1])  # packed, inline
+    finally:
+        ex.close()
