@@ -314,6 +314,7 @@ class RayExecutor(Executor):
                 job.launch(job.actor)
                 continue
             summary = unpack(summary)  # packed by the actor (farm/ray_runtime/packing.py)
+            job.ref = None  # its bytes leave Ray's store: the arrays unpacked are copies
             slot = self.pool.slots[job.actor]
             if job.sent is not None:  # the actor's mirror has reached what was sent
                 known = slot.confirmed

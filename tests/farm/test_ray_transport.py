@@ -43,15 +43,17 @@ def test_a_local_ray_returns_chunk_summaries_inline_and_keeps_visited_states_in_
         ex.sizer.ran(1024, 0.01)  # as if measured: the batch is one chunk, no one-run probe first
         (handle,) = ex.submit(0, np.tile([10.0, 10.0, 40.0], (1024, 1)))
         part = ex._jobs[handle]
+        summary_ref = part.ref  # released once read: its bytes are unpacked into copies
         chunk = ex.result(handle)
         states, offsets = chunk.visited()
-        print("chunk", len(chunk), inline(part.ref), inline(part.visited_ref), states.nbytes > limit)
+        print("chunk", len(chunk), inline(summary_ref), inline(part.visited_ref), states.nbytes > limit,
+              part.ref is None)
     """)
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300, cwd=tmp_path)
     assert out.returncode == 0, out.stderr[-3000:]
     lines = dict(line.split(" ", 1) for line in out.stdout.splitlines() if line.startswith(("sized", "chunk")))
     assert lines["sized"] == "True False", out.stdout + out.stderr[-3000:]
-    assert lines["chunk"] == "1024 True False True", out.stdout + out.stderr[-3000:]
+    assert lines["chunk"] == "1024 True False True True", out.stdout + out.stderr[-3000:]
 
 
 def test_packed_summaries_and_change_blocks_give_what_the_simulator_and_screen_give_in_process(ray_local):
