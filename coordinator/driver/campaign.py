@@ -160,6 +160,9 @@ class Campaign:
         algo, c = self.algorithm, self.counters
         rows = ChunkRows.of(p, chunk, self._rescreen(chunk), c.committed)
         k, pos, ended, block = len(chunk), rows.logged, False, VERIFY_BLOCK
+        # exactness is a function of the state version: what a check found for the rows
+        # past a misprediction holds until the next change (its replacement changes nothing)
+        verified = (-1, 0, np.zeros(0, dtype=bool))  # (version, first row, exact from there)
         while pos < k and not self._law_switched:
             if c.committed - c.streak_start >= self.quiet_needed():  # the streak is complete
                 self._log_upto(rows, pos)
@@ -177,7 +180,13 @@ class Campaign:
             limit = min(k, pos + block, pos + self.quiet_needed() - (c.committed - c.streak_start))
             if self.replacements:
                 limit = min(limit, pos + self.replacements.first.due + 1 - c.committed)
-            exact = verify(self.launcher, p, rows.at + pos, rows.at + limit)
+            version, first, known = verified
+            if version == algo.version and first <= pos < first + len(known):
+                limit = min(limit, first + len(known))
+                exact = known[pos - first : limit - first]
+            else:
+                exact = verify(self.launcher, p, rows.at + pos, rows.at + limit)
+                verified = (algo.version, pos, exact)
             bad = pos + (len(exact) if exact.all() else int(np.argmin(exact)))
             stop = min(bad, algo.next_event(rows.rescreen, pos, rows.ids))
             rows.counted[pos:stop] = True
