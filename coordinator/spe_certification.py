@@ -39,7 +39,7 @@ class SPECertification:
             radius = self.scenario.step_bound() + 2 * self.delta
             if self._holes is None or self._holes.cap != 2 * radius:  # only "within radius" is asked
                 self._holes = FailureDistances(self.scenario.lower, self.scenario.upper, cap=2 * radius)
-            holes = self.vertices.points[self.hole_ids.view]
+            holes = self._gathered_holes()
             near |= self._holes.update(self.vertices.points, count, holes, len(holes))[:count] <= radius
         alive = self.vertices.alive[:count]
         mask = alive & near
@@ -50,6 +50,21 @@ class SPECertification:
             self._stable.touch(np.flatnonzero(mask[: len(old)] != old), self.version)
         self._edge = (self.version, mask)
         return mask
+
+    def _gathered_holes(self) -> np.ndarray:
+        """The points of ``hole_ids`` (which only grows), each gathered once: in a buffer
+        that doubles, not all of them again after every change."""
+        buffer, filled = self._hole_points
+        ids = self.hole_ids.view
+        if filled < len(ids):
+            if len(ids) > len(buffer):
+                grown = np.empty((max(len(ids), 2 * len(buffer)), self.vertices.points.shape[1]))
+                grown[:filled] = buffer[:filled]
+                buffer = grown
+            buffer[filled : len(ids)] = self.vertices.points[ids[filled:]]
+            filled = len(ids)
+            self._hole_points = (buffer, filled)
+        return buffer[:filled]
 
     def closing_share(self) -> float:
         """The edge's share of the alive centres (closing rounds: coordinator/certification.py)."""
