@@ -11,13 +11,16 @@ def brute(points, failures):
     return np.abs(points[:, None, :] - failures[None, :, :]).max(axis=2).min(axis=1)
 
 
+@pytest.mark.parametrize("cap", [np.inf, 1.5])
 @pytest.mark.parametrize("n", [2, 3, 5])
-def test_distances_equal_the_brute_force_minimum_bit_for_bit_through_interleaved_appends(n):
+def test_distances_equal_the_brute_force_minimum_bit_for_bit_through_interleaved_appends(n, cap):
+    """Capped (the closing edge's holes: only "within a radius under the cap" is asked),
+    the distances are min(d, cap), the brute force's below the cap bit for bit."""
     rng = np.random.default_rng(n)
     lower, upper = np.zeros(n), np.full(n, 10.0)
     points = np.empty((0, n))
     failures = np.empty((0, n))
-    fd = FailureDistances(lower, upper)
+    fd = FailureDistances(lower, upper, cap=cap)
     for step in range(60):
         if rng.random() < 0.6:  # vertices come in bulk, some on a lattice, some repeated
             new = rng.uniform(-1, 11, (int(rng.integers(1, 400)), n))
@@ -31,7 +34,7 @@ def test_distances_equal_the_brute_force_minimum_bit_for_bit_through_interleaved
         if len(failures) == 0:
             assert np.isinf(got).all()
             continue
-        assert np.array_equal(got[: len(points)], brute(points, failures))
+        assert np.array_equal(got[: len(points)], np.minimum(brute(points, failures), cap))
 
 
 def test_take_lowered_names_exactly_the_ids_whose_distance_fell():

@@ -149,3 +149,26 @@ def test_after_a_fork_a_draw_moves_where_the_state_left_behind_differed():
     born = made_there.ids >= count
     assert born.any() and flagged[born].all()  # an id born on the other side is never taken as is
     assert flagged.mean() < 0.5  # not every draw: only those that examined a slot that differs
+
+
+def test_a_draw_is_the_same_drawn_alone_or_in_a_large_batch():
+    """A few runs (a replacement, a redraw) try all their candidates in one block, a large
+    batch in growing blocks (coordinator/stable_sampler.py, SMALL_BATCH): the same starts,
+    examined slots and numbers either way, under a sparse law where most runs need more
+    than the first block of tries and some draw directly."""
+    from coordinator.stable_sampler import SMALL_BATCH, TRY_BLOCKS
+
+    rng = np.random.default_rng(3)  # test data only
+    alive = rng.random(4 * COUNT) < 0.02
+    law = uniform(alive)
+    sampler = StableSampler()
+    sampler.restart(len(alive), 0)
+    many = sampler.draw(streams(5000), law, 0)
+    tries = (many.slots >= 0).sum(axis=1)
+    assert (tries > TRY_BLOCKS[0]).mean() > 0.5 and many.untracked.any()  # the blocks matter here
+    for rows in (np.arange(SMALL_BATCH), np.flatnonzero(many.untracked)[:3], np.flatnonzero(tries > 30)[:1]):
+        few = sampler.draw(streams(5000).subset(rows), law, 0)
+        assert np.array_equal(few.ids, many.ids[rows])
+        assert np.array_equal(few.slots, many.slots[rows]) and np.array_equal(few.untracked, many.untracked[rows])
+        examined = few.slots >= 0
+        assert np.array_equal(few.vs[examined], many.vs[rows][examined])
