@@ -265,35 +265,28 @@ class StableSampler:
         only if its accepted try changed (rarely, a later try finds the same id), and
         renewed (its version set to ``version``) if it stands. Without, or for an untracked
         draw, flagged."""
-        versions = draws.versions
-        if draws.fixed or len(draws) == 0 or int(versions.min()) >= self.last:
+        if draws.fixed or (len(draws) and int(draws.versions.min()) >= self.last):
             return np.zeros(len(draws), dtype=bool)  # nothing changed since any of them was drawn
-        out = versions < self.everything
-        out |= draws.untracked & (versions < self.last)
+        whole = draws.versions < self.everything
+        out = whole | (draws.untracked & (draws.versions < self.last))
         if self.reborn[1] >= 0:
-            out |= (versions < self.reborn[1]) & (draws.now >= self.reborn[0])
-        # the examined slots' stamps, only for the draws not flagged yet and older than the
-        # last stamp (no stamp is newer than that): most of a span is known or flagged
-        rows = np.flatnonzero(~out & (versions < self.last))
-        if len(rows) == 0:
-            return out
-        slots = draws.slots[rows]
-        # only the columns some draw examined: a dense law's draws examine a few of TRACKED
-        column_max = slots.max(axis=0)
-        if column_max[0] < 0:  # examined nothing known (drawn before a restore): one slot
-            self._grow(1)
-            return out
-        width = int(np.flatnonzero(column_max >= 0)[-1]) + 1
-        slots = slots[:, :width]
-        self._grow(int(column_max[:width].max()) + 1)
-        latest = np.where(slots >= 0, self.stamp[np.maximum(slots, 0)], -1).max(axis=1)
-        touched = rows[latest > versions[rows]]
-        if law is not None and len(touched):
-            stands = self._stands(draws, touched, law)
-            if version is not None:
-                versions[touched[stands]] = version
-            touched = touched[~stands]
-        out[touched] = True
+            out |= (draws.versions < self.reborn[1]) & (draws.now >= self.reborn[0])
+        if len(draws):
+            # only the columns some draw examined: a dense law's draws examine a few of TRACKED
+            column_max = draws.slots.max(axis=0)
+            width = int(np.flatnonzero(column_max >= 0)[-1]) + 1 if column_max.max() >= 0 else 1
+            slots = draws.slots[:, :width]
+            self._grow(max(int(column_max.max()) + 1, 1))  # all -1 (drawn before a restore): one slot
+            latest = np.where(slots >= 0, self.stamp[np.maximum(slots, 0)], -1).max(axis=1)
+            touched = latest > draws.versions
+            if law is not None:
+                ask = np.flatnonzero(touched & ~out)
+                if len(ask):
+                    stands = self._stands(draws, ask, law)
+                    touched[ask[stands]] = False
+                    if version is not None:
+                        draws.versions[ask[stands]] = version
+            out |= touched
         return out
 
     @staticmethod
