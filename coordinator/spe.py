@@ -103,7 +103,7 @@ class SPE(SPECertification, Algorithm):
         self._law_kind: tuple | None = None
         self._edge: tuple[int, np.ndarray] | None = None  # (version, mask): the closing law's candidates
         self._holes: FailureDistances | None = None  # min(d(vertex, hole), cap): ``SPECertification._edge_mask``
-        self._hole_points = (np.empty((0, self.coverage.n)), 0)  # (buffer, filled): the holes' points, gathered once
+        self._hole_points = Appendable(float, np.empty((0, self.coverage.n)))  # of ``hole_ids``, gathered once each
         self._edge_share: tuple[int, float] | None = None  # (version, its share of the alive centres)
         self._facet_cache: tuple[float, np.ndarray, int] | None = None  # (reach, per id: near a failure facet, ids filled)
 

@@ -52,19 +52,12 @@ class SPECertification:
         return mask
 
     def _gathered_holes(self) -> np.ndarray:
-        """The points of ``hole_ids`` (which only grows), each gathered once: in a buffer
-        that doubles, not all of them again after every change."""
-        buffer, filled = self._hole_points
-        ids = self.hole_ids.view
-        if filled < len(ids):
-            if len(ids) > len(buffer):
-                grown = np.empty((max(len(ids), 2 * len(buffer)), self.vertices.points.shape[1]))
-                grown[:filled] = buffer[:filled]
-                buffer = grown
-            buffer[filled : len(ids)] = self.vertices.points[ids[filled:]]
-            filled = len(ids)
-            self._hole_points = (buffer, filled)
-        return buffer[:filled]
+        """The points of ``hole_ids`` (which only grows), each gathered once, not all of
+        them again after every change."""
+        ids, known = self.hole_ids.view, self._hole_points
+        if known.size < len(ids):
+            known.extend(self.vertices.points[ids[known.size :]])
+        return known.view
 
     def closing_share(self) -> float:
         """The edge's share of the alive centres (closing rounds: coordinator/certification.py)."""
