@@ -142,6 +142,15 @@ class Draws:
         return Draws(self.ids[rows], self.versions[rows], self.slots[rows], self.untracked[rows], self.fixed,
                      self.vs[rows], self.now[rows])
 
+    def current(self, row: int) -> "Draws | None":
+        """Row ``row``'s current draw as a batch of one (copies), if known: None when its
+        id names another start than the one drawn (coordinator/driver/exact.py)."""
+        if self.now[row] < 0:
+            return None
+        one = self.rows([row])
+        one.ids = one.now.copy()
+        return one
+
     def span(self, lo: int, hi: int) -> "Draws":
         """The draws of rows ``lo:hi`` (views, no copy)."""
         return self.rows(slice(lo, hi))
@@ -267,6 +276,8 @@ class StableSampler:
         draw, flagged."""
         if draws.fixed or (len(draws) and int(draws.versions.min()) >= self.last):
             return np.zeros(len(draws), dtype=bool)  # nothing changed since any of them was drawn
+        if len(draws) == 1:  # a replacement's draw: the same questions on scalars
+            return np.array([self._moved_one(draws, law, version)])
         whole = draws.versions < self.everything
         out = whole | (draws.untracked & (draws.versions < self.last))
         if self.reborn[1] >= 0:
@@ -288,6 +299,30 @@ class StableSampler:
                         draws.versions[ask[stands]] = version
             out |= touched
         return out
+
+    def _moved_one(self, draws: Draws, law: Law | None, version: int | None) -> bool:
+        """``moved`` for a batch of one draw, known to be older than the last change."""
+        drawn = int(draws.versions[0])
+        if drawn < self.everything or draws.untracked[0]:
+            return True
+        if self.reborn[1] >= 0 and drawn < self.reborn[1] and draws.now[0] >= self.reborn[0]:
+            return True
+        slots = draws.slots[0]
+        examined = int(np.count_nonzero(slots >= 0))  # a prefix of the tracked columns
+        if examined == 0:
+            return False
+        slots = slots[:examined]
+        self._grow(int(slots.max()) + 1)
+        if int(self.stamp[slots].max()) <= drawn:
+            return False
+        if law is None:
+            return True
+        accepted = law.accept(slots, draws.vs[0, :examined])
+        if not accepted[-1] or accepted[:-1].any():
+            return True
+        if version is not None:
+            draws.versions[0] = version
+        return False
 
     @staticmethod
     def _stands(draws: Draws, rows: np.ndarray, law: Law) -> np.ndarray:

@@ -201,7 +201,8 @@ class Campaign:
             if pos == bad:  # mispredicted: discarded unseen, replaced (sent at the next fill)
                 c.committed += 1
                 rows.kind[pos] = CommitLog.DISCARDED
-                self.replacements.replace(chunk.first_index + pos)
+                # its stream's current draw is known at this version: verified above
+                self.replacements.replace(chunk.first_index + pos, p.draws.current(rows.at + pos))
                 pos += 1
                 continue
             change = rows.event(pos)

@@ -36,16 +36,17 @@ def redraw(launcher, p, rows: np.ndarray) -> tuple[np.ndarray, Draws]:
     return same, fresh
 
 
-def still_drawn(launcher, r) -> bool:
-    """Is replacement (or run launched ahead) ``r``'s start what its stream draws now?"""
+def drawn_now(launcher, r) -> Draws | None:
+    """Is replacement (or run launched ahead) ``r``'s start what its stream draws now?
+    None if it is (its draw renewed), else what its stream draws now (one draw)."""
     if not launcher.algorithm.moved(r.draws)[0]:
-        return True
+        return None
     fresh = launcher.draw([r.index])
     if fresh.ids[0] != r.draws.ids[0]:
-        return False
+        return fresh
     # (a run launched for a change not applied yet may name a centre that the change
     # would have inserted under that id: its start must be the centre's too)
     if not np.array_equal(r.start, launcher.starts(fresh.ids[0])):
-        return False
+        return fresh
     r.draws = fresh  # renewed: later checks start from now
-    return True
+    return None

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from coordinator.driver.exact import still_drawn
+from coordinator.driver.exact import drawn_now
 from coordinator.driver.holds import Held
 from coordinator.executor import Chunk
 from coordinator.stable_sampler import Draws
@@ -82,17 +82,17 @@ class ReplacementQueue:
         return self.queue[0]
 
     # -- launching ----------------------------------------------------------------------------
-    def replace(self, index: int) -> None:
+    def replace(self, index: int, current: Draws | None = None) -> None:
         """Run ``index`` is discarded unseen: launch its replacement from its stream's
-        current draw, due ``lag`` indices after the head (a run launched ahead for that
-        draw is taken)."""
+        current draw (``current`` if the caller knows it at this state), due ``lag``
+        indices after the head (a run launched ahead for that draw is taken)."""
         due = max(index, self.counters.committed - 1) + self.lag
         ahead = self.ahead.pop(index, None)
-        if ahead is not None and still_drawn(self.launcher, ahead):
+        if ahead is not None and (current := drawn_now(self.launcher, ahead)) is None:
             ahead.due = due
             self._insert(ahead)
         else:
-            draws = self.launcher.draw([index])
+            draws = current if current is not None else self.launcher.draw([index])
             replacement = Replacement(index, draws, self.launcher.starts(draws.ids[0]), due)
             self._insert(replacement)
             self.unsent.append(replacement)
@@ -173,9 +173,9 @@ class ReplacementQueue:
         c = self.counters
         while self.queue and self.queue[0].due < c.committed:
             r = self.queue[0]
-            if not still_drawn(self.launcher, r):
+            if (current := drawn_now(self.launcher, r)) is not None:
                 self.queue.popleft()
-                self.replace(r.index)
+                self.replace(r.index, current)
             elif self.held or not self.back(r):
                 self.queue.popleft()
                 self.held.hold(r, c, self.queue)
@@ -190,9 +190,9 @@ class ReplacementQueue:
     def take(self, r: Replacement) -> tuple[Chunk, int] | None:
         """Queued replacement ``r`` off the queue with its run (waiting for it) if it is
         still what its stream draws now; else None, and it is replaced again (unseen)."""
-        if not still_drawn(self.launcher, r):
+        if (current := drawn_now(self.launcher, r)) is not None:
             self.queue.remove(r)
-            self.replace(r.index)
+            self.replace(r.index, current)
             return None
         found = self.fetch(r)  # a stop while waiting leaves it queued
         self.queue.remove(r)

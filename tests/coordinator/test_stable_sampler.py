@@ -172,3 +172,68 @@ def test_a_draw_is_the_same_drawn_alone_or_in_a_large_batch():
         assert np.array_equal(few.slots, many.slots[rows]) and np.array_equal(few.untracked, many.untracked[rows])
         examined = few.slots >= 0
         assert np.array_equal(few.vs[examined], many.vs[rows][examined])
+
+
+@pytest.mark.parametrize("change", ["touch", "touch_all", "fork"])
+@pytest.mark.parametrize("with_law", [True, False])
+def test_a_draw_asked_alone_moves_as_it_does_in_a_batch(change, with_law):
+    """A replacement's draw is asked alone, on scalars (``StableSampler._moved_one``): the
+    same flag and the same renewal as the batch path gives it, after slots are touched,
+    after the law changed as a whole, and after a fork, for tracked, untracked and direct
+    draws alike."""
+    import copy
+
+    rng = np.random.default_rng(4)  # test data only
+    alive = rng.random(4 * COUNT) < 0.05  # sparse: some draws examine many slots, some draw directly
+    sampler = StableSampler()
+    sampler.restart(len(alive), 0)
+    copied = copy.deepcopy(sampler)
+    draws = sampler.draw(streams(3000), uniform(alive), 0)
+    killed = rng.choice(np.flatnonzero(alive), 8, replace=False)
+    alive = alive.copy()
+    alive[killed] = False
+    still_dead = rng.choice(np.flatnonzero(~alive), 400, replace=False)  # touched, unchanged: draws stand
+    sampler.touch(np.concatenate([killed, still_dead]), 1)
+    if change == "touch_all":
+        sampler.touch_all(2)
+    if change == "fork":
+        copied.forked(sampler, 0, 2, len(alive) - 50)
+        sampler = copied
+    law = uniform(alive) if with_law else None
+    batch = draws.rows(np.arange(len(draws)))
+    flagged = sampler.moved(batch, law, 3 if with_law else None)
+    assert flagged.any() and (flagged.all() if change == "touch_all" else not flagged.all())
+    for row in range(len(draws)):
+        one = draws.rows([row])
+        assert sampler.moved(one, law, 3 if with_law else None)[0] == flagged[row], row
+        assert one.versions[0] == batch.versions[row], row
+    if with_law and change == "touch":
+        assert (batch.versions == 3).any()  # some asked again and found standing: renewed
+
+
+def test_a_row_s_current_draw_is_what_its_stream_draws_now():
+    """``Draws.current``: once the moved rows of a batch are drawn again and tracked (as a
+    commit's check does), a row's current draw is its stream's draw now, id and examined
+    slots alike: a replacement is launched from it without drawing again."""
+    rng = np.random.default_rng(6)  # test data only
+    alive = rng.random(COUNT) < 0.5
+    sampler = StableSampler()
+    sampler.restart(COUNT, 0)
+    s = streams(2000)
+    draws = sampler.draw(s, uniform(alive), 0)
+    killed = rng.choice(np.flatnonzero(alive), 20, replace=False)
+    alive = alive.copy()
+    alive[killed] = False
+    sampler.touch(killed, 1)
+    law = uniform(alive)
+    moved = np.flatnonzero(sampler.moved(draws, law, 1))
+    draws.track(moved, sampler.draw(s.subset(moved), law, 1))
+    now = sampler.draw(s, law, 1)
+    changed = np.flatnonzero(draws.now != draws.ids)
+    assert len(changed) > 10
+    for row in changed:
+        one = draws.current(int(row))
+        assert one.ids[0] == now.ids[row] and np.array_equal(one.slots[0], now.slots[row])
+        assert not sampler.moved(one, law, 1)[0]
+    draws.now[changed[0]] = -1  # its id names another start (after a fork): not known
+    assert draws.current(int(changed[0])) is None
