@@ -24,35 +24,41 @@ class Rescreen:
         self.coverage, self.screening, self.outcomes = coverage, screening, outcomes
         self.visited = visited  # () -> (states, offsets): the chunk's visited states, fetched on demand
         self._full = np.zeros(len(screening), dtype=bool)  # rows to re-screen from all their states
-        self._checked_kills = -2  # kill seq up to which the witnesses were checked
+        self._checked_kills = -2  # kill seq up to which the witnesses were checked,
+        self._checked_from = 0  # from this row on (a replacement's row may be asked below it)
         self._known: tuple | None = None  # (row, epoch, seq, uncovered, near) of the last event found
         self._cleared = np.zeros(len(screening), dtype=bool)  # rows found quiet at ``_cleared_at``
         self._cleared_at: tuple | None = None  # the coverage's (epoch, seq) they were found quiet at
 
-    def next_event(self, lo: int, allowed: np.ndarray | None = None) -> int:
-        """The first run at or after ``lo`` that changes the state now (the chunk's
-        length if none). ``allowed`` (k,) bool: runs that can change it at all."""
+    def changes(self, row: int) -> bool:
+        """Does run ``row`` change the state now (asked of that run alone: a replacement's)?"""
+        return self.next_event(row, end=row + 1) == row
+
+    def next_event(self, lo: int, allowed: np.ndarray | None = None, end: int | None = None) -> int:
+        """The first run at or after ``lo`` (and before ``end``) that changes the state now
+        (the chunk's length if none). ``allowed`` (k,) bool: runs that can change it at all."""
         cov, sc = self.coverage, self.screening
         k = len(sc)
-        if lo >= k:
+        hi = k if end is None else min(end, k)
+        if lo >= hi:
             return k
         if sc.epoch == cov.epoch and sc.seq == cov.seq:
-            changes = sc.event[lo:] != QUIET
+            changes = sc.event[lo:hi] != QUIET
             if allowed is not None:
-                changes &= allowed[lo:]
+                changes &= allowed[lo:hi]
             return lo + int(np.argmax(changes)) if changes.any() else k
         if sc.epoch != cov.epoch or sc.seq > cov.seq:
             # vertex ids of another covering: witnesses mean nothing; or screened at changes
             # this coverage has not had (a hold judged at the state the head passed it,
             # coordinator/driver/speculation.py): its new states are not this coverage's
             self._full[lo:] = True
-        elif cov.kill_seq > max(sc.seq, self._checked_kills):
+        elif cov.kill_seq > max(sc.seq, self._checked_kills) or lo < self._checked_from:
             self._mark_dead_witnesses(lo)  # only a Kill can uncover a state
         now = (cov.epoch, cov.seq)
         if self._cleared_at != now:
             self._cleared[:] = False
             self._cleared_at = now
-        candidates = np.flatnonzero(((sc.event[lo:] != QUIET) | self._full[lo:]) & ~self._cleared[lo:]) + lo
+        candidates = np.flatnonzero(((sc.event[lo:hi] != QUIET) | self._full[lo:hi]) & ~self._cleared[lo:hi]) + lo
         if allowed is not None:
             candidates = candidates[allowed[candidates]]
         at, block = 0, 1
@@ -149,7 +155,9 @@ class Rescreen:
         np.cumsum(dead, out=dead_before[1:])
         rel = offsets - offsets[0]
         self._full[lo:] |= dead_before[rel[1:]] > dead_before[rel[:-1]]
-        self._checked_kills = self.coverage.kill_seq
+        if self.coverage.kill_seq != self._checked_kills:
+            self._checked_kills, self._checked_from = self.coverage.kill_seq, lo
+        self._checked_from = min(self._checked_from, lo)
 
     def _changes(self, rows: np.ndarray) -> tuple[np.ndarray, tuple | None]:
         """(len(rows),) bool: these runs change the state now (one classification), and

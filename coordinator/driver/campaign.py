@@ -298,12 +298,12 @@ class Campaign:
         else:
             judged = Rescreen(past.algorithm.coverage, chunk.screening, chunk.outcomes, chunk.visited)
         start_id = r.draws.ids[:1]
-        changes = judged.next_event(row) == row
+        changes = judged.changes(row)
         if held and changes:
             if past is not None:
                 self._undo_speculations()
                 judged = self._rescreen(chunk)  # the state it was judged at, restored: decided there again
-                judged.next_event(row)
+                judged.changes(row)
             self.replacements.rewind()
             self._rewound = True
         counted = not changes and r.index >= (past.streak_start if past is not None else c.streak_start)

@@ -76,6 +76,25 @@ def test_rescreen_matches_a_fresh_classification(seed, strict):
     assert checked > 3  # the classification was known (and checked) for several events
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_a_run_asked_alone_is_decided_as_a_fresh_classification_decides_it(seed):
+    """``Rescreen.changes(row)``, a replacement's question (that run alone, nothing after
+    it classified), after kills and inserts since the chunk was screened, row by row in
+    a random order on one rescreen: what a fresh classification of its states says."""
+    rng = np.random.default_rng(seed)
+    cov = Coverage(2, DELTA, LOWER, bounds=(LOWER, UPPER))
+    cov.apply(Insert(_lattice(rng, 150)), 1)
+    cov.apply(AddFailures(rng.uniform(0, 8, size=(5, 2))), 2)
+    states, offsets, outcomes = _chunk(rng)
+    screening = cov.screen(states, offsets, outcomes)
+    cov.apply(Kill(rng.choice(cov.vertices.alive_ids(), size=30, replace=False)), 3)
+    cov.apply(Insert(_lattice(rng, 5) + 0.1), 4)
+    rescreen = Rescreen(cov, screening, outcomes, lambda: (states, offsets))
+    answers = [(row, rescreen.changes(int(row))) for row in rng.permutation(len(outcomes))]
+    assert all(changes == _brute(cov, states, offsets, outcomes, row) for row, changes in answers)
+    assert 0 < sum(changes for _, changes in answers) < len(outcomes)
+
+
 @pytest.mark.parametrize("mixed", [False, True])
 def test_witnesses_after_an_insert_are_those_of_a_fresh_screening(mixed):
     """A state's witness is its newest covering centre: after an insert (boundary
