@@ -394,7 +394,9 @@ class Campaign:
         if len(rows) == 0:
             return
         algo = self.algorithm
-        kind = np.broadcast_to(np.asarray(kind, dtype=np.int8), (len(rows),))
+        kind = np.asarray(kind, dtype=np.int8)
+        if kind.ndim == 0:  # one kind for every row
+            kind = np.full(len(rows), kind, dtype=np.int8)
         round_, delta = algo.round, algo.delta
 
         def apply() -> None:
