@@ -12,7 +12,12 @@ run:
 
     rate = (runs(case) - runs(tiny)) / (cpu(case) - cpu(tiny))
 
-    python benchmarks/bench_coordinator_cpu.py [--repeat 3] [--keep DIR]
+    python benchmarks/bench_coordinator_cpu.py [--repeat 3] [--keep DIR] [--vs CHECKOUT]
+
+``--vs CHECKOUT``: another checkout of this repository (``git worktree add /tmp/before
+<commit>``), measured back to back with this code in every repeat (a pair): on a host whose
+speed drifts by more than a change gains, compare within pairs (the median of the pairs'
+ratios), not figures taken minutes apart.
 """
 
 from __future__ import annotations
@@ -61,10 +66,14 @@ print(json.dumps({"code": code, "cpu_s": r.ru_utime + r.ru_stime, "wall_s": time
 """
 
 
-def measure(config: str, out: str) -> dict:
-    """One `quantify` of ``config`` into ``out``: the process's CPU, wall, exit and runs."""
+def measure(config: str, out: str, checkout: str | None = None) -> dict:
+    """One `quantify` of ``config`` into ``out``: the process's CPU, wall, exit and runs
+    (``checkout``: with that checkout's packages first on the path)."""
+    env = dict(os.environ)
+    if checkout is not None:
+        env["PYTHONPATH"] = os.pathsep.join([checkout, *filter(None, [env.get("PYTHONPATH")])])
     proc = subprocess.run([sys.executable, "-c", _MEASURED, "quantify", config, "--out", out, "--force"],
-                          capture_output=True, text=True)
+                          capture_output=True, text=True, env=env, cwd=checkout)
     lines = proc.stdout.strip().splitlines()
     if proc.returncode != 0 or not lines:
         sys.exit(f"bench_coordinator_cpu: quantify {config} exited {proc.returncode}: {proc.stderr.strip()[-400:]}")
@@ -77,13 +86,28 @@ def measure(config: str, out: str) -> dict:
     return row
 
 
+def _rate(configs: dict, work: str, checkout: str | None, label: str) -> float:
+    """The tiny run and the case, once: committed runs per marginal CPU-second (printed)."""
+    tiny = measure(configs["tiny"], os.path.join(work, "tiny"), checkout)
+    case = measure(configs["case"], os.path.join(work, "case"), checkout)
+    rate = (case["committed"] - tiny["committed"]) / max(case["cpu_s"] - tiny["cpu_s"], 1e-9)
+    print(f"{label}tiny: {tiny['committed']:,} runs, {tiny['cpu_s']:.2f} CPU-s, {tiny['wall_s']:.1f} s; case: "
+          f"{case['committed']:,} runs, {case['cpu_s']:.2f} CPU-s, {case['wall_s']:.1f} s, "
+          f"{case['max_rss_mb']:.0f} MB (result {case['hash']}): {rate:,.0f} committed runs per CPU-second "
+          f"of the process", flush=True)
+    return rate
+
+
 def main() -> None:
     import ray
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=3, help="pairs of (tiny, case) runs; the median rate is the figure")
     ap.add_argument("--keep", help="write the configs and campaigns here (default: a temporary directory)")
+    ap.add_argument("--vs", metavar="CHECKOUT", help="another checkout, measured back to back with this code")
     args = ap.parse_args()
+    if args.vs is not None and not os.path.isfile(os.path.join(args.vs, "coordinator", "__init__.py")):
+        sys.exit(f"bench_coordinator_cpu: --vs {args.vs}: not a checkout of this repository (no coordinator/)")
     work = args.keep or tempfile.mkdtemp(prefix="bench_cpu_")
     os.makedirs(work, exist_ok=True)
     configs = {}
@@ -94,17 +118,18 @@ def main() -> None:
     print(f"machine: {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}; Ray {ray.__version__}, local; "
           "lead-follow idm, uniform Gamma, delta 2 -> 0.5, certified, numpy back end, 2 Ray workers; "
           "whole `scenario-farm quantify` processes", flush=True)
-    rates = []
+    rates, ratios = [], []
     for _ in range(args.repeat):
-        tiny = measure(configs["tiny"], os.path.join(work, "tiny"))
-        case = measure(configs["case"], os.path.join(work, "case"))
-        rate = (case["committed"] - tiny["committed"]) / max(case["cpu_s"] - tiny["cpu_s"], 1e-9)
+        other = _rate(configs, work, args.vs, f"vs {args.vs}: ") if args.vs is not None else None
+        rate = _rate(configs, work, None, "this code: " if other is not None else "")
         rates.append(rate)
-        print(f"tiny: {tiny['committed']:,} runs, {tiny['cpu_s']:.2f} CPU-s, {tiny['wall_s']:.1f} s; case: "
-              f"{case['committed']:,} runs, {case['cpu_s']:.2f} CPU-s, {case['wall_s']:.1f} s, "
-              f"{case['max_rss_mb']:.0f} MB (result {case['hash']}): {rate:,.0f} committed runs per CPU-second "
-              f"of the process", flush=True)
+        if other is not None:
+            ratios.append(rate / other)
+            print(f"pair {len(ratios)}: this code / {args.vs} = {ratios[-1]:.2f}", flush=True)
     median = sorted(rates)[len(rates) // 2]
+    if ratios:
+        print(f"median of the pairs' ratios: {sorted(ratios)[len(ratios) // 2]:.2f} (this code ahead in "
+              f"{sum(r > 1 for r in ratios)} of {len(ratios)})")
     verdict = check(f"committed runs per CPU-second of the whole CLI process >= {TARGET:,}", median >= TARGET)
     print(f"median: {median:,.0f} committed runs per CPU-second of the whole CLI process "
           f"(target {TARGET:,}: {verdict})")
