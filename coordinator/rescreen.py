@@ -24,8 +24,8 @@ class Rescreen:
         self.coverage, self.screening, self.outcomes = coverage, screening, outcomes
         self.visited = visited  # () -> (states, offsets): the chunk's visited states, fetched on demand
         self._full = np.zeros(len(screening), dtype=bool)  # rows to re-screen from all their states
-        self._checked_kills = -2  # kill seq up to which the witnesses were checked,
-        self._checked_from = 0  # from this row on (a replacement's row may be asked below it)
+        self._checked_kills = -2  # kill seq up to which the witnesses were checked ...
+        self._checked_from = 0  # ... from this row on (a replacement's row may be asked below it)
         self._known: tuple | None = None  # (row, epoch, seq, uncovered, near) of the last event found
         self._cleared = np.zeros(len(screening), dtype=bool)  # rows found quiet at ``_cleared_at``
         self._cleared_at: tuple | None = None  # the coverage's (epoch, seq) they were found quiet at
@@ -157,7 +157,8 @@ class Rescreen:
         self._full[lo:] |= dead_before[rel[1:]] > dead_before[rel[:-1]]
         if self.coverage.kill_seq != self._checked_kills:
             self._checked_kills, self._checked_from = self.coverage.kill_seq, lo
-        self._checked_from = min(self._checked_from, lo)
+        else:  # the same kills, asked below the rows checked
+            self._checked_from = min(self._checked_from, lo)
 
     def _changes(self, rows: np.ndarray) -> tuple[np.ndarray, tuple | None]:
         """(len(rows),) bool: these runs change the state now (one classification), and

@@ -88,11 +88,12 @@ class ReplacementQueue:
         indices after the head (a run launched ahead for that draw is taken)."""
         due = max(index, self.counters.committed - 1) + self.lag
         ahead = self.ahead.pop(index, None)
-        if ahead is not None and (current := drawn_now(self.launcher, ahead)) is None:
+        now = drawn_now(self.launcher, ahead) if ahead is not None else current
+        if ahead is not None and now is None:  # the run launched ahead is still its draw
             ahead.due = due
             self._insert(ahead)
         else:
-            draws = current if current is not None else self.launcher.draw([index])
+            draws = now if now is not None else self.launcher.draw([index])
             replacement = Replacement(index, draws, self.launcher.starts(draws.ids[0]), due)
             self._insert(replacement)
             self.unsent.append(replacement)
