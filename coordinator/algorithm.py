@@ -118,10 +118,10 @@ class Algorithm(ABC):
         """(B,) bool: which of these draws a change since they were made may have moved
         (a draw not flagged is what its stream draws now; a flagged one is drawn again)."""
 
-    def next_event(self, rescreen: Rescreen, lo: int, start_ids: np.ndarray) -> int:
-        """The first run at or after ``lo`` of a screened chunk that changes the state
-        now (the chunk's length if none)."""
-        return rescreen.next_event(lo)
+    def next_event(self, rescreen: Rescreen, lo: int, start_ids: np.ndarray, end: int | None = None) -> int:
+        """The first run at or after ``lo`` (and before ``end``) of a screened chunk that
+        changes the state now (the chunk's length if none)."""
+        return rescreen.next_event(lo, end=end)
 
     @abstractmethod
     def apply(self, event: Event) -> str:

@@ -188,7 +188,8 @@ class Campaign:
                 exact = verify(self.launcher, p, rows.at + pos, rows.at + limit)
                 verified = (algo.version, pos, exact)
             bad = pos + (len(exact) if exact.all() else int(np.argmin(exact)))
-            stop = min(bad, algo.next_event(rows.rescreen, pos, rows.ids))
+            # (runs past ``bad`` are asked next time: after a misprediction or a block's end)
+            stop = min(bad, algo.next_event(rows.rescreen, pos, rows.ids, end=bad))
             rows.counted[pos:stop] = True
             c.quiet += stop - pos
             c.escaped_in_streak += int(np.count_nonzero(chunk.screening.escaped[pos:stop]))

@@ -95,6 +95,29 @@ def test_a_run_asked_alone_is_decided_as_a_fresh_classification_decides_it(seed)
     assert 0 < sum(changes for _, changes in answers) < len(outcomes)
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_a_bounded_ask_finds_the_first_change_before_its_end_or_says_none(seed):
+    """``next_event(lo, end=e)`` (the head asks no further than its next misprediction):
+    the first run in [lo, e) that a fresh classification says changes the state, else
+    the chunk's length; asked again from e on, the same rescreen still answers right."""
+    rng = np.random.default_rng(10 + seed)
+    cov = Coverage(2, DELTA, LOWER, bounds=(LOWER, UPPER))
+    cov.apply(Insert(_lattice(rng, 150)), 1)
+    cov.apply(AddFailures(rng.uniform(0, 8, size=(5, 2))), 2)
+    states, offsets, outcomes = _chunk(rng)
+    screening = cov.screen(states, offsets, outcomes)
+    cov.apply(Kill(rng.choice(cov.vertices.alive_ids(), size=30, replace=False)), 3)
+    rescreen = Rescreen(cov, screening, outcomes, lambda: (states, offsets))
+    k = len(outcomes)
+    changing = [r for r in range(k) if _brute(cov, states, offsets, outcomes, r)]
+    lo = 0
+    for end in sorted(rng.choice(np.arange(1, k), size=12, replace=False)) + [k]:
+        expected = next((r for r in changing if lo <= r < end), k)
+        assert rescreen.next_event(lo, end=int(end)) == expected
+        lo = int(end)
+    assert 0 < len(changing) < k
+
+
 @pytest.mark.parametrize("mixed", [False, True])
 def test_witnesses_after_an_insert_are_those_of_a_fresh_screening(mixed):
     """A state's witness is its newest covering centre: after an insert (boundary
