@@ -274,31 +274,28 @@ class StableSampler:
         only if its accepted try changed (rarely, a later try finds the same id), and
         renewed (its version set to ``version``) if it stands. Without, or for an untracked
         draw, flagged."""
-        if draws.fixed or (len(draws) and int(draws.versions.min()) >= self.last):
+        if draws.fixed or len(draws) == 0 or int(draws.versions.min()) >= self.last:
             return np.zeros(len(draws), dtype=bool)  # nothing changed since any of them was drawn
         if len(draws) == 1:  # a replacement's draw: the same questions on scalars
             return np.array([self._moved_one(draws, law, version)])
-        whole = draws.versions < self.everything
-        out = whole | (draws.untracked & (draws.versions < self.last))
+        out = (draws.versions < self.everything) | (draws.untracked & (draws.versions < self.last))
         if self.reborn[1] >= 0:
             out |= (draws.versions < self.reborn[1]) & (draws.now >= self.reborn[0])
-        if len(draws):
-            # only the columns some draw examined: a dense law's draws examine a few of TRACKED
-            column_max = draws.slots.max(axis=0)
-            width = int(np.flatnonzero(column_max >= 0)[-1]) + 1 if column_max.max() >= 0 else 1
-            slots = draws.slots[:, :width]
-            self._grow(max(int(column_max.max()) + 1, 1))  # all -1 (drawn before a restore): one slot
-            latest = np.where(slots >= 0, self.stamp[np.maximum(slots, 0)], -1).max(axis=1)
-            touched = latest > draws.versions
-            if law is not None:
-                ask = np.flatnonzero(touched & ~out)
-                if len(ask):
-                    stands = self._stands(draws, ask, law)
-                    touched[ask[stands]] = False
-                    if version is not None:
-                        draws.versions[ask[stands]] = version
-            out |= touched
-        return out
+        # only the columns some draw examined: a dense law's draws examine a few of TRACKED
+        column_max = draws.slots.max(axis=0)
+        width = int(np.flatnonzero(column_max >= 0)[-1]) + 1 if column_max.max() >= 0 else 1
+        slots = draws.slots[:, :width]
+        self._grow(max(int(column_max.max()) + 1, 1))  # all -1 (drawn before a restore): one slot
+        latest = np.where(slots >= 0, self.stamp[np.maximum(slots, 0)], -1).max(axis=1)
+        touched = latest > draws.versions
+        if law is not None:
+            ask = np.flatnonzero(touched & ~out)
+            if len(ask):
+                stands = self._stands(draws, ask, law)
+                touched[ask[stands]] = False
+                if version is not None:
+                    draws.versions[ask[stands]] = version
+        return out | touched
 
     def _moved_one(self, draws: Draws, law: Law | None, version: int | None) -> bool:
         """``moved`` for a batch of one draw, known to be older than the last change."""

@@ -76,20 +76,27 @@ def test_rescreen_matches_a_fresh_classification(seed, strict):
     assert checked > 3  # the classification was known (and checked) for several events
 
 
-@pytest.mark.parametrize("seed", range(3))
-def test_a_run_asked_alone_is_decided_as_a_fresh_classification_decides_it(seed):
-    """``Rescreen.changes(row)``, a replacement's question (that run alone, nothing after
-    it classified), after kills and inserts since the chunk was screened, row by row in
-    a random order on one rescreen: what a fresh classification of its states says."""
-    rng = np.random.default_rng(seed)
+def _rescreened_after_changes(rng, inserts: bool = True):
+    """A chunk screened at one coverage, and a rescreen of it after 30 kills (and 5
+    inserts): (coverage, rescreen, (states, offsets, outcomes))."""
     cov = Coverage(2, DELTA, LOWER, bounds=(LOWER, UPPER))
     cov.apply(Insert(_lattice(rng, 150)), 1)
     cov.apply(AddFailures(rng.uniform(0, 8, size=(5, 2))), 2)
     states, offsets, outcomes = _chunk(rng)
     screening = cov.screen(states, offsets, outcomes)
     cov.apply(Kill(rng.choice(cov.vertices.alive_ids(), size=30, replace=False)), 3)
-    cov.apply(Insert(_lattice(rng, 5) + 0.1), 4)
-    rescreen = Rescreen(cov, screening, outcomes, lambda: (states, offsets))
+    if inserts:
+        cov.apply(Insert(_lattice(rng, 5) + 0.1), 4)
+    return cov, Rescreen(cov, screening, outcomes, lambda: (states, offsets)), (states, offsets, outcomes)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_run_asked_alone_is_decided_as_a_fresh_classification_decides_it(seed):
+    """``Rescreen.changes(row)``, a replacement's question (that run alone, nothing after
+    it classified), after kills and inserts since the chunk was screened, row by row in
+    a random order on one rescreen: what a fresh classification of its states says."""
+    rng = np.random.default_rng(seed)
+    cov, rescreen, (states, offsets, outcomes) = _rescreened_after_changes(rng)
     answers = [(row, rescreen.changes(int(row))) for row in rng.permutation(len(outcomes))]
     assert all(changes == _brute(cov, states, offsets, outcomes, row) for row, changes in answers)
     assert 0 < sum(changes for _, changes in answers) < len(outcomes)
@@ -101,13 +108,7 @@ def test_a_bounded_ask_finds_the_first_change_before_its_end_or_says_none(seed):
     the first run in [lo, e) that a fresh classification says changes the state, else
     the chunk's length; asked again from e on, the same rescreen still answers right."""
     rng = np.random.default_rng(10 + seed)
-    cov = Coverage(2, DELTA, LOWER, bounds=(LOWER, UPPER))
-    cov.apply(Insert(_lattice(rng, 150)), 1)
-    cov.apply(AddFailures(rng.uniform(0, 8, size=(5, 2))), 2)
-    states, offsets, outcomes = _chunk(rng)
-    screening = cov.screen(states, offsets, outcomes)
-    cov.apply(Kill(rng.choice(cov.vertices.alive_ids(), size=30, replace=False)), 3)
-    rescreen = Rescreen(cov, screening, outcomes, lambda: (states, offsets))
+    cov, rescreen, (states, offsets, outcomes) = _rescreened_after_changes(rng, inserts=False)
     k = len(outcomes)
     changing = [r for r in range(k) if _brute(cov, states, offsets, outcomes, r)]
     lo = 0
