@@ -19,6 +19,7 @@ from typing import ClassVar
 import numpy as np
 
 from coordinator.estimation import Interval, plain_half_width
+from coordinator.estimation.intervals import z_value
 from coordinator.sample_size import n_eps
 from farm.config.hashing import config_hash
 from farm.directory.json_record import JsonFile, record_from_json, record_to_json
@@ -98,6 +99,18 @@ def _zero(iv: Interval, runs: int) -> dict | None:
         f"(N_eps({iv.high:.3g}, {alpha:g}) = {n_eps(iv.high, alpha):,} runs)")}
 
 
+def _unpaired(rate: Interval, other: Interval, diff: Interval) -> tuple[float, float | None]:
+    """The difference's half-width had the two controllers run apart, and how many times
+    wider that is than the paired one. From standard errors where all three intervals are
+    normal: a half-width clipped at 0 (a rate near zero) would understate the unpaired
+    width and show pairing as a loss."""
+    if None not in (rate.standard_error, other.standard_error, diff.standard_error):
+        se = float(np.hypot(rate.standard_error, other.standard_error))
+        return se * z_value(rate.confidence), (se / diff.standard_error if diff.standard_error > 0 else None)
+    unpaired = float(np.hypot(rate.half_width, other.half_width))
+    return unpaired, (unpaired / diff.half_width if diff.half_width > 0 else None)
+
+
 def report_of(name: str, setup, run, elapsed_s: float, virtual_elapsed_s: float | None = None) -> EstimateReport:
     """estimate.json of a finished ``StageRun`` over ``setup`` (farm/jobs/estimate_setup.py);
     ``virtual_elapsed_s``: the virtual farm's simulated time to the result, if it ran there."""
@@ -114,7 +127,7 @@ def report_of(name: str, setup, run, elapsed_s: float, virtual_elapsed_s: float 
     versus = None
     if setup.paired:
         other, diff = run.rate(versus=True), tally.difference(strata.masses, s.confidence)
-        unpaired = float(np.hypot(rate.half_width, other.half_width))
+        unpaired, gain = _unpaired(rate, other, diff)
         versus = {"controller": setup.labels[1], **_interval_json(other),
                   "failures": int(tally.versus_failures.sum()),
                   "difference": {"of": f"{setup.labels[0]} - {setup.labels[1]}", **_interval_json(diff),
@@ -122,7 +135,7 @@ def report_of(name: str, setup, run, elapsed_s: float, virtual_elapsed_s: float 
                                  "two_plain_half_width": float(np.hypot(
                                      plain_half_width(rate.estimate, tally.committed, s.confidence),
                                      plain_half_width(other.estimate, tally.committed, s.confidence))),
-                                 "pairing_gain": unpaired / diff.half_width if diff.half_width > 0 else None,
+                                 "pairing_gain": gain,
                                  "runs_only_first_failed": int(tally.a_only.sum()),
                                  "runs_only_second_failed": int(tally.b_only.sum())},
                   "zero_failures": _zero(other, tally.committed)}

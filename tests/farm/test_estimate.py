@@ -213,3 +213,21 @@ def test_a_missing_parquet_column_is_named(campaign, tmp_path):
                                         r"state variable: v0, v1, p10"):
         api.estimate(out, {"estimate": {"distribution": "empirical", "data": str(tmp_path / "recorded.parquet")}})
     assert json.loads((out / "summary.json").read_text())["scenario"] == "lead-follow"  # the campaign untouched
+
+
+def test_the_unpaired_width_comes_from_standard_errors_not_from_an_interval_clipped_at_zero():
+    # B failed once, on a run where A failed too: B's normal interval reaches below 0 and is
+    # clipped, so half of it understates B's spread; pairing (the same runs) can only narrow
+    # the difference here, and its gain is a ratio of standard errors
+    from coordinator.estimation.intervals import difference_interval, rate_interval, z_value
+    from farm.reports.estimate_report import _unpaired
+
+    masses, runs = np.array([0.5, 0.5]), np.array([[2000, 2000]])
+    a, b = np.array([[200, 30]]), np.array([[1, 0]])
+    first, second = rate_interval(masses, runs, a, 0.95), rate_interval(masses, runs, b, 0.95)
+    diff = difference_interval(masses, runs, a - b, np.zeros_like(b), 0.95)
+    assert second.low == 0.0 and second.half_width < z_value(0.95) * second.standard_error  # clipped
+    unpaired, gain = _unpaired(first, second, diff)
+    se = np.hypot(first.standard_error, second.standard_error)
+    assert unpaired == pytest.approx(z_value(0.95) * se) and unpaired > np.hypot(first.half_width, second.half_width)
+    assert gain == pytest.approx(se / diff.standard_error) and gain > 1
