@@ -102,6 +102,8 @@ class SPE(SPECertification, Algorithm):
         self._law_cache: tuple | None = None
         self._law_kind: tuple | None = None
         self._edge: tuple[int, np.ndarray] | None = None  # (version, mask): the closing law's candidates
+        self._edge_table: Appendable | None = None  # a closing round's slots: per slot, its edge id
+        self._edge_slot: np.ndarray | None = None  # per vertex id, its slot in the table (-1: none)
         self._holes: FailureDistances | None = None  # min(d(vertex, hole), cap): ``SPECertification._edge_mask``
         self._hole_points = Appendable(float, np.empty((0, self.coverage.n)))  # of ``hole_ids``, gathered once each
         self._edge_share: tuple[int, float] | None = None  # (version, its share of the alive centres)
@@ -115,7 +117,14 @@ class SPE(SPECertification, Algorithm):
         """New alive centres (their ids follow the count): their slots move draws."""
         first = self.vertices.count
         self.coverage.apply(Insert(points, half_width), self.version)
-        self._stable.touch(np.arange(first, self.vertices.count), self.version)
+        self._touch(np.arange(first, self.vertices.count))
+
+    def _touch(self, ids: np.ndarray) -> None:
+        """Vertices ``ids`` were inserted or killed: their slots move draws. A closing
+        round's slots are the edge table's: the edge's membership changes touch them
+        (``_edge_mask``), these ids are not slots there."""
+        if self._edge_table is None:
+            self._stable.touch(ids, self.version)
 
     def failure_points(self) -> np.ndarray:
         return self.failures.points[: self.failures.count].copy()
@@ -199,7 +208,6 @@ class SPE(SPECertification, Algorithm):
         if self.vertices.alive_count == 0:
             raise EmptySetError("the safe set is empty: every centre was pruned")
         count = self.vertices.count
-        self._stable.fit(count, self.version)
         if self.failures.count and (self.settings.prioritized or self.settings.boundary):
             self._failure_distances()
             lowered = self._dist.take_lowered()  # taken while certifying too: they would pile up
@@ -207,6 +215,7 @@ class SPE(SPECertification, Algorithm):
                 self._stable.touch(lowered, self.version)
                 self._sampler.touch(lowered)
         law, kind = self._make_law(count)
+        self._stable.fit(law.count, self.version)
         if kind != self._law_kind:
             self._stable.touch_all(self.version)
             self._law_kind = kind
@@ -221,8 +230,7 @@ class SPE(SPECertification, Algorithm):
         over the candidates (d* their largest distance), kept up to date where the state
         changed (coordinator/sampler.py); uniform when every weight is zero."""
         if self.closing:
-            mask = self._edge_mask()
-            return UniformLaw(count, mask.__getitem__, lambda: np.flatnonzero(mask)), ("closing",)
+            return self._closing_law(), ("closing",)
         if self.certifying:
             return UniformLaw(count, self._alive, self.vertices.alive_ids), ("certification",)
         alpha = ALPHAS[self.settings.alpha]
@@ -272,6 +280,11 @@ class SPE(SPECertification, Algorithm):
     # -- tell ---------------------------------------------------------------------------
     def apply(self, event: Event) -> str:
         """Apply the change of one run; returns "pruned", "explored" or "escaped"."""
+        kind = self._apply(event)
+        self._edge_after_change()
+        return kind
+
+    def _apply(self, event: Event) -> str:
         self.version += 1
         if event.failed:
             # A failing run's explored states would be pruned with sigma at once (they are
@@ -304,7 +317,7 @@ class SPE(SPECertification, Algorithm):
             self.hole_ids.extend(ids[self.vertices.alive[ids]])
         self.enumeration.before_prune(self.vertices, self.checked, ids)
         self.coverage.apply(Kill(ids), self.version)
-        self._stable.touch(ids, self.version)
+        self._touch(ids)
         if self.settings.prioritized:  # the sampler's blocks holding them are summed again
             self._sampler.touch(ids)
         self.enumeration.reopened(self.checked.invalidate(ids))
@@ -419,6 +432,8 @@ class SPE(SPECertification, Algorithm):
         out.update(self.checked.state())
         out.update(self.replay.state())
         out.update(self._stable.state())
+        if self._edge_table is not None:
+            out["closing.slots"] = self._edge_table.view.copy()
         if self.band is not None:
             out.update(self.band.state())
         return out
@@ -438,6 +453,8 @@ class SPE(SPECertification, Algorithm):
         self.checked = CheckedCentres.from_state(state)
         self.replay.load_state(state)
         self._fresh_samplers()
-        self._stable.load_state(state, self.vertices.count, self.version)
+        if self.closing:
+            self._load_edge_table(state.get("closing.slots"))
+        self._stable.load_state(state, self._slot_count(), self.version)
         if self.band is not None:
             self.band.load_state(state)

@@ -9,7 +9,9 @@ import numpy as np
 
 from coordinator.certification import CHECK, CLOSING
 from coordinator.coverage import Strict
+from coordinator.buffers import Appendable
 from coordinator.priorities import FailureDistances
+from coordinator.stable_sampler import TableLaw
 
 
 class SPECertification:
@@ -24,8 +26,8 @@ class SPECertification:
         or of a hole in it: a centre of the last round pruned since (its box is outside
         the set now, and runs that reach it leave the set; measured: a third of the
         violations checks found came from such centres when the edge ignored them). The
-        whole set when the edge is empty. Ids whose membership changed since the last
-        mask are touched: their slots move draws."""
+        whole set when the edge is empty. In a closing round, the slots of the ids whose
+        membership changed since the last mask are touched (``_edge_slots_moved``)."""
         if self._edge is not None and self._edge[0] == self.version:
             return self._edge[1]
         count = self.vertices.count
@@ -45,11 +47,63 @@ class SPECertification:
         mask = alive & near
         if not mask.any():
             mask = alive.copy()
-        if self._edge is not None:
+        if self._edge is not None and self._edge_table is not None:
             old = self._edge[1]
-            self._stable.touch(np.flatnonzero(mask[: len(old)] != old), self.version)
+            changed = np.flatnonzero(mask[: len(old)] != old)
+            joined = len(old) + np.flatnonzero(mask[len(old) :])
+            self._edge_slots_moved(np.concatenate([changed, joined]), mask)
         self._edge = (self.version, mask)
         return mask
+
+    # -- the closing law's slots: a table of the edge's ids (coordinator/stable_sampler.py TableLaw)
+    def _closing_law(self) -> TableLaw:
+        """Uniform over the edge, drawn in a slot space of the edge's own ids: the edge is
+        ~1 in 150 of the vertex ids, so draws over the vertex ids fell back to the direct
+        draw (which every change moves) for most runs."""
+        mask = self._edge_mask()
+        return TableLaw(self._edge_table.view, mask.__getitem__)
+
+    def _new_edge_table(self) -> None:
+        """A closing round starts: its slots are the edge's ids in id order (a function of
+        the state), and the sampler's cap follows their count."""
+        self._load_edge_table(None)
+        self._stable.restart(self._edge_table.size, self.version)
+
+    def _load_edge_table(self, table: np.ndarray | None) -> None:
+        """The closing round's slots: ``table`` (a checkpoint's), or the edge's ids now."""
+        self._edge_table = None  # the mask at this version, nothing touched
+        mask = self._edge_mask()
+        self._edge_table = Appendable(np.int64, np.flatnonzero(mask) if table is None else table)
+        self._edge_slot = np.full(len(mask), -1, dtype=np.int64)
+        self._edge_slot[self._edge_table.view] = np.arange(self._edge_table.size)
+
+    def _edge_after_change(self) -> None:
+        """A change was applied in a closing round: the ids it brought into the edge take
+        their slots now, in the order of the changes. (Left to the next time the law is
+        asked, the order would follow when that is, which depends on what is in flight,
+        and a result would depend on the window.)"""
+        if self._edge_table is not None:
+            self._edge_mask()
+
+    def _edge_slots_moved(self, ids: np.ndarray, mask: np.ndarray) -> None:
+        """Ids ``ids`` joined or left the edge: the ones new to it get the next slots (in id
+        order), and every one's slot is touched."""
+        if len(mask) > len(self._edge_slot):
+            grown = np.full(max(len(mask), 2 * len(self._edge_slot)), -1, dtype=np.int64)
+            grown[: len(self._edge_slot)] = self._edge_slot
+            self._edge_slot = grown
+        slots = self._edge_slot[ids]
+        new = ids[(slots < 0) & mask[ids]]
+        if len(new):
+            first = self._edge_table.size
+            self._edge_table.extend(new)
+            self._edge_slot[new] = np.arange(first, first + len(new))
+            slots = self._edge_slot[ids]
+        self._stable.touch(slots[slots >= 0], self.version)
+
+    def _slot_count(self) -> int:
+        """The current law's slots: the edge table's in a closing round, else the vertex ids."""
+        return self._edge_table.size if self._edge_table is not None else self.vertices.count
 
     def _gathered_holes(self) -> np.ndarray:
         """The points of ``hole_ids`` (which only grows), each gathered once, not all of
@@ -70,11 +124,14 @@ class SPECertification:
         """A closing round ended: check the set (uniform over the final centres)."""
         self.version += 1
         self.phase = CHECK
+        self._edge_table = self._edge_slot = None
+        self._stable.restart(self.vertices.count, self.version)
 
     def begin_closing(self) -> None:
         """A check found a violation (already applied): close the set again."""
         self.version += 1
         self.phase = CLOSING
+        self._new_edge_table()
 
     def certify_runs(self, start_ids: np.ndarray, witnesses) -> int:
         """Deterministic certification: quiet runs from alive centres among ``start_ids``
@@ -94,4 +151,7 @@ class SPECertification:
         self.certifying = True
         self.phase = CHECK if self.deterministic else CLOSING
         self.coverage.apply(Strict(True), self.version)
-        self._stable.restart(self.vertices.count, self.version)
+        if self.closing:
+            self._new_edge_table()
+        else:
+            self._stable.restart(self.vertices.count, self.version)

@@ -2,9 +2,10 @@
 the draws it touches (coupled counting: shared/spec/scaling.md, algorithms.md point 3).
 
 Run i's start is the first acceptable candidate of its start stream: candidate k is slot
-``floor(u_k * cap)`` of the vertex id space (``cap`` a power of two above the vertex
-count: twice the round's first count, doubled when the count outgrows it), acceptable if the law accepts that slot with
-``v_k``: the vertex exists, is alive and a candidate of the law, and, for a weighted law
+``floor(u_k * cap)`` of the law's slot space (the vertex ids, or a table of the few ids a
+sparse law draws from: ``TableLaw``; ``cap`` a power of two above the slot count: twice
+the round's first count, doubled when the count outgrows it), acceptable if the law accepts that slot with
+``v_k``: the vertex it names exists, is alive and a candidate of the law, and, for a weighted law
 (prioritized sampling, rho = alpha(d* - d)), ``v_k * bound < rho(slot)`` with ``bound``
 at least the largest rho. Each accepted candidate is exactly distributed as the law (a
 slot is accepted with probability rho(slot) / (cap * bound) at every try); after
@@ -49,9 +50,10 @@ TRACKED = MAX_TRIES
 
 
 class Law(Protocol):
-    """A sampling law over vertex ids, as the sampler needs it."""
+    """A sampling law over vertex ids, as the sampler needs it: over slots [0, count), each
+    naming a vertex id (the id itself, or a table's entry: ``TableLaw``)."""
 
-    count: int  # vertex ids [0, count) exist
+    count: int  # slots [0, count) exist
     bound: float  # >= the largest weight (1.0 for a uniform law)
 
     def accept(self, slots: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -59,6 +61,13 @@ class Law(Protocol):
 
     def direct(self, u: np.ndarray) -> np.ndarray:
         """Vertex ids for uniform numbers u in [0, 1), exactly by the law."""
+
+    def vertex(self, slots: np.ndarray) -> np.ndarray:
+        """The vertex ids that accepted slots name."""
+
+
+def _same(slots: np.ndarray) -> np.ndarray:
+    return slots
 
 
 @dataclass(frozen=True)
@@ -69,6 +78,7 @@ class UniformLaw:
     candidate: Callable[[np.ndarray], np.ndarray]
     ids: Callable[[], np.ndarray]  # the candidate ids, in id order (for the direct draw)
     bound: float = 1.0
+    vertex = staticmethod(_same)  # slot i is vertex id i
 
     def accept(self, slots: np.ndarray, v: np.ndarray) -> np.ndarray:
         ok = slots < self.count
@@ -88,6 +98,7 @@ class WeightedLaw:
     weight: Callable[[np.ndarray], np.ndarray]
     direct: Callable[[np.ndarray], np.ndarray]
     bound: float
+    vertex = staticmethod(_same)  # slot i is vertex id i
 
     def accept(self, slots: np.ndarray, v: np.ndarray) -> np.ndarray:
         ok = slots < self.count
@@ -95,14 +106,47 @@ class WeightedLaw:
         return ok
 
 
+@dataclass(frozen=True)
+class TableLaw:
+    """Uniform over the vertices ``candidate`` accepts among those a table names: slot s
+    is vertex ``table[s]``, each vertex in at most one slot. For a law whose candidates
+    are a small share of the vertex ids (a closing round's edge: ~1 in 150), a slot space
+    of their own: draws accept within a few tries, examine few slots (so few changes move
+    them) and never fall back to the direct draw, which every change moves."""
+
+    table: np.ndarray  # (count,) vertex ids
+    candidate: Callable[[np.ndarray], np.ndarray]  # vertex ids -> bool
+    bound: float = 1.0
+
+    @property
+    def count(self) -> int:
+        return len(self.table)
+
+    def accept(self, slots: np.ndarray, v: np.ndarray) -> np.ndarray:
+        ok = slots < len(self.table)
+        ok[ok] = self.candidate(self.table[slots[ok]])
+        return ok
+
+    def direct(self, u: np.ndarray) -> np.ndarray:
+        ids = self.table[self.candidate(self.table)]
+        return ids[np.minimum((u * len(ids)).astype(np.int64), len(ids) - 1)]
+
+    def vertex(self, slots: np.ndarray) -> np.ndarray:
+        return self.table[slots]
+
+
 def probabilities(law: Law) -> np.ndarray:
-    """(count,) the probability the law gives each vertex id (a measurement: O(count))."""
-    ids = np.arange(law.count)
-    if isinstance(law, UniformLaw):
-        w = law.candidate(ids).astype(float)
+    """The probability the law gives each vertex id (a measurement: O(count)), up to the
+    largest id a slot names."""
+    slots = np.arange(law.count)
+    if isinstance(law, WeightedLaw):
+        w = np.asarray(law.weight(slots), dtype=float)
     else:
-        w = np.asarray(law.weight(ids), dtype=float)
-    return w / w.sum()
+        w = law.accept(slots, np.zeros(len(slots))).astype(float)
+    ids = law.vertex(slots)
+    out = np.zeros(int(ids.max()) + 1 if len(ids) else 0)
+    np.add.at(out, ids, w)
+    return out / out.sum()
 
 
 def total_variation(p: np.ndarray, q: np.ndarray) -> float:
@@ -252,7 +296,7 @@ class StableSampler:
             found = ok.any(axis=1)
             at = np.argmax(ok, axis=1)
             hit = searching[found]
-            ids[hit] = cand[found, at[found]]
+            ids[hit] = law.vertex(cand[found, at[found]])
             tries[hit] = first + at[found] + 1
             tries[searching[~found]] = first + k
             searching = searching[~found]
@@ -315,7 +359,7 @@ class StableSampler:
         if law is None:
             return True
         accepted = law.accept(slots, draws.vs[0, :examined])
-        if not accepted[-1] or accepted[:-1].any():
+        if not accepted[-1] or accepted[:-1].any() or not _names(law, slots[-1:], draws.now[:1])[0]:
             return True
         if version is not None:
             draws.versions[0] = version
@@ -332,6 +376,7 @@ class StableSampler:
         last = examined.sum(axis=1) - 1
         at = np.arange(len(rows))
         still = accepted[at, last]
+        still[still] = _names(law, slots[at, last][still], draws.now[rows][still])
         accepted[at, last] = False
         return still & ~accepted.any(axis=1)
 
@@ -352,3 +397,12 @@ class StableSampler:
             grown = np.zeros(max(size, 2 * len(self.stamp), 1024), dtype=np.int64)
             grown[: len(self.stamp)] = self.stamp
             self.stamp = grown
+
+
+def _names(law: Law, slots: np.ndarray, now: np.ndarray) -> np.ndarray:
+    """Do accepted ``slots`` still name the vertices ``now`` their draws found there? A
+    table's slot may name another vertex on the state a copy was restored to than on the
+    state left (``forked``); a slot of the vertex ids always names itself. (A current draw
+    known to name another start, ``now`` -1, is no run's start whatever it names.)"""
+    return (law.vertex(slots) == now) | (now < 0)
+

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from coordinator.stable_sampler import StableSampler, UniformLaw, WeightedLaw
+from coordinator.stable_sampler import StableSampler, TableLaw, UniformLaw, WeightedLaw
 from scenarios.streams import RunStreams
 
 COUNT = 200
@@ -149,6 +149,64 @@ def test_after_a_fork_a_draw_moves_where_the_state_left_behind_differed():
     born = made_there.ids >= count
     assert born.any() and flagged[born].all()  # an id born on the other side is never taken as is
     assert flagged.mean() < 0.5  # not every draw: only those that examined a slot that differs
+
+
+def _edge_table(rng, count: int, members: int):
+    """A sparse law's table (a closing round's edge): ``members`` ids scattered over
+    ``count``, listed in id order, and a membership mask over the ids."""
+    table = np.sort(rng.choice(count, members, replace=False))
+    mask = np.zeros(count, dtype=bool)
+    mask[table] = True
+    return table, mask
+
+
+def test_a_table_law_draws_its_candidates_uniformly_within_a_few_tries():
+    # 100 candidates among 20,000 ids: over the ids, most draws would exhaust their tries
+    # and draw directly (which every change moves); over the table's slots none does
+    rng = np.random.default_rng(4)  # test data only
+    table, mask = _edge_table(rng, 20_000, 100)
+    mask[table[::10]] = False  # listed, no longer candidates
+    sampler = StableSampler()
+    sampler.restart(len(table), 0)
+    draws = sampler.draw(streams(40_000), TableLaw(table, mask.__getitem__), 0)
+    assert mask[draws.ids].all() and not draws.untracked.any()
+    assert (draws.slots >= 0).sum(axis=1).mean() < 3  # slots examined per draw
+    counts = np.bincount(draws.ids, minlength=len(mask))[mask]
+    assert stats.chisquare(counts).pvalue > 1e-3
+
+
+@pytest.mark.parametrize("alone", [False, True])
+def test_a_table_slot_that_names_another_vertex_after_a_fork_moves_its_draws(alone):
+    # the state left behind appended vertices to the table; the state restored appends
+    # others to the same slots: a draw that accepted such a slot is accepted there too,
+    # but names another vertex, so it must be drawn again (alone: a replacement's one draw)
+    import copy
+
+    rng = np.random.default_rng(6)  # test data only
+    table, mask = _edge_table(rng, 5_000, 60)
+    sampler = StableSampler()
+    sampler.restart(len(table), 0)
+    copied, copied_table, copied_mask = copy.deepcopy(sampler), table.copy(), mask.copy()
+    joined = rng.choice(np.flatnonzero(~mask), 20, replace=False)
+    left_table, left_mask = np.concatenate([table, joined]), mask.copy()
+    left_mask[joined] = True
+    sampler.touch(np.arange(len(table), len(left_table)), 1)
+    s = streams(20_000)
+    made_there = sampler.draw(s, TableLaw(left_table, left_mask.__getitem__), 1)
+    copied.forked(sampler, 0, 2, len(mask))
+    others = rng.choice(np.flatnonzero(~left_mask), 20, replace=False)
+    here_table, here_mask = np.concatenate([copied_table, others]), copied_mask
+    here_mask[others] = True
+    copied.touch(np.arange(len(table), len(here_table)), 3)
+    law = TableLaw(here_table, here_mask.__getitem__)
+    if alone:
+        flagged = np.array([copied.moved(made_there.rows([i]), law, 3)[0] for i in range(len(made_there))])
+    else:
+        flagged = copied.moved(made_there, law, 3)
+    differs = copied.draw(s, law, 3).ids != made_there.ids
+    renamed = np.isin(made_there.ids, joined)  # accepted a slot the restored state gave another vertex
+    assert renamed.any() and flagged[renamed].all()
+    assert differs.any() and not (differs & ~flagged).any()
 
 
 def test_a_draw_is_the_same_drawn_alone_or_in_a_large_batch():
