@@ -36,19 +36,28 @@ class Hold:
     """A due replacement the head passed before its run was back."""
 
     replacement: Any  # a coordinator.driver.replacements.Replacement
-    counts: dict  # HELD_COUNTS as they stood when the head passed its due index
+    counts: dict  # HELD_COUNTS as they stood when the head passed its due index (``Held.counts``: with what was applied since)
     queue: list  # the replacements queued then (not yet due)
-    effects: int  # held effects that come before its own
+    effects: int  # held effects that come before its own (counted from the first ever held)
+    seq: int  # quiet applications recorded before it (``Held.counts`` adds the later ones)
 
 
 @dataclass
 class Held:
-    """The holds, oldest first, and the effects of the commits made past the first."""
+    """The holds, oldest first, and the effects of the commits made past the first.
+
+    A hold applied quiet adds its run to the counts of every later hold. With hundreds of
+    holds outstanding, adding it to each at once cost a walk over all of them per
+    application; instead each application is recorded once (``_gains``) and a hold's
+    counts fold in those after its own when they are asked for (``counts``)."""
 
     holds: deque = field(default_factory=deque)
-    effects: list = field(default_factory=list)
+    effects: deque = field(default_factory=deque)
     passed: int = 0  # replacements the head passed before they were back (a statistic)
     rewound: int = 0  # held replacements that changed the state (the head went back)
+    _done: int = 0  # effects taken off ``effects`` so far (applied or dropped)
+    _gains: list = field(default_factory=list)  # per quiet application: (gained, streak_until or None)
+    _gains_from: int = 0  # the seq of ``_gains[0]``
 
     def __bool__(self) -> bool:
         return bool(self.holds)
@@ -60,8 +69,20 @@ class Held:
     def hold(self, replacement, counters, queue) -> None:
         """The head passes ``replacement`` (due, not back)."""
         counts = {name: getattr(counters, name) for name in HELD_COUNTS}
-        self.holds.append(Hold(replacement, counts, list(queue), len(self.effects)))
+        self.holds.append(Hold(replacement, counts, list(queue), self._done + len(self.effects),
+                               self._gains_from + len(self._gains)))
         self.passed += 1
+
+    def counts(self, hold: Hold) -> dict:
+        """``hold``'s counters: as they stood when the head passed it, plus what each hold
+        applied quiet since added (streak counts only from applications of its streak)."""
+        out = dict(hold.counts)
+        for gained, streak_until in self._gains[hold.seq - self._gains_from :]:
+            same_streak = streak_until is None or hold.replacement.due < streak_until
+            for name, amount in gained.items():
+                if same_streak or name not in STREAK_COUNTS:
+                    out[name] += amount
+        return out
 
     def effect(self, apply: Callable[[], None]) -> None:
         """A commit's effect: now, or held until the holds before it are applied."""
@@ -77,15 +98,14 @@ class Held:
         applied past the hold (coordinator/driver/speculation.py): holds due from there on are of
         a later streak, whose counts it does not add to."""
         self.holds.popleft()
-        for later in self.holds:
-            same_streak = streak_until is None or later.replacement.due < streak_until
-            for name, amount in gained.items():
-                if same_streak or name not in STREAK_COUNTS:
-                    later.counts[name] += amount
-        upto = self.holds[0].effects if self.holds else len(self.effects)
-        ready, self.effects = self.effects[:upto], self.effects[upto:]
-        for later in self.holds:
-            later.effects -= upto
+        if self.holds:
+            self._gains.append((gained, streak_until))
+        else:  # no hold left to add them to
+            self._gains_from += len(self._gains)
+            self._gains.clear()
+        upto = self.holds[0].effects if self.holds else self._done + len(self.effects)
+        ready = [self.effects.popleft() for _ in range(upto - self._done)]
+        self._done = upto
         for apply in ready:
             apply()
 
@@ -94,15 +114,17 @@ class Held:
         stood when the head passed it, every later effect and hold is dropped. Returns the
         hold and the replacements of the later holds (drawn for indices the head will
         commit again)."""
-        first = self.holds.popleft()
-        for name, value in first.counts.items():
+        first = self.holds[0]
+        for name, value in self.counts(first).items():
             setattr(counters, name, value)
-        later = [h.replacement for h in self.holds]
-        self.holds.clear()
-        self.effects.clear()  # the first hold's effects position is 0: every one came after it
+        later = [h.replacement for h in list(self.holds)[1:]]
+        self.clear()  # the first hold's effects position is the first held: every one came after it
         self.rewound += 1
         return first, later
 
     def clear(self) -> None:
         self.holds.clear()
+        self._done += len(self.effects)
         self.effects.clear()
+        self._gains_from += len(self._gains)
+        self._gains.clear()

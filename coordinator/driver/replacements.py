@@ -218,7 +218,7 @@ class ReplacementQueue:
         if not self.held:
             return {}, list(self.queue)
         hold = self.held.first
-        return dict(hold.counts), [hold.replacement, *hold.queue]
+        return self.held.counts(hold), [hold.replacement, *hold.queue]
 
     def drop(self) -> None:
         """Cancel and forget every replacement, hold and run launched ahead (a round end)."""
