@@ -65,17 +65,23 @@ class SPECertification:
 
     def _new_edge_table(self) -> None:
         """A closing round starts: its slots are the edge's ids in id order (a function of
-        the state), and the sampler's cap follows their count."""
+        the state). The sampler's cap leaves room for the edge to double within the round
+        (a cap that grows moves every draw in flight: measured, the table outgrew a cap of
+        twice its start mid-round and a 32,768-run window was drawn again)."""
         self._load_edge_table(None)
-        self._stable.restart(self._edge_table.size, self.version)
+        self._stable.restart(2 * self._edge_table.size, self.version)
 
     def _load_edge_table(self, table: np.ndarray | None) -> None:
-        """The closing round's slots: ``table`` (a checkpoint's), or the edge's ids now."""
+        """The closing round's slots: ``table`` (a checkpoint's: -1 at a free slot), or
+        the edge's ids now."""
         self._edge_table = None  # the mask at this version, nothing touched
         mask = self._edge_mask()
         self._edge_table = Appendable(np.int64, np.flatnonzero(mask) if table is None else table)
+        view = self._edge_table.view
+        listed = np.flatnonzero(view >= 0)
         self._edge_slot = np.full(len(mask), -1, dtype=np.int64)
-        self._edge_slot[self._edge_table.view] = np.arange(self._edge_table.size)
+        self._edge_slot[view[listed]] = listed
+        self._edge_free = np.flatnonzero(view < 0)
 
     def _edge_after_change(self) -> None:
         """A change was applied in a closing round: the ids it brought into the edge take
@@ -86,20 +92,32 @@ class SPECertification:
             self._edge_mask()
 
     def _edge_slots_moved(self, ids: np.ndarray, mask: np.ndarray) -> None:
-        """Ids ``ids`` joined or left the edge: the ones new to it get the next slots (in id
-        order), and every one's slot is touched."""
+        """Ids ``ids`` joined or left the edge. The slots of those that left are freed
+        (listed -1: never accepted, so no id holds two slots); those new to it take the
+        free slots, lowest first, then the next ones (in id order); every slot of theirs
+        is touched. Reusing the free slots keeps the table the edge's size, not the count
+        of every id that was ever in it: a table that outgrows its cap moves every draw."""
         if len(mask) > len(self._edge_slot):
             grown = np.full(max(len(mask), 2 * len(self._edge_slot)), -1, dtype=np.int64)
             grown[: len(self._edge_slot)] = self._edge_slot
             self._edge_slot = grown
         slots = self._edge_slot[ids]
-        new = ids[(slots < 0) & mask[ids]]
+        inside = mask[ids]
+        left = slots[(slots >= 0) & ~inside]
+        new = ids[(slots < 0) & inside]
+        table = self._edge_table
+        if len(left):
+            table.view[left] = -1
+            self._edge_slot[ids[(slots >= 0) & ~inside]] = -1
+            self._edge_free = np.union1d(self._edge_free, left)
         if len(new):
-            first = self._edge_table.size
-            self._edge_table.extend(new)
-            self._edge_slot[new] = np.arange(first, first + len(new))
-            slots = self._edge_slot[ids]
-        self._stable.touch(slots[slots >= 0], self.version)
+            reused, self._edge_free = self._edge_free[: len(new)], self._edge_free[len(new) :]
+            fresh = np.arange(table.size, table.size + len(new) - len(reused))
+            table.extend(np.zeros(len(fresh), dtype=np.int64))
+            at = np.concatenate([reused, fresh])
+            table.view[at] = new
+            self._edge_slot[new] = at
+        self._stable.touch(np.concatenate([left, self._edge_slot[new]]), self.version)
 
     def _slot_count(self) -> int:
         """The current law's slots: the edge table's in a closing round, else the vertex ids."""

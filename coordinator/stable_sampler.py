@@ -114,7 +114,7 @@ class TableLaw:
     of their own: draws accept within a few tries, examine few slots (so few changes move
     them) and never fall back to the direct draw, which every change moves."""
 
-    table: np.ndarray  # (count,) vertex ids
+    table: np.ndarray  # (count,) vertex ids, -1 at a free slot
     candidate: Callable[[np.ndarray], np.ndarray]  # vertex ids -> bool
     bound: float = 1.0
 
@@ -124,12 +124,17 @@ class TableLaw:
 
     def accept(self, slots: np.ndarray, v: np.ndarray) -> np.ndarray:
         ok = slots < len(self.table)
-        ok[ok] = self.candidate(self.table[slots[ok]])
+        ok[ok] = self._listed(self.table[slots[ok]])
         return ok
 
     def direct(self, u: np.ndarray) -> np.ndarray:
-        ids = self.table[self.candidate(self.table)]
+        ids = self.table[self._listed(self.table)]
         return ids[np.minimum((u * len(ids)).astype(np.int64), len(ids) - 1)]
+
+    def _listed(self, ids: np.ndarray) -> np.ndarray:
+        ok = ids >= 0
+        ok[ok] = self.candidate(ids[ok])
+        return ok
 
     def vertex(self, slots: np.ndarray) -> np.ndarray:
         return self.table[slots]

@@ -43,16 +43,16 @@ def test_a_check_allowing_k_violations_runs_the_least_n_of_the_binomial_test(eps
 
 
 def test_a_check_passes_with_violations_within_its_tolerance_and_exports_the_set_it_checked():
-    """Seed 0: the first check sees one violation. Allowing none, it fails and another
-    closing round and check follow; allowing two, it passes, and the set exported is the one
+    """Seed 3: the first check sees one violation. Allowing none, it fails and more
+    closing rounds and checks follow; allowing two, it passes, and the set exported is the one
     the check began on (a campaign stopped there holds the same set)."""
-    strict, _, _, _ = run_in_process(_config(0, certify_tolerance=0))
-    tolerant, algo, _, _ = run_in_process(_config(0, certify_tolerance=2))
+    strict, _, _, _ = run_in_process(_config(3, certify_tolerance=0))
+    tolerant, algo, _, _ = run_in_process(_config(3, certify_tolerance=2))
     assert strict.attempts > 1 and strict.check_violations == 0
     assert tolerant.attempts == 1 and tolerant.check_violations == tolerant.violations_tolerated(2) == 1
     assert tolerant.closing_ends == strict.closing_ends[:1]  # the same first closing round
     assert tolerant.committed - tolerant.closing_ends[0] == check_quiet(EPS, BETA, 1, 2) > check_quiet(EPS, BETA, 1, 0)
-    stopped, at_check, _, _ = run_in_process(_config(0, certify_tolerance=2, budget=tolerant.closing_ends[0]))
+    stopped, at_check, _, _ = run_in_process(_config(3, certify_tolerance=2, budget=tolerant.closing_ends[0]))
     assert not stopped.converged and at_check.result().result_hash == algo.result().result_hash
 
 

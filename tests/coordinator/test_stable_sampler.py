@@ -295,3 +295,52 @@ def test_a_row_s_current_draw_is_what_its_stream_draws_now():
         assert not sampler.moved(one, law, 1)[0]
     draws.now[changed[0]] = -1  # its id names another start (after a fork): not known
     assert draws.current(int(changed[0])) is None
+
+
+def test_the_edge_table_lists_each_edge_id_once_and_reuses_freed_slots():
+    # coordinator/spe_certification.py: ids that leave the edge free their slots (never
+    # accepted again, so an id that comes back does not hold two), ids that join take the
+    # free slots lowest first, then new ones; every such slot is touched
+    from coordinator.buffers import Appendable
+    from coordinator.spe_certification import SPECertification
+
+    class Edge(SPECertification):
+        def __init__(self, mask):
+            self._edge_table = Appendable(np.int64, np.flatnonzero(mask))
+            self._edge_slot = np.full(len(mask), -1, dtype=np.int64)
+            self._edge_slot[self._edge_table.view] = np.arange(self._edge_table.size)
+            self._edge_free = np.zeros(0, dtype=np.int64)
+            self._stable, self.version = StableSampler(), 0
+
+    rng = np.random.default_rng(8)  # test data only
+    mask = rng.random(300) < 0.2
+    edge = Edge(mask)
+    edge._stable.restart(2 * edge._edge_table.size, 0)
+    for version in range(1, 40):
+        new_mask = mask.copy()
+        new_mask[rng.choice(np.flatnonzero(mask), 3, replace=False)] = False
+        new_mask[rng.choice(np.flatnonzero(~mask), 4 if version % 2 else 1, replace=False)] = True
+        if version == 20:
+            new_mask = np.concatenate([new_mask, [True, False, True]])  # ids born in the edge
+        leaving = edge._edge_slot[np.flatnonzero(mask & ~new_mask[: len(mask)])]
+        free_before, size_before = np.union1d(edge._edge_free, leaving), edge._edge_table.size
+        edge.version = version
+        changed = np.flatnonzero(new_mask[: len(mask)] != mask)
+        edge._edge_slots_moved(np.concatenate([changed, len(mask) + np.flatnonzero(new_mask[len(mask):])]), new_mask)
+        joined = np.flatnonzero(new_mask & ~np.concatenate([mask, np.zeros(len(new_mask) - len(mask), bool)]))
+        mask = new_mask
+        table = edge._edge_table.view
+        listed = table[table >= 0]
+        assert np.array_equal(np.sort(listed), np.flatnonzero(mask))  # each edge id in exactly one slot
+        assert np.array_equal(edge._edge_slot[listed], np.flatnonzero(table >= 0))
+        assert np.array_equal(edge._edge_free, np.flatnonzero(table < 0))
+        took = edge._edge_slot[joined]  # in id order: the free slots (lowest first, those freed now too), then new ones
+        k = min(len(joined), len(free_before))
+        assert np.array_equal(took[:k], free_before[:k])
+        assert np.array_equal(took[k:], np.arange(size_before, size_before + len(joined) - k))
+        assert (edge._stable.stamp[np.concatenate([took, leaving])] == version).all()
+    law = TableLaw(edge._edge_table.view, mask.__getitem__)
+    draws = edge._stable.draw(streams(20_000), law, 40)
+    assert mask[draws.ids].all()
+    counts = np.bincount(draws.ids, minlength=len(mask))[mask]
+    assert stats.chisquare(counts).pvalue > 1e-3  # uniform over the edge, free slots and all
