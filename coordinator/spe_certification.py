@@ -57,17 +57,16 @@ class SPECertification:
 
     # -- the closing law's slots: a table of the edge's ids (coordinator/stable_sampler.py TableLaw)
     def _closing_law(self) -> TableLaw:
-        """Uniform over the edge, drawn in a slot space of the edge's own ids: the edge is
-        ~1 in 150 of the vertex ids, so draws over the vertex ids fell back to the direct
-        draw (which every change moves) for most runs."""
+        """Uniform over the edge, drawn in a slot space of the edge's own ids: the edge is a
+        small share of the vertex ids, so draws over the vertex ids mostly fell back to the
+        direct draw, which every change moves (docs/benchmarks.md)."""
         mask = self._edge_mask()
         return TableLaw(self._edge_table.view, mask.__getitem__)
 
     def _new_edge_table(self) -> None:
         """A closing round starts: its slots are the edge's ids in id order (a function of
-        the state). The sampler's cap leaves room for the edge to double within the round
-        (a cap that grows moves every draw in flight: measured, the table outgrew a cap of
-        twice its start mid-round and a 32,768-run window was drawn again)."""
+        the state). The sampler's cap leaves room for the edge to double within the round:
+        a cap that grows moves every draw in flight (docs/benchmarks.md)."""
         self._load_edge_table(None)
         self._stable.restart(2 * self._edge_table.size, self.version)
 
@@ -103,12 +102,13 @@ class SPECertification:
             self._edge_slot = grown
         slots = self._edge_slot[ids]
         inside = mask[ids]
-        left = slots[(slots >= 0) & ~inside]
+        leaving = (slots >= 0) & ~inside
+        left = slots[leaving]
         new = ids[(slots < 0) & inside]
         table = self._edge_table
         if len(left):
             table.view[left] = -1
-            self._edge_slot[ids[(slots >= 0) & ~inside]] = -1
+            self._edge_slot[ids[leaving]] = -1
             self._edge_free = np.union1d(self._edge_free, left)
         if len(new):
             reused, self._edge_free = self._edge_free[: len(new)], self._edge_free[len(new) :]

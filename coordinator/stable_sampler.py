@@ -4,10 +4,10 @@ the draws it touches (coupled counting: shared/spec/scaling.md, algorithms.md po
 Run i's start is the first acceptable candidate of its start stream: candidate k is slot
 ``floor(u_k * cap)`` of the law's slot space (the vertex ids, or a table of the few ids a
 sparse law draws from: ``TableLaw``; ``cap`` a power of two above the slot count: twice
-the round's first count, doubled when the count outgrows it), acceptable if the law accepts that slot with
-``v_k``: the vertex it names exists, is alive and a candidate of the law, and, for a weighted law
-(prioritized sampling, rho = alpha(d* - d)), ``v_k * bound < rho(slot)`` with ``bound``
-at least the largest rho. Each accepted candidate is exactly distributed as the law (a
+the round's first count, doubled when the count outgrows it), acceptable if the law
+accepts that slot with ``v_k``: the vertex it names exists, is alive and a candidate of
+the law, and, for a weighted law (prioritized sampling, rho = alpha(d* - d)),
+``v_k * bound < rho(slot)`` with ``bound`` at least the largest rho. Each accepted candidate is exactly distributed as the law (a
 slot is accepted with probability rho(slot) / (cap * bound) at every try); after
 ``MAX_TRIES`` rejections the run draws directly from the law with one more uniform, so
 the draw is exact whatever the acceptance rate.
@@ -20,7 +20,8 @@ switch between uniform and weighted, a new round) moves every draw (``everything
 runs whose examined slots nothing touched; for a run whose examined slots a change did
 touch, it asks the law again about those slots with the numbers the run drew for them
 (kept with the draw): the draw stands iff every slot before the accepted one is still
-rejected and the accepted one still accepted. Only runs that examined more slots than
+rejected and the accepted one still accepted, and names the same vertex (a table's slot
+can name another on a state restored from a copy). Only runs that examined more slots than
 are kept, or drew directly, are flagged without that answer (drawn again to know).
 """
 
@@ -110,9 +111,9 @@ class WeightedLaw:
 class TableLaw:
     """Uniform over the vertices ``candidate`` accepts among those a table names: slot s
     is vertex ``table[s]``, each vertex in at most one slot. For a law whose candidates
-    are a small share of the vertex ids (a closing round's edge: ~1 in 150), a slot space
-    of their own: draws accept within a few tries, examine few slots (so few changes move
-    them) and never fall back to the direct draw, which every change moves."""
+    are a small share of the vertex ids (a closing round's edge), a slot space of their
+    own: draws accept within a few tries, examine few slots (so few changes move them)
+    and do not fall back to the direct draw, which every change moves."""
 
     table: np.ndarray  # (count,) vertex ids, -1 at a free slot
     candidate: Callable[[np.ndarray], np.ndarray]  # vertex ids -> bool

@@ -135,7 +135,7 @@ class Campaign:
                 self._drop_in_flight()
             else:
                 held = self.replacements.held
-                self.pipeline.release(held.first.counts["committed"] if held else c.committed)  # (no application adds to it)
+                self.pipeline.release(held.first.counts["committed"] if held else c.committed)  # no quiet application adds to it
             c.elapsed_s = time.monotonic() - started
             for observe in self.observers:
                 observe(self)

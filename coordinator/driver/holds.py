@@ -36,7 +36,7 @@ class Hold:
     """A due replacement the head passed before its run was back."""
 
     replacement: Any  # a coordinator.driver.replacements.Replacement
-    counts: dict  # HELD_COUNTS as they stood when the head passed its due index (``Held.counts``: with what was applied since)
+    counts: dict  # HELD_COUNTS as they stood when the head passed its due index (``Held.counts`` adds since)
     queue: list  # the replacements queued then (not yet due)
     effects: int  # held effects that come before its own (counted from the first ever held)
     seq: int  # quiet applications recorded before it (``Held.counts`` adds the later ones)
