@@ -104,7 +104,6 @@ class SPE(SPECertification, Algorithm):
         self._edge: tuple[int, np.ndarray] | None = None  # (version, mask): the closing law's candidates
         self._edge_table: Appendable | None = None  # a closing round's slots: per slot, its edge id
         self._edge_slot: np.ndarray | None = None  # per vertex id, its slot in the table (-1: none)
-        self._edge_free = np.zeros(0, dtype=np.int64)  # the table's free slots, ascending
         self._holes: FailureDistances | None = None  # min(d(vertex, hole), cap): ``SPECertification._edge_mask``
         self._hole_points = Appendable(float, np.empty((0, self.coverage.n)))  # of ``hole_ids``, gathered once each
         self._edge_share: tuple[int, float] | None = None  # (version, its share of the alive centres)

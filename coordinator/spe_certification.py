@@ -80,7 +80,6 @@ class SPECertification:
         listed = np.flatnonzero(view >= 0)
         self._edge_slot = np.full(len(mask), -1, dtype=np.int64)
         self._edge_slot[view[listed]] = listed
-        self._edge_free = np.flatnonzero(view < 0)
 
     def _edge_after_change(self) -> None:
         """A change was applied in a closing round: the ids it brought into the edge take
@@ -109,9 +108,8 @@ class SPECertification:
         if len(left):
             table.view[left] = -1
             self._edge_slot[ids[leaving]] = -1
-            self._edge_free = np.union1d(self._edge_free, left)
         if len(new):
-            reused, self._edge_free = self._edge_free[: len(new)], self._edge_free[len(new) :]
+            reused = np.flatnonzero(table.view < 0)[: len(new)]  # the free slots, lowest first
             fresh = np.arange(table.size, table.size + len(new) - len(reused))
             table.extend(np.zeros(len(fresh), dtype=np.int64))
             at = np.concatenate([reused, fresh])

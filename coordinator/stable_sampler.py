@@ -7,10 +7,11 @@ sparse law draws from: ``TableLaw``; ``cap`` a power of two above the slot count
 the round's first count, doubled when the count outgrows it), acceptable if the law
 accepts that slot with ``v_k``: the vertex it names exists, is alive and a candidate of
 the law, and, for a weighted law (prioritized sampling, rho = alpha(d* - d)),
-``v_k * bound < rho(slot)`` with ``bound`` at least the largest rho. Each accepted candidate is exactly distributed as the law (a
-slot is accepted with probability rho(slot) / (cap * bound) at every try); after
-``MAX_TRIES`` rejections the run draws directly from the law with one more uniform, so
-the draw is exact whatever the acceptance rate.
+``v_k * bound < rho(slot)`` with ``bound`` at least the largest rho. Each accepted
+candidate is exactly distributed as the law (a slot is accepted with probability
+rho(slot) / (cap * bound) at every try); after ``MAX_TRIES`` rejections the run draws
+directly from the law with one more uniform, so the draw is exact whatever the
+acceptance rate.
 
 A draw depends on the state only through the slots it examined. Each slot carries the
 version of the last change that may have moved its acceptance (``stamp``): a kill, an
@@ -411,4 +412,3 @@ def _names(law: Law, slots: np.ndarray, now: np.ndarray) -> np.ndarray:
     state left (``forked``); a slot of the vertex ids always names itself. (A current draw
     known to name another start, ``now`` -1, is no run's start whatever it names.)"""
     return (law.vertex(slots) == now) | (now < 0)
-

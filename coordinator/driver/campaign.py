@@ -134,8 +134,8 @@ class Campaign:
                 self._law_switched = False
                 self._drop_in_flight()
             else:
-                held = self.replacements.held
-                self.pipeline.release(held.first.counts["committed"] if held else c.committed)  # no quiet application adds to it
+                held = self.replacements.held  # (no quiet application adds to a hold's "committed")
+                self.pipeline.release(held.first.counts["committed"] if held else c.committed)
             c.elapsed_s = time.monotonic() - started
             for observe in self.observers:
                 observe(self)

@@ -309,7 +309,6 @@ def test_the_edge_table_lists_each_edge_id_once_and_reuses_freed_slots():
             self._edge_table = Appendable(np.int64, np.flatnonzero(mask))
             self._edge_slot = np.full(len(mask), -1, dtype=np.int64)
             self._edge_slot[self._edge_table.view] = np.arange(self._edge_table.size)
-            self._edge_free = np.zeros(0, dtype=np.int64)
             self._stable, self.version = StableSampler(), 0
 
     rng = np.random.default_rng(8)  # test data only
@@ -323,7 +322,8 @@ def test_the_edge_table_lists_each_edge_id_once_and_reuses_freed_slots():
         if version == 20:
             new_mask = np.concatenate([new_mask, [True, False, True]])  # ids born in the edge
         leaving = edge._edge_slot[np.flatnonzero(mask & ~new_mask[: len(mask)])]
-        free_before, size_before = np.union1d(edge._edge_free, leaving), edge._edge_table.size
+        free_slots = np.flatnonzero(edge._edge_table.view < 0)
+        free_before, size_before = np.union1d(free_slots, leaving), edge._edge_table.size
         edge.version = version
         changed = np.flatnonzero(new_mask[: len(mask)] != mask)
         edge._edge_slots_moved(np.concatenate([changed, len(mask) + np.flatnonzero(new_mask[len(mask):])]), new_mask)
@@ -333,7 +333,7 @@ def test_the_edge_table_lists_each_edge_id_once_and_reuses_freed_slots():
         listed = table[table >= 0]
         assert np.array_equal(np.sort(listed), np.flatnonzero(mask))  # each edge id in exactly one slot
         assert np.array_equal(edge._edge_slot[listed], np.flatnonzero(table >= 0))
-        assert np.array_equal(edge._edge_free, np.flatnonzero(table < 0))
+        assert np.array_equal(np.setdiff1d(np.arange(len(table)), edge._edge_slot[listed]), np.flatnonzero(table < 0))
         took = edge._edge_slot[joined]  # in id order: the free slots (lowest first, those freed now too), then new ones
         k = min(len(joined), len(free_before))
         assert np.array_equal(took[:k], free_before[:k])
