@@ -12,7 +12,7 @@ window; checked at 16 x 1, 1024 x 2 and 8192 x 4), and `"deferred"` at 2,048, 8,
 depends on the window). Accuracy: IoU / precision / recall against the model-based
 reference on the compare grid.
 
-    python experiments/window.py            # runs it (~30 min): docs/window.json, docs/window.md
+    python experiments/window.py            # runs it (~7 min): docs/window.json, docs/window.md
     python experiments/window.py --render   # docs/window.md from the JSON only
 """
 
