@@ -55,6 +55,48 @@ def new_states(coverage, states: np.ndarray) -> np.ndarray:
     return (witness < 0) & ~near
 
 
+def merged_by_source(pieces: list[Stored]) -> tuple[list[Stored], list[tuple[int, int, int]]]:
+    """The pieces that share a source (the same chunk's visited states) as one piece each, in
+    the order of their first: a chunk's runs are committed piece by piece (a round end had
+    4,841 pieces in the bench case of docs/benchmarks.md), and each piece costs a replay
+    call's serialization more than its runs do. -> (merged, parts), ``parts[i]`` = (its
+    merged piece, its first run there, its runs) for piece ``i`` (``split_found``). A piece
+    without a source (re-simulated from its keys) stays as it is."""
+    merged: list[Stored] = []
+    groups: list[list[Stored]] = []
+    runs: list[int] = []  # per merged piece, its runs so far
+    where: dict[int, int] = {}  # id(source) -> its merged piece
+    parts = []
+    for piece in pieces:
+        at = where.get(id(piece.source)) if piece.source is not None else None
+        if at is None:
+            at = len(groups)
+            groups.append([])
+            runs.append(0)
+            if piece.source is not None:
+                where[id(piece.source)] = at
+        parts.append((at, runs[at], len(piece.indices)))
+        groups[at].append(piece)
+        runs[at] += len(piece.indices)
+    for group in groups:
+        merged.append(group[0] if len(group) == 1 else Stored(
+            group[0].source, *(np.concatenate([getattr(p, f) for p in group])
+                               for f in ("indices", "rows", "takes", "parents", "starts"))))
+    return merged, parts
+
+
+def split_found(found: list, parts: list[tuple[int, int, int]]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """What the executor found per merged piece, back per piece (``merged_by_source``): a
+    piece's states are those of its runs, in order (``select`` keeps the runs' order, and
+    what is new is a subset of it), with its runs' positions counted from its own first."""
+    out = []
+    for at, first, runs in parts:
+        states, run = found[at]
+        lo, hi = np.searchsorted(run, [first, first + runs])
+        out.append((states[lo:hi], run[lo:hi] - first))
+    return out
+
+
 class ReplayBuffer:
     def __init__(self, capacity: int, deterministic: bool, n: int):
         self.capacity = capacity

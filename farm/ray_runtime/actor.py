@@ -88,8 +88,8 @@ def actor_class():
             return self.simulator.simulate(first_index, starts, indices=indices, actions=actions).visited()
 
         def replay_screen(self, pieces, source_refs, message, actions=None):
-            """Experience replay on stored pieces: each one's new states under the
-            coverage. All of an actor's pieces come in one call: a call costs the
+            """Experience replay on stored pieces (packed): each one's new states under the
+            coverage, packed. All of an actor's pieces come in one call: a call costs the
             driver ~0.7 ms, and a round end has a piece per chunk that kept states."""
             if actions is not None:  # a re-simulation needs the policy the runs had
                 self.simulator.policy.load(actions)
@@ -97,7 +97,7 @@ def actor_class():
             if screen is RESYNC:
                 return RESYNC
             found = []
-            for piece, refs in zip(pieces, source_refs):
+            for piece, refs in zip(unpack(pieces), source_refs):
                 source = None
                 if refs:
                     try:
@@ -105,7 +105,7 @@ def actor_class():
                     except ray.exceptions.ObjectLostError:  # its worker died: re-simulate from the keys
                         source = None
                 found.append(screen_piece(self.simulator, source, piece, screen))
-            return found
+            return pack(found)
 
         def stats(self) -> dict:
             return {"busy_s": self.busy_s, "tasks": self.tasks, "runs": self.runs, "pid": os.getpid()}

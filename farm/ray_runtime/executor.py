@@ -32,13 +32,13 @@ from typing import Callable
 import numpy as np
 
 from coordinator.executor import Chunk, ChunkSummary, Executor
-from coordinator.experience_replay import Stored
+from coordinator.experience_replay import Stored, merged_by_source, split_found
 from farm import lazy
 from farm.execution.chunking import ChunkSizer, fast_lanes
 from farm.ray_runtime import where
 from farm.ray_runtime.actor import RESYNC, actor_class
 from farm.ray_runtime.mirror import Mirrors
-from farm.ray_runtime.packing import unpack
+from farm.ray_runtime.packing import pack, unpack
 from farm.ray_runtime.pool import ActorPool, Call, check_started
 from farm.ray_runtime.session import connect
 from farm.execution.waiting import WorkerError, culprit, name_runs
@@ -328,7 +328,8 @@ class RayExecutor(Executor):
     def screen_stored(self, pieces, screen):
         """The pieces shared out among the actors by runs, one call per actor; a piece
         whose states are gone (resume) is re-simulated in shares, so that every actor
-        takes a share."""
+        takes a share; the pieces of one chunk go as one (``merged_by_source``)."""
+        pieces, parts = merged_by_source(pieces)
         shares = []
         for piece in pieces:
             if piece.source is None and len(piece.indices) > STORED_PART:
@@ -372,20 +373,21 @@ class RayExecutor(Executor):
             else:
                 out.append(found[at])
                 at += 1
-        return out
+        return split_found(out, parts)
 
     def _replay_call(self, shares: list, screen) -> Call:
         """Experience replay of ``shares`` on one actor (one call: a call costs the driver
         ~0.7 ms, and a round end has a piece per chunk that kept states)."""
         stripped = [Stored(None, p.indices, p.rows, p.takes, p.parents, p.starts) for p in shares]
         sources = [[p.source] if p.source is not None else [] for p in shares]  # nested: not resolved by Ray
+        pieces = pack(stripped)  # a piece's arrays are small, and a round end has hundreds (packing.py)
         runs = sum(len(p.indices) for p in shares)
         call = Call(runs, f"{self._culprit}: experience replay of {runs} runs", None,
                     limit=self.sizer.replay_limit(runs))
 
         def launch(actor: int, fresh: bool = False) -> None:
             message = self.mirrors.message(actor, screen, fresh)
-            call.ref = self._actor(actor).replay_screen.remote(stripped, sources, message, self._actions)
+            call.ref = self._actor(actor).replay_screen.remote(pieces, sources, message, self._actions)
             self.pool.sent(call, actor)
 
         call.launch = launch
@@ -396,7 +398,7 @@ class RayExecutor(Executor):
         while True:
             result = self._get(call, interruptible=False)  # a round end's replay finishes before a stop
             if not isinstance(result, str):
-                return result
+                return unpack(result)
             call.relaunch_fresh()  # the actor was restarted without its mirror
 
     def cancel(self, handle: int) -> None:
