@@ -57,9 +57,9 @@ def new_states(coverage, states: np.ndarray) -> np.ndarray:
 
 def merged_by_source(pieces: list[Stored]) -> tuple[list[Stored], list[tuple[int, int, int]]]:
     """The pieces that share a source (the same chunk's visited states) as one piece each, in
-    the order of their first: a chunk's runs are committed piece by piece (a round end had
-    4,841 pieces in the bench case of docs/benchmarks.md), and each piece costs a replay
-    call's serialization more than its runs do. -> (merged, parts), ``parts[i]`` = (its
+    the order of their first: a chunk's runs are committed piece by piece (a round end has
+    several pieces per chunk: docs/benchmarks.md), and each piece costs a replay call's
+    serialization more than its runs do. -> (merged, parts), ``parts[i]`` = (its
     merged piece, its first run there, its runs) for piece ``i`` (``split_found``). A piece
     without a source (re-simulated from its keys) stays as it is."""
     merged: list[Stored] = []
