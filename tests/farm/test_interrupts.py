@@ -140,8 +140,14 @@ def test_two_sigterms_50_ms_apart_stop_at_once_with_exit_130(tmp_path):
     assert proc.returncode == 130 and "stopped" in stderr and "Traceback" not in stderr, (proc.returncode, stderr)
 
 
+def _sighup_not_ignored():
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
+
+
 def test_sighup_stops_like_sigterm_and_status_says_stopped(tmp_path):
-    proc, out = running(tmp_path)
+    # a campaign in a terminal, even when this suite runs under nohup (whose ignored SIGHUP the
+    # child would inherit, and keep ignored on purpose: test_an_ignored_sighup_stays_ignored)
+    proc, out = running(tmp_path, preexec_fn=_sighup_not_ignored)
     proc.send_signal(signal.SIGHUP)  # the terminal closed
     stderr = proc.communicate(timeout=60)[1]
     assert proc.returncode == 130 and "stopped at" in stderr, (proc.returncode, stderr)
