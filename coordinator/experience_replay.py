@@ -62,7 +62,6 @@ def merged_by_source(pieces: list[Stored]) -> tuple[list[Stored], list[tuple[int
     serialization more than its runs do. -> (merged, parts), ``parts[i]`` = (its
     merged piece, its first run there, its runs) for piece ``i`` (``split_found``). A piece
     without a source (re-simulated from its keys) stays as it is."""
-    merged: list[Stored] = []
     groups: list[list[Stored]] = []
     runs: list[int] = []  # per merged piece, its runs so far
     where: dict[int, int] = {}  # id(source) -> its merged piece
@@ -78,10 +77,10 @@ def merged_by_source(pieces: list[Stored]) -> tuple[list[Stored], list[tuple[int
         parts.append((at, runs[at], len(piece.indices)))
         groups[at].append(piece)
         runs[at] += len(piece.indices)
-    for group in groups:
-        merged.append(group[0] if len(group) == 1 else Stored(
-            group[0].source, *(np.concatenate([getattr(p, f) for p in group])
-                               for f in ("indices", "rows", "takes", "parents", "starts"))))
+    fields = ("indices", "rows", "takes", "parents", "starts")
+    merged = [group[0] if len(group) == 1 else
+              Stored(group[0].source, *(np.concatenate([getattr(p, f) for p in group]) for f in fields))
+              for group in groups]
     return merged, parts
 
 

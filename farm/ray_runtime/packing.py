@@ -3,8 +3,8 @@ block out, experience replay's pieces both ways): Ray serializes every numpy arr
 finds as a buffer of its own, which costs the driver more per array than a pickle of the
 whole object in one buffer when the arrays are small (a summary holds a dozen, a change
 block one per change, a round end's replay a few per stored piece, hundreds of pieces;
-docs/benchmarks.md, "2026-11-29, evening" and "late evening"). Only between the driver and its own actors: nothing here is
-written to a file."""
+docs/benchmarks.md, "2026-11-29, evening" and "late evening"). Only between the driver and
+its own actors: nothing here is written to a file."""
 
 from __future__ import annotations
 
