@@ -15,9 +15,10 @@ run:
     python benchmarks/bench_coordinator_cpu.py [--repeat 3] [--keep DIR] [--vs CHECKOUT]
 
 ``--vs CHECKOUT``: another checkout of this repository (``git worktree add /tmp/before
-<commit>``), measured back to back with this code in every repeat (a pair): on a host whose
-speed drifts by more than a change gains, compare within pairs (the median of the pairs'
-ratios), not figures taken minutes apart.
+<commit>``), measured back to back with this code in every repeat (a pair, in alternating
+order): on a host whose speed drifts by more than a change gains, compare within pairs (the
+median of the pairs' ratios), not figures taken minutes apart. ``--vs`` naming this very
+checkout measures the pairs' own spread (docs/benchmarks.md: 0.81-1.06 at --repeat 3).
 """
 
 from __future__ import annotations
@@ -119,9 +120,15 @@ def main() -> None:
           "lead-follow idm, uniform Gamma, delta 2 -> 0.5, certified, numpy back end, 2 Ray workers; "
           "whole `scenario-farm quantify` processes", flush=True)
     rates, ratios = [], []
-    for _ in range(args.repeat):
+    for repeat in range(args.repeat):
+        # the order alternates within pairs (A B, B A, ...): were running second dearer or
+        # cheaper (another process's Ray still shutting down), a fixed order would tilt
+        # every pair the same way
+        this_first = repeat % 2 == 1
+        rate = _rate(configs, work, None, "this code: " if args.vs is not None else "") if this_first else None
         other = _rate(configs, work, args.vs, f"vs {args.vs}: ") if args.vs is not None else None
-        rate = _rate(configs, work, None, "this code: " if other is not None else "")
+        if rate is None:
+            rate = _rate(configs, work, None, "this code: " if other is not None else "")
         rates.append(rate)
         if other is not None:
             ratios.append(rate / other)

@@ -100,15 +100,17 @@ class FailureDistances:
         min over failures, and a bucket's largest distance its max: the same values in
         any order)."""
         if self._sorted:
-            buckets = self._near_buckets(fs)
-            box_lo, box_hi = self._box_lo[buckets], self._box_hi[buckets]
+            buckets = self._near_buckets(fs)  # None: every bucket (no copies of the boxes)
+            box_lo, box_hi, most = ((self._box_lo, self._box_hi, self._bucket_max) if buckets is None else
+                                    (self._box_lo[buckets], self._box_hi[buckets], self._bucket_max[buckets]))
             # per axis: a (F, buckets, n) max over n is several times slower
             gap = np.maximum(box_lo[None, :, 0] - fs[:, None, 0], fs[:, None, 0] - box_hi[None, :, 0])
             for axis in range(1, fs.shape[1]):
                 np.maximum(gap, box_lo[None, :, axis] - fs[:, None, axis], out=gap)
                 np.maximum(gap, fs[:, None, axis] - box_hi[None, :, axis], out=gap)
             np.maximum(gap, 0.0, out=gap)
-            reach = buckets[(gap < self._bucket_max[buckets]).any(axis=0)]
+            hit = (gap < most).any(axis=0)
+            reach = np.flatnonzero(hit) if buckets is None else buckets[hit]
             if len(reach):
                 lo, hi = self._starts[reach], self._starts[reach + 1]
                 counts = hi - lo
@@ -120,13 +122,13 @@ class FailureDistances:
         if self.seen_vertices > self._sorted:
             self._lower(points, np.arange(self._sorted, self.seen_vertices), fs)
 
-    def _near_buckets(self, fs: np.ndarray) -> np.ndarray:
-        """The buckets failures ``fs`` may lower a distance in: all of them, or with a
-        ``cap``, those whose box comes within it of the failures' bounding box (a bucket
-        farther off is at least ``cap`` from each, and no capped distance exceeds it: the
+    def _near_buckets(self, fs: np.ndarray) -> np.ndarray | None:
+        """The buckets failures ``fs`` may lower a distance in: all of them (None), or with
+        a ``cap``, those whose box comes within it of the failures' bounding box (a bucket
+        farther off is more than ``cap`` from each, and no capped distance exceeds it: the
         exact test would skip it too, after a (F, buckets) gap)."""
         if not np.isfinite(self.cap):
-            return np.arange(len(self._bucket_max))
+            return None
         lo, hi = fs.min(axis=0) - self.cap, fs.max(axis=0) + self.cap
         near = (self._box_hi[:, 0] >= lo[0]) & (self._box_lo[:, 0] <= hi[0])
         for axis in range(1, fs.shape[1]):
