@@ -67,24 +67,32 @@ print(json.dumps({"code": code, "cpu_s": r.ru_utime + r.ru_stime, "wall_s": time
 """
 
 
+def quantify_child(child: str, config: str, out: str, who: str, first_args=(), env=None, cwd=None) -> dict:
+    """Run ``child`` (Python source that calls the CLI's entry on ``sys.argv[1 + len(first_args):]``
+    and prints a JSON row with the exit "code" last) on ``quantify config --out out --force``:
+    its row, with the campaign's committed runs and result hash; ``who`` names the tool in
+    the one-line error a failed run ends with."""
+    proc = subprocess.run([sys.executable, "-c", child, *first_args, "quantify", config, "--out", out, "--force"],
+                          capture_output=True, text=True, env=env, cwd=cwd)
+    lines = proc.stdout.strip().splitlines()
+    if proc.returncode != 0 or not lines:
+        sys.exit(f"{who}: quantify {config} exited {proc.returncode}: {proc.stderr.strip()[-400:]}")
+    row = json.loads(lines[-1])
+    if row["code"] != 0:
+        sys.exit(f"{who}: quantify {config} returned {row['code']}: {proc.stderr.strip()[-400:]}")
+    with open(os.path.join(out, "summary.json")) as f:
+        summary = json.load(f)
+    row.update(committed=summary["runs_committed"], hash=summary["result_hash"])
+    return row
+
+
 def measure(config: str, out: str, checkout: str | None = None) -> dict:
     """One `quantify` of ``config`` into ``out``: the process's CPU, wall, exit and runs
     (``checkout``: with that checkout's packages first on the path)."""
     env = dict(os.environ)
     if checkout is not None:
         env["PYTHONPATH"] = os.pathsep.join([checkout, *filter(None, [env.get("PYTHONPATH")])])
-    proc = subprocess.run([sys.executable, "-c", _MEASURED, "quantify", config, "--out", out, "--force"],
-                          capture_output=True, text=True, env=env, cwd=checkout)
-    lines = proc.stdout.strip().splitlines()
-    if proc.returncode != 0 or not lines:
-        sys.exit(f"bench_coordinator_cpu: quantify {config} exited {proc.returncode}: {proc.stderr.strip()[-400:]}")
-    row = json.loads(lines[-1])
-    if row["code"] != 0:
-        sys.exit(f"bench_coordinator_cpu: quantify {config} returned {row['code']}: {proc.stderr.strip()[-400:]}")
-    with open(os.path.join(out, "summary.json")) as f:
-        summary = json.load(f)
-    row.update(committed=summary["runs_committed"], hash=summary["result_hash"])
-    return row
+    return quantify_child(_MEASURED, config, out, "bench_coordinator_cpu", env=env, cwd=checkout)
 
 
 def _rate(configs: dict, work: str, checkout: str | None, label: str) -> float:
@@ -121,18 +129,21 @@ def main() -> None:
           "whole `scenario-farm quantify` processes", flush=True)
     rates, ratios = [], []
     for repeat in range(args.repeat):
+        if args.vs is None:
+            rates.append(_rate(configs, work, None, ""))
+            continue
         # the order alternates within pairs (A B, B A, ...): were running second dearer or
         # cheaper (another process's Ray still shutting down), a fixed order would tilt
         # every pair the same way
-        this_first = repeat % 2 == 1
-        rate = _rate(configs, work, None, "this code: " if args.vs is not None else "") if this_first else None
-        other = _rate(configs, work, args.vs, f"vs {args.vs}: ") if args.vs is not None else None
-        if rate is None:
-            rate = _rate(configs, work, None, "this code: " if other is not None else "")
+        if repeat % 2 == 0:
+            other = _rate(configs, work, args.vs, f"vs {args.vs}: ")
+            rate = _rate(configs, work, None, "this code: ")
+        else:
+            rate = _rate(configs, work, None, "this code: ")
+            other = _rate(configs, work, args.vs, f"vs {args.vs}: ")
         rates.append(rate)
-        if other is not None:
-            ratios.append(rate / other)
-            print(f"pair {len(ratios)}: this code / {args.vs} = {ratios[-1]:.2f}", flush=True)
+        ratios.append(rate / other)
+        print(f"pair {len(ratios)}: this code / {args.vs} = {ratios[-1]:.2f}", flush=True)
     median = sorted(rates)[len(rates) // 2]
     if ratios:
         print(f"median of the pairs' ratios: {sorted(ratios)[len(ratios) // 2]:.2f} (this code ahead in "

@@ -14,16 +14,14 @@ profiler (py-spy) counts threads blocked in Ray's C++ as busy; these timers do n
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import subprocess
 import sys
 import tempfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 
-from bench_coordinator_cpu import CASE  # noqa: E402
+from bench_coordinator_cpu import CASE, quantify_child  # noqa: E402
 
 FUNCTIONS = ("coordinator.driver.campaign:Campaign.run,coordinator.driver.campaign:Campaign._commit,"
              "coordinator.driver.campaign:Campaign._fill,coordinator.driver.campaign:Campaign._settle,"
@@ -89,22 +87,14 @@ read_threads()
 per_thread = collections.Counter()
 for name, seconds in threads.values():
     per_thread[name] += seconds
-with open(os.path.join(argv[argv.index("--out") + 1], "summary.json")) as f:
-    committed = json.load(f)["runs_committed"]
-print(json.dumps({"code": code, "committed": committed, "cpu": cpu, "calls": calls, "threads": per_thread}))
+print(json.dumps({"code": code, "cpu": cpu, "calls": calls, "threads": per_thread}))
 """
 
 
 def profile(config: str, out: str, functions: str) -> dict:
-    proc = subprocess.run([sys.executable, "-c", _CHILD, functions, "quantify", config, "--out", out, "--force"],
-                          capture_output=True, text=True)
-    lines = proc.stdout.strip().splitlines()
-    if proc.returncode != 0 or not lines:
-        sys.exit(f"profile_driver: quantify {config} exited {proc.returncode}: {proc.stderr.strip()[-400:]}")
-    row = json.loads(lines[-1])
-    if row["code"] != 0:
-        sys.exit(f"profile_driver: quantify {config} returned {row['code']}: {proc.stderr.strip()[-400:]}")
-    return row
+    """One profiled `quantify` of ``config`` into ``out``: per function its main-thread CPU
+    ("cpu") and calls, per thread its CPU ("threads"), and the committed runs."""
+    return quantify_child(_CHILD, config, out, "profile_driver", first_args=(functions,))
 
 
 def main() -> None:
