@@ -143,7 +143,12 @@ def render() -> Path:
             "- So the default is sequential: its count is the sequential campaign's whatever the window, the",
             "  window follows the workers (resume may change it), and a replacement launched when a change",
             "  moves an in-flight draw near the head is usually back before the head needs it",
-            "  (benchmarks/bench_virtual.py measures the time to the result on many workers)."]
+            "  (benchmarks/bench_virtual.py measures the time to the result on many workers).",
+            "- These rows are in process, where deferred counting is reproducible. On Ray it is not: which draws",
+            "  a change finds in flight, and so which runs move a window on, follows the workers' timing (the head",
+            "  draws the next batch between chunks, and chunks are cut and come back as the workers run). Each result carries the same",
+            "  guarantee, but two runs of one config may differ (docs/benchmarks.md, \"2026-11-29, last\"); the",
+            "  campaign says so when Ray is up. Sequential counting's result never depends on the timing."]
     return write_doc(DOCS / "window.md", out)
 
 
