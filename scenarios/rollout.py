@@ -114,7 +114,10 @@ def run_scenario(backend, starts: np.ndarray, horizon: int, policy, streams: Run
         raise ScenarioError(f"{len(starts)} start states but {len(streams)} run streams")
     batch, n = starts.shape
     # Stored as (K, n, B) so that each step writes n contiguous rows; exposed as (K, B, n).
-    store = np.empty((horizon, n, batch))
+    # Zeroed, not left as it comes: a run's entries past its end are never written, and the
+    # margins are worked out over the whole store at once, where leftover bytes (a NaN that
+    # signals) made numpy warn "invalid value" on a user's terminal now and then.
+    store = np.zeros((horizon, n, batch))
     store[0] = starts.T
     lengths = np.full(batch, horizon, dtype=np.int32)
     outcomes = np.full(batch, HORIZON, dtype=np.int8)
