@@ -144,11 +144,10 @@ def render() -> Path:
             "  window follows the workers (resume may change it), and a replacement launched when a change",
             "  moves an in-flight draw near the head is usually back before the head needs it",
             "  (benchmarks/bench_virtual.py measures the time to the result on many workers).",
-            "- These rows are in process, where deferred counting is reproducible. On Ray it is not: which draws",
-            "  a change finds in flight, and so which runs move a window on, follows the workers' timing (the head",
-            "  draws the next batch between chunks, and chunks are cut and come back as the workers run). Each result carries the same",
-            "  guarantee, but two runs of one config may differ (docs/benchmarks.md, \"2026-11-29, last\"); the",
-            "  campaign says so when Ray is up. Sequential counting's result never depends on the timing."]
+            "- These rows are in process; deferred counting gives the same on Ray. A batch its head drew while it",
+            "  stood past a replacement not yet back (a hold) is drawn again if that replacement changes the state",
+            "  (the head goes back), when the head is where it drew it first: which runs a change mispredicts",
+            "  then never depends on the workers' timing (docs/benchmarks.md, \"2026-11-29, last\")."]
     return write_doc(DOCS / "window.md", out)
 
 

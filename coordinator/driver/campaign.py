@@ -306,6 +306,8 @@ class Campaign:
                 judged = self._rescreen(chunk)  # the state it was judged at, restored: decided there again
                 judged.changes(row)
             self.replacements.rewind()
+            if self.settings.lag:  # deferred counting: batches drawn past the hold, drawn again
+                self.pipeline.forget_drawn_past(self.counters.committed)
             self._rewound = True
         counted = not changes and r.index >= (past.streak_start if past is not None else c.streak_start)
         escaped = int(chunk.screening.escaped[row]) if counted else 0
@@ -469,5 +471,5 @@ class Campaign:
     def state(self) -> tuple[dict[str, np.ndarray], dict]:
         """The driver's state as a checkpoint keeps it (coordinator/driver/state.py)."""
         state = DriverState.of(self.counters, self.pipeline, self.replacements, self.speculations,
-                               self.final_distribution)
+                               self.final_distribution, deferred=self.settings.lag > 0)
         return state.write(self.algorithm.coverage.n)

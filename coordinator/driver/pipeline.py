@@ -51,6 +51,7 @@ class Pending:
     next_handle: int = 0
     chunks: list = field(default_factory=list)  # fetched, in index order (contiguous)
     ends: list = field(default_factory=list)  # each fetched chunk's end index
+    drawn_at: int = -1  # the head when it was drawn (-1: read back from a checkpoint)
 
     def __len__(self) -> int:
         return len(self.draws)
@@ -98,7 +99,7 @@ class Pipeline:
             if size <= 0:
                 break
             draws = draw(np.arange(first, first + size))
-            self.batches.append(Pending(first, draws, self.launcher.starts(draws.ids)))  # may be < size
+            self.batches.append(Pending(first, draws, self.launcher.starts(draws.ids), drawn_at=head))  # may be < size
             ahead += 1
         for p in self.batches:
             if not p.handles and not p.chunks:
@@ -138,6 +139,17 @@ class Pipeline:
         while self.batches and self.batches[0].end <= final:
             self.batches.popleft()
 
+    def forget_drawn_past(self, head: int) -> None:
+        """Cancel and forget the batches drawn while the head stood past index ``head``: it
+        went back there (a held replacement changed the state), and under deferred
+        counting which runs a batch's draws mispredict depends on the state they were
+        drawn at. ``fill`` draws them again when the head is where it drew them first,
+        so the result does not depend on the holds (that is, on the workers' timing)."""
+        while self.batches and self.batches[-1].drawn_at > head:
+            p = self.batches.pop()
+            for handle in p.handles[p.next_handle :]:
+                self.launcher.cancel(handle)
+
     def drop(self) -> None:
         """Cancel and forget every batch (a round end: their indices are drawn again)."""
         for p in self.batches:
@@ -145,6 +157,8 @@ class Pipeline:
                 self.launcher.cancel(handle)
         self.batches.clear()
 
-    def open(self, head: int) -> list[Pending]:
-        """The batches with runs from ``head`` on (what a checkpoint keeps)."""
-        return [p for p in self.batches if p.end > head]
+    def open(self, head: int, drawn_by: bool = False) -> list[Pending]:
+        """The batches with runs from ``head`` on (what a checkpoint keeps); ``drawn_by``:
+        only those drawn with the head at ``head`` or before (deferred counting draws the
+        others again, at the state a resumed head reaches)."""
+        return [p for p in self.batches if p.end > head and not (drawn_by and p.drawn_at > head)]

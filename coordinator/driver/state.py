@@ -90,13 +90,16 @@ class DriverState:
     final_distribution: str = ""
 
     @classmethod
-    def of(cls, counters: Counters, pipeline, replacements, speculations, final_distribution: str) -> "DriverState":
+    def of(cls, counters: Counters, pipeline, replacements, speculations, final_distribution: str,
+           deferred: bool = False) -> "DriverState":
         """A running driver's state as committed for good: with holds, as the head passed
-        the first of them (what follows it may be undone; coordinator/driver/holds.py)."""
+        the first of them (what follows it may be undone; coordinator/driver/holds.py).
+        ``deferred``: deferred counting, whose batches drawn past that point are left out
+        (``Pipeline.forget_drawn_past``)."""
         counts, queued = replacements.committed_for_good()
         if counts:
             counters = dataclasses.replace(counters, **counts, **speculations.committed_counts())
-        return cls(counters, pipeline.open(counters.committed), queued, final_distribution)
+        return cls(counters, pipeline.open(counters.committed, drawn_by=deferred), queued, final_distribution)
 
     def write(self, n: int) -> tuple[dict[str, np.ndarray], dict]:
         """-> arrays (``n``: the state's dimension) and JSON-able metadata."""

@@ -196,8 +196,8 @@ class FarmConfig(Section):
     counting: Annotated[Literal["sequential", "deferred"], Field(description=(
         "coupled counting: a mispredicted run's replacement is waited for at the head (sequential: one "
         "result at any batch_size and pipeline_depth) or applied "
-        "batch_size x pipeline_depth indices later (deferred: no waiting; its result depends on the window, "
-        "and on Ray on the workers' timing)"))] = "sequential"
+        "batch_size x pipeline_depth indices later (deferred: no waiting; its result depends on the window)"))] = \
+        "sequential"
     seed: Annotated[int, Field(ge=0, le=2**63 - 1)] = 0
     checkpoint_every: Annotated[float, Field(ge=0.0, le=1e9, **_fixed("seconds (below 1: 1, with a warning)"))] = 30.0
     max_retries: Annotated[int, Field(ge=0, le=100, **_fixed())] = 3

@@ -132,12 +132,6 @@ class RayExecutor(Executor):
             lines.append(f"note: {batch_size} x {pipeline_depth} runs in flight (farm.batch_size x "
                          f"farm.pipeline_depth) keep at most {busy} of the {self.workers} workers busy; raise them "
                          f"for more (it costs runs: README, 'Many workers', and docs/window.md)")
-        if counting != "sequential":
-            # a misprediction moves its run a window on, and which draws a change finds in
-            # flight follows when chunks come back (docs/window.md, "Reading it")
-            lines.append(f'note: farm.counting = "{counting}" on Ray: which runs a change mispredicts follows the '
-                         f"workers' timing, so two runs of this config may differ (each with the same guarantee); "
-                         f'"sequential", the default, gives one result whatever the timing')
         return lines
 
     @property

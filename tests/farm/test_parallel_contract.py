@@ -230,20 +230,6 @@ def test_change_log_is_trimmed_when_only_some_workers_are_used(ray_local, monkey
         ex.close()
 
 
-def test_deferred_counting_on_ray_says_two_runs_may_differ():
-    """Under deferred counting a misprediction moves its run a window on, and which draws a
-    change finds in flight follows the workers' timing on Ray (measured: 4 runs of one
-    config, 2 result hashes; docs/window.md): the start lines say so. Sequential counting's
-    result does not depend on it: nothing is said."""
-    from farm.execution.process import spec_of
-    from farm.ray_runtime.executor import RayExecutor
-
-    ex = RayExecutor(spec_of(contract_config("ray", 2)), 2)  # not started: only its start lines are asked
-    deferred = ex.started("deferred", 1024, 2)
-    assert any('farm.counting = "deferred" on Ray' in line and "may differ" in line for line in deferred)
-    assert not any("may differ" in line for line in ex.started("sequential", 1024, 2))
-
-
 @pytest.mark.soak  # three Ray campaigns for one line of output
 def test_workers_that_cannot_be_kept_busy_are_announced(ray_local, tmp_path):
     """Chunks of one run up keep every worker busy, unless there are more workers than runs
