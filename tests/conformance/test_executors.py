@@ -61,3 +61,12 @@ def test_same_campaign(make_executor):
 
 def test_a_killed_ray_worker_costs_time_not_results(ray_local):
     testing.check_worker_failure(ray_executor(), SPEC, kill_first_actor)
+
+
+def test_same_campaign_under_deferred_counting(make_executor):
+    """Deferred counting's result depends on the window alone, not on where or when runs
+    come back (docs/window.md): on Ray and on 64 virtual workers, holds and all, the
+    in-process campaign's."""
+    import dataclasses
+
+    testing.check_same_campaign(make_executor, SPEC, dataclasses.replace(testing.SETTINGS, counting="deferred"))
