@@ -146,16 +146,18 @@ class Pipeline:
         drawn at. ``fill`` draws them again when the head is where it drew them first,
         so the result does not depend on the holds (that is, on the workers' timing)."""
         while self.batches and self.batches[-1].drawn_at > head:
-            p = self.batches.pop()
-            for handle in p.handles[p.next_handle :]:
-                self.launcher.cancel(handle)
+            self._cancel(self.batches.pop())
 
     def drop(self) -> None:
         """Cancel and forget every batch (a round end: their indices are drawn again)."""
         for p in self.batches:
-            for handle in p.handles[p.next_handle :]:
-                self.launcher.cancel(handle)
+            self._cancel(p)
         self.batches.clear()
+
+    def _cancel(self, p: Pending) -> None:
+        """Cancel batch ``p``'s chunks not fetched yet."""
+        for handle in p.handles[p.next_handle :]:
+            self.launcher.cancel(handle)
 
     def open(self, head: int, drawn_by: bool = False) -> list[Pending]:
         """The batches with runs from ``head`` on (what a checkpoint keeps); ``drawn_by``:
