@@ -32,6 +32,7 @@ from coordinator.rescreen import Rescreen
 from coordinator.driver.commit_log import ChunkRows, CommitLog
 from coordinator.driver.exact import verify
 from coordinator.driver.launcher import Launcher
+from coordinator.driver.lead import Lead
 from coordinator.driver.lookahead import LookAhead
 from coordinator.driver.phase import After, Phase
 from coordinator.driver.pipeline import Pending, Pipeline, batch_shape
@@ -70,7 +71,8 @@ class Campaign:
         self.counters = restored.counters
         self.final_distribution = restored.final_distribution
         self.launcher = Launcher(algorithm, executor, settings.seed, self.counters, adversary)
-        self.pipeline = Pipeline(self.launcher, restored.pending)
+        self.pipeline = Pipeline(self.launcher, restored.pending,
+                                 Lead(adaptive=not settings.lag and executor is not None and executor.concurrent))
         self.replacements = ReplacementQueue(self.launcher, self.counters, settings.lag, restored.replacements)
         self.look_ahead = LookAhead(settings.look_ahead, self.launcher, self.pipeline, self.replacements,
                                     self.counters, settings.batch_size)
@@ -148,7 +150,8 @@ class Campaign:
         s = self.settings
         batch, depth = batch_shape(s, self.phase.enumerating, lambda: self.executor.batch_size(s.batch_size),
                                    self.quiet_needed)
-        self.pipeline.fill(self.counters.committed, batch, depth, s.budget, self.launcher.draw)
+        self.pipeline.fill(self.counters.committed, batch, depth, s.budget, self.launcher.draw,
+                           self.executor.run_seconds(), fixed=self.phase.enumerating)
         self.look_ahead.launch_moved()
         self.replacements.send()
 

@@ -10,11 +10,13 @@ back into it (a held replacement that changes the state, coordinator/driver/hold
 from __future__ import annotations
 
 import bisect
+import math
 from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from coordinator.driver.lead import Lead
 from coordinator.executor import Chunk
 from coordinator.stable_sampler import Draws
 
@@ -52,6 +54,7 @@ class Pending:
     chunks: list = field(default_factory=list)  # fetched, in index order (contiguous)
     ends: list = field(default_factory=list)  # each fetched chunk's end index
     drawn_at: int = -1  # the head when it was drawn (-1: read back from a checkpoint)
+    reached: bool = False  # has the head located a run in it
 
     def __len__(self) -> int:
         return len(self.draws)
@@ -78,9 +81,10 @@ class Pipeline:
     """The batches in flight, oldest first: drawn, sent, fetched in order, released once
     committed for good, or dropped at a round end."""
 
-    def __init__(self, launcher, pending=()):
+    def __init__(self, launcher, pending=(), lead: Lead | None = None):
         self.launcher = launcher  # coordinator/driver/launcher.py: the executor's side
         self.batches: deque[Pending] = deque(pending)
+        self.lead = lead or Lead(adaptive=False)  # how far ahead the next batch is drawn
 
     def __iter__(self):
         return iter(self.batches)
@@ -88,19 +92,26 @@ class Pipeline:
     def __bool__(self) -> bool:
         return bool(self.batches)
 
-    def fill(self, head: int, batch: int, depth: int, budget: int, draw) -> None:
-        """Keep ``depth`` batches of ``batch`` runs drawn (``draw(indices) -> Draws``) and
-        sent ahead of ``head`` (fewer when the budget ends); batches the head has passed
-        but may go back into do not count."""
-        ahead = sum(1 for p in self.batches if p.end > head)
-        while ahead < depth:
+    def fill(self, head: int, batch: int, depth: int, budget: int, draw, run_s: float | None = None,
+             fixed: bool = False) -> None:
+        """Keep up to ``depth`` batches of ``batch`` runs drawn (``draw(indices) -> Draws``)
+        and sent ahead of ``head`` (fewer when the budget ends), another one only while the
+        head's runs ahead are at most the lead's for runs of ``run_s`` seconds (``fixed``:
+        the full pipeline's, as a deterministic certification's order needs); batches the
+        head has passed but may go back into do not count."""
+        lead = math.inf if fixed else self.lead.runs(batch, depth, run_s)
+        ahead = [p for p in self.batches if p.end > head]
+        runs_ahead = sum(p.end - max(head, p.first_index) for p in ahead)
+        while len(ahead) < depth and (not ahead or runs_ahead <= lead):
             first = self.batches[-1].end if self.batches else head
             size = min(batch, budget - first)
             if size <= 0:
                 break
             draws = draw(np.arange(first, first + size))
-            self.batches.append(Pending(first, draws, self.launcher.starts(draws.ids), drawn_at=head))  # may be < size
-            ahead += 1
+            p = Pending(first, draws, self.launcher.starts(draws.ids), drawn_at=head)  # may be < size
+            self.batches.append(p)
+            ahead.append(p)
+            runs_ahead += len(p)
         for p in self.batches:
             if not p.handles and not p.chunks:
                 done = p.done(head)
@@ -116,6 +127,10 @@ class Pipeline:
         p = self.holding(head)
         if p is None:
             return None
+        if not p.reached:
+            p.reached = True
+            if self.lead.adaptive and 0 <= p.drawn_at < p.first_index:  # a batch drawn ahead: was it back?
+                self.lead.met(p.next_handle > 0 or self.next_ready(p))
         chunk = p.chunk_at(head)
         while chunk is None:
             chunk = self.fetch_next(p)

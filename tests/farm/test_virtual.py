@@ -245,3 +245,36 @@ def test_a_concurrent_executor_gets_a_passs_replacements_in_one_call():
     assert result == result_each and counters.committed == counters_each.committed
     for name in rows.keys() - {"kind"}:
         assert np.array_equal(rows[name], rows_each[name]), name
+
+
+def test_fast_runs_draw_batches_no_earlier_than_the_head_needs_them():
+    # runs of microseconds: the driver bounds the farm, a batch drawn ahead is back long
+    # before the head gets there, and every run in flight is a draw a change may move
+    # (coordinator/driver/lead.py): the lead shrinks, fewer runs are replaced, and the
+    # committed sequence is the same as with the full pipeline
+    shares = []
+    _, algorithm, _, campaign = _virtual_campaign(8, 1e-5)
+    met = campaign.pipeline.lead.met
+
+    def recorded(back):
+        met(back)
+        shares.append(campaign.pipeline.lead.share)
+
+    campaign.pipeline.lead.met = recorded
+    led = campaign.run()
+    _, algorithm_full, _, campaign_full = _virtual_campaign(8, 1e-5)
+    campaign_full.pipeline.lead.adaptive = False
+    full = campaign_full.run()
+    assert algorithm.result().result_hash == algorithm_full.result().result_hash
+    assert (led.committed, led.changes) == (full.committed, full.changes)
+    assert min(shares) < 0.75
+    assert led.runs_replaced < full.runs_replaced
+
+
+def test_slow_runs_keep_the_full_pipeline():
+    # a batch the head waits for costs it a run's seconds while workers idle: slow runs
+    # draw as far ahead as pipeline_depth says, whatever the lead learnt
+    _, _, executor, campaign = _virtual_campaign(300, 1.0)
+    campaign.run()
+    assert executor.run_seconds() >= 1e-3
+    assert campaign.pipeline.lead.runs(1024, 2, executor.run_seconds()) == float("inf")
