@@ -9,6 +9,7 @@ One part per job, none of which calls back into the driver:
   closing rounds, checks or enumeration) and what a round end or a change leads to;
 - ``launcher.py``: the executor's side (runs drawn from their own streams, sent, fetched);
 - ``pipeline.py``: the batches drawn ahead of the head and their chunks;
+- ``lead.py``: how far ahead of the head the next batch is drawn;
 - ``exact.py``: coupled counting's question, is a run still what its stream draws now;
 - ``replacements.py``: the runs that replace mispredicted ones, queued in due order;
 - ``holds.py``: the replacements the head passed before they were back, and what it did past them;

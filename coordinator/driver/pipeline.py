@@ -1,9 +1,10 @@
 """The batches drawn ahead of the commit head, and their chunks as they come back.
 
 Batch ``b``'s starts are drawn from the state as it is when the batch is drawn (the
-parallel contract, shared/spec/algorithms.md point 2), ``pipeline_depth`` batches ahead of
-the head; each goes to the executor as it is drawn and comes back as chunks, fetched in
-index order. A batch is kept until every run of it is committed for good: the head may go
+parallel contract, shared/spec/algorithms.md point 2), up to ``pipeline_depth`` batches
+ahead of the head (another one once the head's runs ahead fall to the lead,
+coordinator/driver/lead.py); each goes to the executor as it is drawn and comes back as
+chunks, fetched in index order. A batch is kept until every run of it is committed for good: the head may go
 back into it (a held replacement that changes the state, coordinator/driver/holds.py).
 """
 
