@@ -192,7 +192,8 @@ class FarmConfig(Section):
     address: Annotated[str, Field(min_length=1, **_fixed(
         "'local', 'auto', 'host:port' or 'ray://host:port' (must answer within 3 s)"))] = "local"
     batch_size: Annotated[int, Field(ge=1, le=10_000_000, description="runs per drawn batch")] = 1024
-    pipeline_depth: Annotated[int, Field(ge=1, le=64, description="batches drawn ahead")] = 2
+    pipeline_depth: Annotated[int, Field(ge=1, le=64, description=(
+        "batches drawn ahead, at most (fewer where runs are fast and come back before the head needs them)"))] = 2
     counting: Annotated[Literal["sequential", "deferred"], Field(description=(
         "coupled counting: a mispredicted run's replacement is waited for at the head (sequential: one "
         "result at any batch_size and pipeline_depth) or applied "
