@@ -42,8 +42,13 @@ def _layout(vehicles: int, followers: int) -> dict:
     gaps = tuple(f"p{i}{partner[i]}" for i in range(1, vehicles))
     rear = gaps[leads]  # p(m+1)0: follower 1 to the SV
     is_lead = np.arange(1, vehicles) <= leads
+    roles = ("sv",) + tuple(f"lead{i}" for i in range(1, leads + 1)) + tuple(f"follower{j}"
+                                                                            for j in range(1, followers + 1))
     return {
         "leads": leads, "partner": tuple(partner), "rear_facet": rear,
+        # cars in index order; the action columns command lead m and follower r, the cars
+        # between them and the SV drive the traffic IDM
+        "vehicle_roles": roles, "traffic_roles": roles[1:leads] + roles[leads + 1 : vehicles - 1],
         "state_names": speeds + gaps,
         "lower": np.concatenate([np.zeros(vehicles), np.where(is_lead, GAP_MIN, -GAP_MAX)]),
         "upper": np.concatenate([np.full(vehicles, SPEED_MAX), np.where(is_lead, GAP_MAX, -GAP_MIN)]),
@@ -73,10 +78,10 @@ class Platoon(Scenario):
     adversary_settle_steps = 400  # as fleet3: adversarial rollouts from Sigma end within ~200 steps (k <= 8)
     sv_accel_bound = abs(BRAKE_ACCEL)  # [m/s^2] |SV acceleration| (brake, idm)
     vehicle_length = VEHICLE_LENGTH
-    # No ``vehicle_roles``: the SUMO back end and the OpenSCENARIO export take every car
-    # but the SV as commanded by one action column; the traffic IDM cars are not.
-    # Sigma, the facets, the state names, units and sides depend on k and r: the
-    # constructor sets them (``_layout``).
+    # Sigma, the facets, the state names, units, sides and the cars on the lane
+    # (``vehicle_roles``; ``traffic_roles``: those no action column commands, which the
+    # SUMO back end cannot simulate and an OpenSCENARIO logical scenario cannot state)
+    # depend on k and r: the constructor sets them (``_layout``).
 
     def __init__(self, sv_policy: str | None = None, failure_facets: tuple[str, ...] | None = None,
                  disturbance: float = 0.0, vehicles: int = 4, followers: int = 1):

@@ -11,6 +11,10 @@ From a quantification (DIR/recordings/*.mcap, safe_set.parquet):
 From a validation (certificate.json): ``counterexample-<index>.xosc`` for a
 counterexample, or, for a certified box domain, ``certified_domain.xosc`` (uniform on
 the box) with the logical scenario; a certified set (``domain_set``) as ``safe_set.xosc``.
+
+A scenario with cars that no action column commands (platoon's traffic cars, which drive
+an IDM: ``traffic_roles``) gets its recorded runs only, every car replaying its speeds: a
+logical scenario holds the actions from t = 0 and has no way to state a car-following model.
 """
 
 from __future__ import annotations
@@ -73,7 +77,14 @@ def export_openscenario(directory, *, force: bool = False) -> dict:
         raise CampaignError(f"{out}: exists and is not empty; pass --force to replace the files export writes there")
     if out.exists() and not out.is_dir():
         raise CampaignError(f"{out}: exists and is not a directory")
-    dist = _certified(directory, kind, cfg, scenario, summary, notes)  # before any file: a bad set writes none
+    traffic = getattr(scenario, "traffic_roles", ())
+    if traffic:  # a logical scenario holds the actions from t = 0: it cannot say how those cars drive
+        notes.append(f"no logical scenario or certified set: {scenario.name}'s traffic model drives "
+                     f"{', '.join(traffic)}, which OpenSCENARIO cannot state; the recorded runs replay every "
+                     f"vehicle's speeds")
+        dist = None
+    else:
+        dist = _certified(directory, kind, cfg, scenario, summary, notes)  # before any file: a bad set writes none
     out.mkdir(exist_ok=True)
     files = [write_road(out / ROAD, layout.road_length(horizon))]
     for name, trajectory, description in runs:
@@ -132,6 +143,9 @@ def _recorded_runs(directory: Path, scenario, sv_policy: str, notes: list) -> li
                            f"of {directory.name} (stream key seed={meta.get('seed')}, index={index}; {len(traj) - 1} "
                            f"steps of {scenario.dt:g} s; config {meta.get('config_hash')}); sv is the controller "
                            f"under test")
+            if getattr(scenario, "traffic_roles", ()):
+                description += (f"; {', '.join(scenario.traffic_roles)} replay their recorded speeds (in the farm they "
+                                f"react to the car ahead: to an SV that drives otherwise too, if behind it)")
             runs.append((f"run-{index}.xosc", traj, description))
     return runs
 

@@ -1,7 +1,7 @@
 """A scenario's states as vehicles on the exported road.
 
 A scenario that lays its state out as vehicles on one lane (``vehicle_roles``,
-``to_vehicles``: lead-follow, fleet3; the SUMO back end uses the same) gives each
+``to_vehicles``: lead-follow, fleet3, platoon; the SUMO back end uses the same) gives each
 vehicle's front bumper relative to the SV's front and its speed. On the road, the SV's
 front starts at ``sv_front`` (the same for every start state of the scenario, so the
 rearmost vehicle Sigma allows still starts ``BACK_MARGIN`` from the road's start), and
@@ -93,7 +93,7 @@ def layout_of(scenario) -> Layout:
         if not hasattr(scenario, attr):
             raise NotALaneScenario(f"export --xosc: scenario {scenario.name!r} does not lay its state out as "
                                    f"vehicles on one lane (no {attr}); OpenSCENARIO export supports lane scenarios "
-                                   f"such as lead-follow and fleet3")
+                                   f"such as lead-follow, fleet3 and platoon")
     bad = [name for name in scenario.state_names if not PARAMETER_NAME.match(name)]
     if bad:
         raise NotALaneScenario(f"export --xosc: state variable {bad[0]!r} is not an OpenSCENARIO parameter name "

@@ -35,6 +35,11 @@ class SumoBackend:
             if not hasattr(scenario, attr):
                 raise ConfigError(f"scenario.backend: the sumo back end simulates vehicles on one lane; scenario "
                                   f"{scenario.name!r} does not say how (no {attr})")
+        traffic = getattr(scenario, "traffic_roles", ())
+        if traffic:
+            raise ConfigError(f"scenario.backend: the sumo back end commands every vehicle but the SV by an action "
+                              f"column; in scenario {scenario.name!r} its own traffic model drives "
+                              f"{', '.join(traffic)} (use the numpy back end)")
         if scenario.disturbance != 0.0:
             raise ConfigError("scenario.disturbance: the sumo back end supports only 0")
         self.scenario = scenario

@@ -58,6 +58,15 @@ def fleet3(tmp_path_factory):
                     '[record]\nquantify_runs = 3\n[farm]\nexecutor = "local"\nbatch_size = 256\n')
 
 
+@pytest.fixture(scope="module")
+def platoon(tmp_path_factory):
+    # 7-D: lead 2 (uL) and follower 1 (uF) commanded, lead 1 driving the traffic IDM
+    return campaign(tmp_path_factory, "pl", '[scenario]\nname = "platoon"\nsv_policy = "idm"\nvehicles = 4\n'
+                    '[actions]\nmode = "adversarial"\n[quantify]\ndelta0 = 2.0\ndelta_min = 2.0\nhorizon = 30\n'
+                    'certify = false\nsides = false\n[record]\nquantify_runs = 3\n[farm]\nexecutor = "local"\n'
+                    'batch_size = 256\n')
+
+
 def recorded(directory):
     runs = {}
     for path in sorted((directory / "recordings").glob("*.mcap")):
@@ -118,6 +127,20 @@ def test_fleet3_export_is_schema_valid_and_replays_the_recorded_runs(fleet3):
     check_replay(fleet3, Fleet3("idm"))
     root = ET.parse(next((fleet3 / "openscenario").glob("run-*.xosc"))).getroot()
     assert [o.get("name") for o in root.iter("ScenarioObject")] == ["sv", "lead", "follower"]
+
+
+def test_platoon_exports_its_recorded_runs_with_every_car_and_says_why_not_its_set(platoon):
+    scenario = make_scenario("platoon", "idm", None, 0.0, {"vehicles": 4})
+    names = sorted(p.name for p in (platoon / "openscenario").iterdir())
+    assert names == sorted(["road.xodr"] + [f"run-{i}.xosc" for i in recorded(platoon)])  # no logical scenario
+    check_schemas(platoon)
+    check_replay(platoon, scenario)
+    root = ET.parse(next((platoon / "openscenario").glob("run-*.xosc"))).getroot()
+    assert [o.get("name") for o in root.iter("ScenarioObject")] == ["sv", "lead1", "lead2", "follower1"]
+    assert "lead1 replay their recorded speeds" in root.find("FileHeader").get("description")
+    r = cli("export", platoon, "--xosc", "--force")
+    assert r.returncode == 0 and "note: no logical scenario or certified set: platoon's traffic model drives lead1" \
+        in r.stdout, r.stdout
 
 
 def test_the_sv_is_the_controller_under_test_unless_told_otherwise(lead_follow):

@@ -96,3 +96,24 @@ def test_the_adversary_search_finds_krauss_worst_case_on_sumo(tmp_path):
     r = subprocess.run([sys.executable, "-m", "farm", "falsify", str(out), "--points", "400", "--tries", "2"],
                        capture_output=True, text=True)
     assert r.returncode == 0 and "not refuted" in r.stdout, r.stdout + r.stderr
+
+
+def test_a_platoon_of_three_is_fleet3_on_sumo_and_traffic_cars_are_refused(tmp_path):
+    # every car but the SV commanded by an action column: platoon k = 3 is fleet3's
+    # scenario (shared/spec/scenarios.md), the same result; k = 4 has a car driving the
+    # traffic IDM, which SUMO's commanded vehicles cannot be: refused, naming it
+    from scenarios.errors import ConfigError
+
+    def cfg(name, **options):
+        return config_mod.normalize({
+            "scenario": {"name": name, "backend": "sumo", **options}, "actions": {"mode": "adversarial"},
+            "quantify": {"delta0": 2.0, "delta_min": 2.0, "horizon": 30, "certify": False, "sides": False},
+            "farm": {"executor": "local"}})
+
+    platoon = run(cfg("platoon", vehicles=3), tmp_path / "platoon", resume=False)
+    fleet3 = run(cfg("fleet3"), tmp_path / "fleet3", resume=False)
+    assert platoon["result_hash"] == fleet3["result_hash"] and platoon["boxes"] == fleet3["boxes"] > 0
+    with pytest.raises(ConfigError, match="scenario.backend: .* in scenario 'platoon' its own traffic model drives "
+                                          "lead1 "):
+        run(cfg("platoon", vehicles=4), tmp_path / "four", resume=False)
+    assert not (tmp_path / "four").exists()
