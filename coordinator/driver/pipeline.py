@@ -4,8 +4,9 @@ Batch ``b``'s starts are drawn from the state as it is when the batch is drawn (
 parallel contract, shared/spec/algorithms.md point 2), up to ``pipeline_depth`` batches
 ahead of the head (another one once the head's runs ahead fall to the lead,
 coordinator/driver/lead.py); each goes to the executor as it is drawn and comes back as
-chunks, fetched in index order. A batch is kept until every run of it is committed for good: the head may go
-back into it (a held replacement that changes the state, coordinator/driver/holds.py).
+chunks, fetched in index order. A batch is kept until every run of it is committed for
+good: the head may go back into it (a held replacement that changes the state,
+coordinator/driver/holds.py).
 """
 
 from __future__ import annotations

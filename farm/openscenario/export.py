@@ -144,8 +144,9 @@ def _recorded_runs(directory: Path, scenario, sv_policy: str, notes: list) -> li
                            f"steps of {scenario.dt:g} s; config {meta.get('config_hash')}); sv is the controller "
                            f"under test")
             if getattr(scenario, "traffic_roles", ()):
-                description += (f"; {', '.join(scenario.traffic_roles)} replay their recorded speeds (in the farm they "
-                                f"react to the car ahead: to an SV that drives otherwise too, if behind it)")
+                description += (f"; {', '.join(scenario.traffic_roles)}: the recorded speeds too (in the farm the "
+                                f"traffic IDM drives them after the car ahead: a follower right behind the SV would "
+                                f"react to an SV that drives otherwise)")
             runs.append((f"run-{index}.xosc", traj, description))
     return runs
 

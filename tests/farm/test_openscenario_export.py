@@ -137,7 +137,7 @@ def test_platoon_exports_its_recorded_runs_with_every_car_and_says_why_not_its_s
     check_replay(platoon, scenario)
     root = ET.parse(next((platoon / "openscenario").glob("run-*.xosc"))).getroot()
     assert [o.get("name") for o in root.iter("ScenarioObject")] == ["sv", "lead1", "lead2", "follower1"]
-    assert "lead1 replay their recorded speeds" in root.find("FileHeader").get("description")
+    assert "; lead1: the recorded speeds too" in root.find("FileHeader").get("description")
     r = cli("export", platoon, "--xosc", "--force")
     assert r.returncode == 0 and "note: no logical scenario or certified set: platoon's traffic model drives lead1" \
         in r.stdout, r.stdout
