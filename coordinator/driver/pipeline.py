@@ -12,7 +12,6 @@ coordinator/driver/holds.py).
 from __future__ import annotations
 
 import bisect
-import math
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -101,8 +100,9 @@ class Pipeline:
         head's runs ahead are at most the lead's for runs of ``run_s`` seconds (``fixed``:
         the full pipeline's, as a deterministic certification's order needs); batches the
         head has passed but may go back into do not count."""
-        lead = math.inf if fixed else self.lead.runs(batch, depth, run_s)
         ahead = [p for p in self.batches if p.end > head]
+        # the full pipeline's lead counts the batches as drawn (a round's first may be larger)
+        lead = self.lead.runs(max([batch] + [len(p) for p in ahead]), depth, None if fixed else run_s)
         runs_ahead = sum(p.end - max(head, p.first_index) for p in ahead)
         while len(ahead) < depth and (not ahead or runs_ahead <= lead):
             first = self.batches[-1].end if self.batches else head
@@ -129,15 +129,16 @@ class Pipeline:
         p = self.holding(head)
         if p is None:
             return None
-        if not p.reached:
-            p.reached = True
-            if self.lead.adaptive and 0 <= p.drawn_at < p.first_index:  # a batch drawn ahead: was it back?
-                self.lead.met(p.next_handle > 0 or self.next_ready(p))
         chunk = p.chunk_at(head)
         while chunk is None:
+            if self.lead.active and not self.next_ready(p):
+                self.lead.waited()  # for a worker
             chunk = self.fetch_next(p)
             if not chunk.first_index <= head < chunk.first_index + len(chunk):
                 chunk = None
+        if not p.reached:
+            p.reached = True
+            self.lead.reached(ahead=0 <= p.drawn_at < p.first_index)
         return p, chunk
 
     def fetch_next(self, p: Pending) -> Chunk:

@@ -248,19 +248,19 @@ def test_a_concurrent_executor_gets_a_passs_replacements_in_one_call():
 
 
 def test_fast_runs_draw_batches_no_earlier_than_the_head_needs_them():
-    # runs of microseconds: the driver bounds the farm, a batch drawn ahead is back long
-    # before the head gets there, and every run in flight is a draw a change may move
+    # runs of microseconds: the driver bounds the farm, the head seldom waits for a worker,
+    # and every run in flight is a draw a change may move
     # (coordinator/driver/lead.py): the lead shrinks, fewer runs are replaced, and the
     # committed sequence is the same as with the full pipeline
     shares = []
     _, algorithm, _, campaign = _virtual_campaign(8, 1e-5)
-    met = campaign.pipeline.lead.met
+    reached = campaign.pipeline.lead.reached
 
-    def recorded(back):
-        met(back)
+    def recorded(ahead):
+        reached(ahead)
         shares.append(campaign.pipeline.lead.share)
 
-    campaign.pipeline.lead.met = recorded
+    campaign.pipeline.lead.reached = recorded
     led = campaign.run()
     _, algorithm_full, _, campaign_full = _virtual_campaign(8, 1e-5)
     campaign_full.pipeline.lead.adaptive = False
