@@ -99,6 +99,11 @@ class Scenario(ABC):
                       being classified again, so that its margin says how deep it went
       config_options  keyword options of the constructor that a config may set as
                       ``scenario.<option>`` (e.g. platoon's "vehicles", "followers")
+      traffic_roles   of a scenario laid out as vehicles on one lane (``vehicle_roles``,
+                      farm/openscenario/layout.py): the vehicles no action column
+                      commands, driven by the scenario's own traffic model (platoon's
+                      cars between the SV and the commanded ones); the SUMO back end and
+                      an OpenSCENARIO logical scenario cannot say how they drive
     """
 
     name: str = ""
@@ -125,6 +130,7 @@ class Scenario(ABC):
     margin_through_contact: bool = False
     parameter_names: tuple[str, ...] = ()
     config_options: tuple[str, ...] = ()
+    traffic_roles: tuple[str, ...] = ()
 
     def __init_subclass__(cls, **kwargs):
         super().__init_subclass__(**kwargs)

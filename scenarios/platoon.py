@@ -79,9 +79,8 @@ class Platoon(Scenario):
     sv_accel_bound = abs(BRAKE_ACCEL)  # [m/s^2] |SV acceleration| (brake, idm)
     vehicle_length = VEHICLE_LENGTH
     # Sigma, the facets, the state names, units, sides and the cars on the lane
-    # (``vehicle_roles``; ``traffic_roles``: those no action column commands, which the
-    # SUMO back end cannot simulate and an OpenSCENARIO logical scenario cannot state)
-    # depend on k and r: the constructor sets them (``_layout``).
+    # (``vehicle_roles``, ``traffic_roles``) depend on k and r: the constructor sets them
+    # (``_layout``).
 
     def __init__(self, sv_policy: str | None = None, failure_facets: tuple[str, ...] | None = None,
                  disturbance: float = 0.0, vehicles: int = 4, followers: int = 1):

@@ -77,7 +77,7 @@ def export_openscenario(directory, *, force: bool = False) -> dict:
         raise CampaignError(f"{out}: exists and is not empty; pass --force to replace the files export writes there")
     if out.exists() and not out.is_dir():
         raise CampaignError(f"{out}: exists and is not a directory")
-    traffic = getattr(scenario, "traffic_roles", ())
+    traffic = scenario.traffic_roles
     if traffic:  # a logical scenario holds the actions from t = 0: it cannot say how those cars drive
         notes.append(f"no logical scenario or certified set: {scenario.name}'s traffic model drives "
                      f"{', '.join(traffic)}, which OpenSCENARIO cannot state; the recorded runs replay every "
@@ -130,6 +130,9 @@ def _scenario(cfg):
 def _recorded_runs(directory: Path, scenario, sv_policy: str, notes: list) -> list[tuple[str, np.ndarray, str]]:
     """A damaged recording is left out with a note: it must not hide the others."""
     runs = []
+    traffic_note = (f"; {', '.join(scenario.traffic_roles)}: the recorded speeds too (in the farm the traffic IDM "
+                    f"drives them after the car ahead: a follower right behind the SV would react to an SV that "
+                    f"drives otherwise)") if scenario.traffic_roles else ""
     for path in sorted((directory / "recordings").glob("*.mcap")):
         try:
             rec = read_recording(path)
@@ -143,10 +146,7 @@ def _recorded_runs(directory: Path, scenario, sv_policy: str, notes: list) -> li
                            f"of {directory.name} (stream key seed={meta.get('seed')}, index={index}; {len(traj) - 1} "
                            f"steps of {scenario.dt:g} s; config {meta.get('config_hash')}); sv is the controller "
                            f"under test")
-            if getattr(scenario, "traffic_roles", ()):
-                description += (f"; {', '.join(scenario.traffic_roles)}: the recorded speeds too (in the farm the "
-                                f"traffic IDM drives them after the car ahead: a follower right behind the SV would "
-                                f"react to an SV that drives otherwise)")
+            description += traffic_note
             runs.append((f"run-{index}.xosc", traj, description))
     return runs
 

@@ -35,7 +35,7 @@ class SumoBackend:
             if not hasattr(scenario, attr):
                 raise ConfigError(f"scenario.backend: the sumo back end simulates vehicles on one lane; scenario "
                                   f"{scenario.name!r} does not say how (no {attr})")
-        traffic = getattr(scenario, "traffic_roles", ())
+        traffic = scenario.traffic_roles
         if traffic:
             raise ConfigError(f"scenario.backend: the sumo back end commands every vehicle but the SV by an action "
                               f"column; in scenario {scenario.name!r} its own traffic model drives "

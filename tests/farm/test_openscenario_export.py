@@ -50,21 +50,22 @@ def lead_follow(tmp_path_factory):
     return campaign(tmp_path_factory, "lf", lead_follow_toml() + "[record]\nquantify_runs = 4\n")
 
 
+def lane_toml(scenario_lines: str) -> str:
+    """A one-round adversarial campaign of a lane scenario that records 3 failing runs."""
+    return (f'[scenario]\n{scenario_lines}sv_policy = "idm"\n[actions]\nmode = "adversarial"\n[quantify]\n'
+            'delta0 = 2.0\ndelta_min = 2.0\nhorizon = 30\ncertify = false\nsides = false\n'
+            '[record]\nquantify_runs = 3\n[farm]\nexecutor = "local"\nbatch_size = 256\n')
+
+
 @pytest.fixture(scope="module")
 def fleet3(tmp_path_factory):
-    return campaign(tmp_path_factory, "f3", '[scenario]\nname = "fleet3"\nsv_policy = "idm"\n[actions]\n'
-                    'mode = "adversarial"\n[quantify]\ndelta0 = 2.0\ndelta_min = 2.0\nhorizon = 30\ncertify = false\n'
-                    'sides = false\n'
-                    '[record]\nquantify_runs = 3\n[farm]\nexecutor = "local"\nbatch_size = 256\n')
+    return campaign(tmp_path_factory, "f3", lane_toml('name = "fleet3"\n'))
 
 
 @pytest.fixture(scope="module")
 def platoon(tmp_path_factory):
     # 7-D: lead 2 (uL) and follower 1 (uF) commanded, lead 1 driving the traffic IDM
-    return campaign(tmp_path_factory, "pl", '[scenario]\nname = "platoon"\nsv_policy = "idm"\nvehicles = 4\n'
-                    '[actions]\nmode = "adversarial"\n[quantify]\ndelta0 = 2.0\ndelta_min = 2.0\nhorizon = 30\n'
-                    'certify = false\nsides = false\n[record]\nquantify_runs = 3\n[farm]\nexecutor = "local"\n'
-                    'batch_size = 256\n')
+    return campaign(tmp_path_factory, "pl", lane_toml('name = "platoon"\nvehicles = 4\n'))
 
 
 def recorded(directory):
