@@ -71,6 +71,7 @@ def measure(calls: int, repeat: int, wait_ms: float) -> list[dict]:
         with InputNode() as given:
             compiled = sleeping.run.bind(given).experimental_compile()
         waits = max(1, min(calls, int(1000 / max(wait_ms, 1.0))))  # about a second of waiting per row
+        slow = (wait_ms / 1e3, *chunk[1:])
         rows = []
         try:
             for _ in range(repeat):
@@ -90,7 +91,6 @@ def measure(calls: int, repeat: int, wait_ms: float) -> list[dict]:
                 rows.append(_row("compiled", calls, cpu, main))
                 for label, call in ((f"plain, {wait_ms:g} ms run", lambda: ray.get(sleeping.run.remote(slow))),
                                     (f"compiled, {wait_ms:g} ms run", lambda: ray.get(compiled.execute(slow)))):
-                    slow = (wait_ms / 1e3, *chunk[1:])
                     cpu, main = process_cpu(), time.thread_time()
                     for _ in range(waits):
                         pickle.loads(call())
