@@ -49,29 +49,32 @@ def measure(calls: int, repeat: int, wait_ms: float) -> list[dict]:
     import ray
     from ray.dag import InputNode
 
+    def summary() -> bytes:  # a small pickled summary, as the farm's actors return
+        return pickle.dumps({"lengths": np.zeros(2), "last": np.zeros((2, 3)), "outcomes": np.zeros(2, dtype=np.int8)})
+
     ray.init(num_cpus=2, include_dashboard=False, logging_level="ERROR")
     try:
         @ray.remote(num_cpus=0)
         class Bare:
             @ray.method(num_returns=2)
             def run(self, chunk):
-                summary = {"lengths": np.zeros(2), "last": np.zeros((2, 3)), "outcomes": np.zeros(2, dtype=np.int8)}
-                return pickle.dumps(summary), (np.zeros((100, 3)), np.arange(3))
+                return summary(), (np.zeros((100, 3)), np.arange(3))
 
         @ray.remote(num_cpus=0)
         class Sleeping:  # a compiled graph's actor returns one value: the summary alone
             def run(self, chunk):
                 time.sleep(chunk[0])
-                return pickle.dumps({"lengths": np.zeros(2), "last": np.zeros((2, 3))})
+                return summary()
 
         actors = [Bare.remote() for _ in range(2)]
         ray.get([a.run.remote(None)[0] for a in actors])
         chunk = (5, np.zeros((2, 3)), ("changes", [pickle.dumps([np.zeros(40)] * 3)], 7), None, np.arange(2))
-        sleeping = Sleeping.remote()
+        # the plain calls go to an actor of their own: one in a compiled graph should run nothing else
+        plain, in_graph = Sleeping.remote(), Sleeping.remote()
         with InputNode() as given:
-            compiled = sleeping.run.bind(given).experimental_compile()
+            compiled = in_graph.run.bind(given).experimental_compile()
         waits = max(1, min(calls, int(1000 / max(wait_ms, 1.0))))  # about a second of waiting per row
-        slow = (wait_ms / 1e3, *chunk[1:])
+        instant, slow = (0.0, *chunk[1:]), (wait_ms / 1e3, *chunk[1:])
         rows = []
         try:
             for _ in range(repeat):
@@ -87,9 +90,9 @@ def measure(calls: int, repeat: int, wait_ms: float) -> list[dict]:
                 rows.append(_row("pipelined", calls, cpu, main))
                 cpu, main = process_cpu(), time.thread_time()
                 for _ in range(calls):
-                    pickle.loads(ray.get(compiled.execute((0.0, *chunk[1:]))))
+                    pickle.loads(ray.get(compiled.execute(instant)))
                 rows.append(_row("compiled", calls, cpu, main))
-                for label, call in ((f"plain, {wait_ms:g} ms run", lambda: ray.get(sleeping.run.remote(slow))),
+                for label, call in ((f"plain, {wait_ms:g} ms run", lambda: ray.get(plain.run.remote(slow))),
                                     (f"compiled, {wait_ms:g} ms run", lambda: ray.get(compiled.execute(slow)))):
                     cpu, main = process_cpu(), time.thread_time()
                     for _ in range(waits):
