@@ -46,6 +46,12 @@ def _multipliers(n: int) -> np.ndarray:
         extra.append((z ^ (z >> 31)) | 1)
     return np.concatenate([_P, np.array(extra, dtype=np.uint64)])
 TOLERANCE = 1e-9  # closed boxes, decided as exact arithmetic would on grid boundaries
+# ``any_within`` may ask a KD-tree from this dimension on, for a batch of at least this many
+# queries, when its misses times 2^n exceed this many times the points: a tree costs its
+# build, the cells at least 2^n per miss
+TREE_DIMENSION = 5
+TREE_QUERIES = 4096
+TREE_WORK = 4
 DENSE_LIMIT = 1 << 25  # cells; 32 Mi int32 counters = 128 MiB at most
 SMALL_PUSH = 8  # points pushed one by one: ~12 array operations cost more below this
 MISS_BLOCK = 1 << 15  # queries whose touched cells are enumerated at once (2^n cells each)
@@ -279,8 +285,36 @@ class PointIndex(AlivePoints):
 
     # -- queries ------------------------------------------------------------------------
     def any_within(self, queries: np.ndarray, radius: float) -> np.ndarray:
-        """(B, n) -> (B,) bool: is some alive point within l-inf distance ``radius``?"""
-        return self.cover(queries, radius) >= 0
+        """(B, n) -> (B,) bool: is some alive point within l-inf distance ``radius``? In a
+        high dimension the queries the home cell does not settle are asked of a KD-tree
+        of the alive points when there are many of them (``_tree_within``): each checks the
+        2^n to 3^n cells its ball touches (a 7-D round end's 254 k children took two minutes
+        that way, docs/benchmarks.md), a tree costs its build once."""
+        q = np.atleast_2d(np.asarray(queries, dtype=float))
+        if self.n < TREE_DIMENSION or len(q) < TREE_QUERIES or self.count == 0:
+            return self.cover(q, radius) >= 0
+        home = self.home_cover(q) if radius >= self.cell / 2 - 1e-12 else None  # a centre point covers its cell
+        inside = np.zeros(len(q), dtype=bool) if home is None else home >= 0
+        misses = np.flatnonzero(~inside)
+        if len(misses) * 2**self.n > TREE_WORK * self.count:
+            inside[misses] = self._tree_within(q[misses], radius)
+        elif len(misses):
+            inside[misses] = self.cover(q[misses], radius) >= 0
+        return inside
+
+    def _tree_within(self, q: np.ndarray, radius: float) -> np.ndarray:
+        """``any_within`` by the true distance alone, max over axes of |p - q| <= radius +
+        the tolerance, which is what ``cover``'s rules come to (a centre point covers its
+        cell because it lies within cell/2 of all of it): a KD-tree's nearest alive point
+        within that bound, the same float64 maximum."""
+        from scipy.spatial import cKDTree  # here: scipy.spatial is 0.4 s of every CLI start
+
+        points = self.alive_points()
+        if len(points) == 0 or len(q) == 0:
+            return np.zeros(len(q), dtype=bool)
+        r = radius + TOLERANCE
+        d, _ = cKDTree(points).query(q, k=1, p=np.inf, distance_upper_bound=np.nextafter(r, np.inf))
+        return d <= r
 
     def cover(self, queries: np.ndarray, radius: float) -> np.ndarray:
         """(B, n) -> (B,) int64: the id of an alive point within l-inf distance

@@ -18,6 +18,7 @@ def test_any_within_is_exact_against_a_kd_tree(n):
     q = np.concatenate([rng.random((20000, n)) * 10, pts[:50] + 0.5])  # some exactly on box faces
     dist, _ = cKDTree(pts[~dead]).query(q, p=np.inf)
     np.testing.assert_array_equal(idx.any_within(q, 0.5), dist <= 0.5 + 1e-9)
+    np.testing.assert_array_equal(idx.cover(q, 0.5) >= 0, dist <= 0.5 + 1e-9)  # the cells (5-D asks a tree above)
     idx.recell(0.6)
     dist2 = dist <= 0.3 + 1e-9
     np.testing.assert_array_equal(idx.any_within(q, 0.3), dist2)
@@ -229,3 +230,37 @@ def test_cover_away_names_the_witness_cover_names_where_the_home_cell_has_none(s
         assert len(q) > 1000
         np.testing.assert_array_equal(index.cover_away(q, 0.5), index.cover(q, 0.5))
         np.testing.assert_array_equal(index.cover_away(q[:1], 0.5), index.cover(q[:1], 0.5))
+
+
+@pytest.mark.parametrize("n", [5, 7])
+def test_a_large_high_dimensional_batch_asks_a_tree_and_answers_as_the_cells_do(n, monkeypatch):
+    """From 5-D on, a large batch's misses go to a KD-tree (a round end's children checked
+    3^n cells each): on an aligned lattice with centres killed, off-centre points on faces
+    and a hair off them, and queries at centres, on faces and anywhere, the tree answers
+    as the cells and as brute force do."""
+    from coordinator import spatial
+    from coordinator.lattice import Lattice
+
+    rng = np.random.default_rng(n)
+    lo, hi = np.zeros(n), np.full(n, 3.0)
+    lat = Lattice.tiling(lo, hi, 0.5)
+    centres = lat.box_centres(0.5)
+    hair = rng.choice([-2e-9, -1e-9, 0.0, 1e-9, 2e-9], size=(300, n))
+    off = np.round(lo + (hi - lo) * rng.random((300, n))) + hair
+    idx = PointIndex(n, 1.0, lat.anchor, bounds=(lo, hi))
+    idx.insert(centres)
+    idx.insert(off)
+    idx.kill(rng.choice(len(centres) + len(off), (len(centres) + len(off)) // 2, replace=False))
+    faces = np.round(2 * (lo + (hi - lo) * rng.random((3000, n)))) / 2  # centres and faces of cells
+    q = np.concatenate([faces, faces + rng.choice([-1e-9, 0.0, 1e-9], size=faces.shape),
+                        lo - 0.5 + (hi - lo + 1) * rng.random((6000, n))])
+    alive = idx.alive_points()
+    tree, asked = spatial.PointIndex._tree_within, []
+    monkeypatch.setattr(spatial.PointIndex, "_tree_within", lambda self, qs, r: asked.append(len(qs)) or tree(self, qs, r))
+    for radius in (0.5, 0.3):
+        truth = cKDTree(alive).query(q, p=np.inf)[0] <= radius + 1e-9
+        asked.clear()
+        got = idx.any_within(q, radius)
+        assert asked and asked[0] > 0  # the tree answered the misses
+        np.testing.assert_array_equal(got, truth)
+        np.testing.assert_array_equal(idx.cover(q, radius) >= 0, truth)  # the cells, asked directly
