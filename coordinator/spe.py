@@ -32,6 +32,7 @@ from coordinator.spe_certification import SPECertification
 from coordinator.buffers import Appendable
 from coordinator.certification import CHECK, CLOSING
 from coordinator.checked_centres import CheckedCentres
+from coordinator.closing_edge import EdgeMembership
 from coordinator.coverage import AddFailures, Coverage, Insert, Kill, Recell, Resize
 from coordinator.lattice import Lattice
 from coordinator.safe_set import SafeSet
@@ -104,8 +105,11 @@ class SPE(SPECertification, Algorithm):
         self._edge: tuple[int, np.ndarray] | None = None  # (version, mask): the closing law's candidates
         self._edge_table: Appendable | None = None  # a closing round's slots: per slot, its edge id
         self._edge_slot: np.ndarray | None = None  # per vertex id, its slot in the table (-1: none)
-        self._holes: FailureDistances | None = None  # min(d(vertex, hole), cap): ``SPECertification._edge_mask``
-        self._hole_points = Appendable(float, np.empty((0, self.coverage.n)))  # of ``hole_ids``, gathered once each
+        self._edge_track: EdgeMembership | None = None  # a closing round's edge, kept by change
+        # min(d(vertex, failure or hole), cap), and those points: ``SPECertification._edge_distances``
+        self._edge_reach: FailureDistances | None = None
+        self._edge_source_points = Appendable(float, np.empty((0, self.coverage.n)))
+        self._edge_sources_in = (0, 0)  # (failures, holes) gathered
         self._edge_share: tuple[int, float] | None = None  # (version, its share of the alive centres)
         self._facet_cache: tuple[float, np.ndarray, int] | None = None  # (reach, per id: near a failure facet, ids filled)
 
@@ -125,6 +129,8 @@ class SPE(SPECertification, Algorithm):
         (``_edge_mask``), these ids are not slots there."""
         if self._edge_table is None:
             self._stable.touch(ids, self.version)
+        if self._edge_track is not None:
+            self._edge_track.touched.append(ids)
 
     def failure_points(self) -> np.ndarray:
         return self.failures.points[: self.failures.count].copy()
@@ -208,12 +214,12 @@ class SPE(SPECertification, Algorithm):
         if self.vertices.alive_count == 0:
             raise EmptySetError("the safe set is empty: every centre was pruned")
         count = self.vertices.count
-        if self.failures.count and (self.settings.prioritized or self.settings.boundary):
+        if self.failures.count and (self.settings.prioritized or self.settings.boundary) and not self.certifying:
+            # (certification's laws ask no distance of it: its failures are taken in when one does)
             self._failure_distances()
-            lowered = self._dist.take_lowered()  # taken while certifying too: they would pile up
-            if not self.certifying:
-                self._stable.touch(lowered, self.version)
-                self._sampler.touch(lowered)
+            lowered = self._dist.take_lowered()
+            self._stable.touch(lowered, self.version)
+            self._sampler.touch(lowered)
         law, kind = self._make_law(count)
         self._stable.fit(law.count, self.version)
         if kind != self._law_kind:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from coordinator.certification import CHECK, CLOSING
+from coordinator.closing_edge import EdgeMembership
 from coordinator.coverage import Strict
 from coordinator.buffers import Appendable
 from coordinator.priorities import FailureDistances
@@ -26,27 +27,35 @@ class SPECertification:
         or of a hole in it: a centre of the last round pruned since (its box is outside
         the set now, and runs that reach it leave the set; measured: a third of the
         violations checks found came from such centres when the edge ignored them). The
-        whole set when the edge is empty. In a closing round, the slots of the ids whose
-        membership changed since the last mask are touched (``_edge_slots_moved``)."""
+        whole set when the edge is empty. Within a closing round it is kept change by
+        change (coordinator/closing_edge.py), and the slots of the ids whose membership
+        changed since the last mask are touched (``_edge_slots_moved``)."""
         if self._edge is not None and self._edge[0] == self.version:
             return self._edge[1]
         count = self.vertices.count
-        # ``_near_boundary`` over every id at once, without gathering the alive ones' points:
-        # this runs after every change of a closing round
-        reach = self.scenario.step_bound() + self.delta
-        near = self._facet_near(count, reach).copy()
-        if self.failures.count:
-            near |= self._failure_distances()[:count] <= reach + self.delta
-        if self.hole_ids.size:
-            radius = self.scenario.step_bound() + 2 * self.delta
-            if self._holes is None or self._holes.cap != 2 * radius:  # only "within radius" is asked
-                self._holes = FailureDistances(self.scenario.lower, self.scenario.upper, cap=2 * radius)
-            holes = self._gathered_holes()
-            near |= self._holes.update(self.vertices.points, count, holes, len(holes))[:count] <= radius
-        alive = self.vertices.alive[:count]
-        mask = alive & near
-        if not mask.any():
-            mask = alive.copy()
+        reach, radius = self._edge_radii()
+        track = self._edge_track
+        source_d = self._edge_distances(count, radius)
+        if track is not None and track.fits(reach, radius):
+            was_whole = track.size == 0
+            lowered = self._edge_reach.take_lowered() if source_d is not None else np.empty(0, dtype=np.int64)
+            ids = track.candidates(count, lowered)
+            member = self._edge_near(ids, count, reach, radius, source_d) & self.vertices.alive[ids]
+            moved = track.update(ids, member, count)
+            if track.size and not was_whole:
+                mask = track.core()
+                if self._edge_table is not None:
+                    self._edge_slots_moved(moved, mask)
+                self._edge = (self.version, mask)
+                return mask
+            core = track.core()
+        else:
+            core = self._edge_core(count, reach, radius, source_d)
+            if self.closing:  # kept by change from here on: what fell since is looked at again
+                self._edge_track = EdgeMembership(reach, radius, core)
+                if source_d is not None:
+                    self._edge_reach.take_lowered()
+        mask = core if core.any() else self.vertices.alive[:count].copy()
         if self._edge is not None and self._edge_table is not None:
             old = self._edge[1]
             changed = np.flatnonzero(mask[: len(old)] != old)
@@ -54,6 +63,59 @@ class SPECertification:
             self._edge_slots_moved(np.concatenate([changed, joined]), mask)
         self._edge = (self.version, mask)
         return mask
+
+    def _edge_radii(self) -> tuple[float, float]:
+        """sigma-bar + delta (a failure facet's reach) and sigma-bar + 2 delta (a failure's
+        or a hole's: a failure's box reaches delta further)."""
+        reach = self.scenario.step_bound() + self.delta
+        return reach, reach + self.delta
+
+    def _edge_core(self, count: int, reach: float, radius: float, source_d) -> np.ndarray:
+        """(count,) bool over every id: alive and near (the edge computed whole)."""
+        return self._edge_near(slice(0, count), count, reach, radius, source_d) & self.vertices.alive[:count]
+
+    def edge_whole(self) -> np.ndarray:
+        """The edge as ``_edge_mask`` would compute it whole now: the reference the edge
+        kept by change must equal (tests/coordinator/test_closing_edge.py)."""
+        count = self.vertices.count
+        reach, radius = self._edge_radii()
+        core = self._edge_core(count, reach, radius, self._edge_distances(count, radius))
+        return core if core.any() else self.vertices.alive[:count].copy()
+
+    def _edge_near(self, ids, count: int, reach: float, radius: float, source_d) -> np.ndarray:
+        """Are centres ``ids`` within ``reach`` of a failure facet or ``radius`` of a
+        failure or a hole (``source_d``: their distances, None without either)."""
+        near = self._facet_near(count, reach)[ids].copy()  # a slice's view is the facet cache
+        if source_d is not None:
+            near |= source_d[ids] <= radius
+        return near
+
+    def _edge_distances(self, count: int, radius: float) -> np.ndarray | None:
+        """min(d(centre, failure or hole), cap) of centres [0, count), the cap just above
+        ``radius``, brought up to date (None: no failure and no hole). One structure for
+        both, capped: only "within radius" is asked, so a change's new failure and holes
+        reach only the buckets within radius of them, not every vertex whose nearest
+        failure is farther (in 7-D the uncapped failure distances cost most of a change:
+        docs/benchmarks.md)."""
+        sources = self._edge_sources()
+        if not len(sources):
+            return None
+        cap = np.nextafter(radius, np.inf)  # min(d, cap) <= radius exactly where d <= radius
+        if self._edge_reach is None or self._edge_reach.cap != cap:
+            self._edge_reach = FailureDistances(self.scenario.lower, self.scenario.upper, track_lowered=True, cap=cap)
+        return self._edge_reach.update(self.vertices.points, count, sources, len(sources))
+
+    def _edge_sources(self) -> np.ndarray:
+        """The failures' and the holes' points (both only grow), each gathered once, not
+        all of them again after every change."""
+        known, (failures_in, holes_in) = self._edge_source_points, self._edge_sources_in
+        if failures_in < self.failures.count:
+            known.extend(self.failures.points[failures_in : self.failures.count])
+        holes = self.hole_ids.view
+        if holes_in < len(holes):
+            known.extend(self.vertices.points[holes[holes_in:]])
+        self._edge_sources_in = (self.failures.count, len(holes))
+        return known.view
 
     # -- the closing law's slots: a table of the edge's ids (coordinator/stable_sampler.py TableLaw)
     def _closing_law(self) -> TableLaw:
@@ -121,14 +183,6 @@ class SPECertification:
         """The current law's slots: the edge table's in a closing round, else the vertex ids."""
         return self._edge_table.size if self._edge_table is not None else self.vertices.count
 
-    def _gathered_holes(self) -> np.ndarray:
-        """The points of ``hole_ids`` (which only grows), each gathered once, not all of
-        them again after every change."""
-        ids, known = self.hole_ids.view, self._hole_points
-        if known.size < len(ids):
-            known.extend(self.vertices.points[ids[known.size :]])
-        return known.view
-
     def closing_share(self) -> float:
         """The edge's share of the alive centres (closing rounds: coordinator/certification.py)."""
         mask = self._edge_mask()
@@ -140,7 +194,7 @@ class SPECertification:
         """A closing round ended: check the set (uniform over the final centres)."""
         self.version += 1
         self.phase = CHECK
-        self._edge_table = self._edge_slot = None
+        self._edge_table = self._edge_slot = self._edge_track = None
         self._stable.restart(self.vertices.count, self.version)
 
     def begin_closing(self) -> None:
