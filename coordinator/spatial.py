@@ -288,8 +288,8 @@ class PointIndex(AlivePoints):
         """(B, n) -> (B,) bool: is some alive point within l-inf distance ``radius``? In a
         high dimension the queries the home cell does not settle are asked of a KD-tree
         of the alive points when there are many of them (``_tree_within``): each checks the
-        2^n to 3^n cells its ball touches (a 7-D round end's 254 k children took two minutes
-        that way, docs/benchmarks.md), a tree costs its build once."""
+        2^n to 3^n cells its ball touches (a round end's children in 7-D: docs/benchmarks.md),
+        a tree costs its build once."""
         q = np.atleast_2d(np.asarray(queries, dtype=float))
         if self.n < TREE_DIMENSION or len(q) < TREE_QUERIES or self.count == 0:
             return self.cover(q, radius) >= 0
