@@ -49,5 +49,6 @@ class EdgeMembership:
         return ids[moved]
 
     def core(self) -> np.ndarray:
-        """(count,) bool: a copy, the mask of one version (the next change writes here)."""
-        return self._core[: self.count].copy()
+        """(count,) bool: the membership now, a view that the next ``update`` writes into
+        (a copy per change was O(ids): the mask of one version is asked at that version only)."""
+        return self._core[: self.count]

@@ -48,7 +48,11 @@ class SPECertification:
                     self._edge_slots_moved(moved, mask)
                 self._edge = (self.version, mask)
                 return mask
-            core = track.core()
+            core = track.core().copy()
+            if not was_whole:  # the last mask was the core's view, written over: as it was
+                old = core.copy()
+                old[moved] = ~old[moved]
+                self._edge = (self._edge[0], old)
         else:
             core = self._edge_core(count, reach, radius, source_d)
             if self.closing:  # kept by change from here on: what fell since is looked at again
@@ -187,7 +191,9 @@ class SPECertification:
         """The edge's share of the alive centres (closing rounds: coordinator/certification.py)."""
         mask = self._edge_mask()
         if self._edge_share is None or self._edge_share[0] != self.version:
-            self._edge_share = (self.version, float(np.count_nonzero(mask)) / max(self.vertices.alive_count, 1))
+            track = self._edge_track
+            size = track.size if track is not None and track.size else np.count_nonzero(mask)  # (counted: O(ids))
+            self._edge_share = (self.version, float(size) / max(self.vertices.alive_count, 1))
         return self._edge_share[1]
 
     def begin_check(self) -> None:

@@ -11,8 +11,8 @@ def brute(points, failures):
     return np.abs(points[:, None, :] - failures[None, :, :]).max(axis=2).min(axis=1)
 
 
-@pytest.mark.parametrize("cap", [np.inf, 1.5])
-@pytest.mark.parametrize("n", [2, 3, 5])
+@pytest.mark.parametrize("cap", [np.inf, 1.5, 4.0])
+@pytest.mark.parametrize("n", [2, 3, 5, 7])
 def test_distances_equal_the_brute_force_minimum_bit_for_bit_through_interleaved_appends(n, cap):
     """Capped (the closing edge's holes: only "within a radius under the cap" is asked),
     the distances are min(d, cap), the brute force's below the cap bit for bit."""

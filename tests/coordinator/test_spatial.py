@@ -264,3 +264,17 @@ def test_a_large_high_dimensional_batch_asks_a_tree_and_answers_as_the_cells_do(
         assert asked and asked[0] > 0  # the tree answered the misses
         np.testing.assert_array_equal(got, truth)
         np.testing.assert_array_equal(idx.cover(q, radius) >= 0, truth)  # the cells, asked directly
+
+
+@pytest.mark.parametrize("dense", [False, True])
+def test_the_alive_count_kept_by_insert_and_kill_is_the_flags_count(dense):
+    # the closing edge asks it after every change: kept, not summed over every point
+    rng = np.random.default_rng(4)
+    lo, hi = np.zeros(3), np.full(3, 8.0)
+    idx = PointIndex(3, 1.0, np.zeros(3), bounds=(lo, hi) if dense else None)
+    for _ in range(30):
+        idx.insert(np.round(rng.uniform(-1, 9, (int(rng.integers(1, 200)), 3)) * 2) / 2 + 0.5)
+        doomed = rng.integers(0, idx.count, int(rng.integers(0, 80)))
+        idx.kill(np.concatenate([doomed, doomed[:5]]))  # repeats, and ids already dead
+        assert idx.alive_count == np.count_nonzero(idx.alive[: idx.count])
+    assert PointIndex.from_state(idx.state()).alive_count == idx.alive_count
