@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+
 class EdgeMembership:
     def __init__(self, reach: float, radius: float, core: np.ndarray):
         """``core``: (count,) bool, alive and near, computed whole at the round's start.
