@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 
@@ -46,60 +45,27 @@ workers = 2
 seed = 0
 """
 
-# the child: thread-CPU timers on the driver's main thread, then the CLI's own entry
-_CHILD = r"""
-import functools, json, resource, sys, threading, time
-from coordinator.spe import SPE
-from coordinator.spe_certification import SPECertification
-cpu = {"end_round": 0.0, "edge": 0.0}
-calls = {"end_round": 0, "edge": 0}
-main = threading.main_thread()
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
 
-def timed(owner, name, label):
-    f = getattr(owner, name)
-    @functools.wraps(f)
-    def wrapper(*a, **k):
-        if threading.current_thread() is not main:
-            return f(*a, **k)
-        t = time.thread_time()
-        try:
-            return f(*a, **k)
-        finally:
-            cpu[label] += time.thread_time() - t
-            calls[label] += 1
-    setattr(owner, name, wrapper)
+from profile_driver import profile  # noqa: E402
 
-timed(SPE, "end_round", "end_round")
-timed(SPECertification, "_edge_mask", "edge")
-from farm.cli.commands import main as cli
-started = time.monotonic()
-code = cli(["quantify", sys.argv[1], "--out", sys.argv[2], "--force"])
-wall = time.monotonic() - started
-usage = resource.getrusage(resource.RUSAGE_SELF)
-print(json.dumps({"code": code, "wall": wall, "cpu": usage.ru_utime + usage.ru_stime, "sys": usage.ru_stime,
-                  "peak_mb": usage.ru_maxrss / 1024, "cpu_parts": cpu, "calls": calls}))
-"""
+TIMED = "coordinator.spe:SPE.end_round,coordinator.spe_certification:SPECertification._edge_mask"
 
 
 def measure(checkout: str, config: str, out: str) -> dict:
-    env = dict(os.environ, PYTHONPATH=checkout)
-    done = subprocess.run([sys.executable, "-c", _CHILD, config, out], cwd=checkout, env=env,
-                          capture_output=True, text=True)
-    if done.returncode != 0:
-        sys.exit(f"{checkout}: quantify failed (exit {done.returncode}): {done.stderr.strip().splitlines()[-1:]}")
-    figures = json.loads(done.stdout.strip().splitlines()[-1])
+    """One `quantify` with thread-CPU timers on the round end and the closing edge."""
+    return profile(config, out, TIMED, checkout=checkout, who="bench_high_dimension")
+
+
+def line(label: str, m: dict, out: str) -> str:
     with open(os.path.join(out, "summary.json")) as f:
-        summary = json.load(f)
-    figures.update(result=summary["result_hash"], runs=summary["runs_committed"], boxes=summary["boxes"])
-    return figures
-
-
-def line(label: str, m: dict) -> str:
-    edge = m["cpu_parts"]["edge"]
-    return (f"{label}: {m['runs']:,} committed runs, {m['boxes']:,} boxes, wall {m['wall']:.1f} s, process CPU "
-            f"{m['cpu']:.1f} s (system {m['sys']:.1f}), peak {m['peak_mb']:,.0f} MB; round end "
-            f"{m['cpu_parts']['end_round']:.2f} CPU-s; closing edge {edge:.2f} CPU-s over {m['calls']['edge']:,} "
-            f"calls; result {m['result']}")
+        boxes = json.load(f)["boxes"]
+    return (f"{label}: {m['committed']:,} committed runs, {boxes:,} boxes, wall {m['wall_s']:.1f} s, process CPU "
+            f"{m['cpu_s']:.1f} s (system {m['system_s']:.1f}), peak {m['max_rss_mb']:,.0f} MB; round end "
+            f"{m['cpu'].get('SPE.end_round', 0.0):.2f} CPU-s; closing edge "
+            f"{m['cpu'].get('SPECertification._edge_mask', 0.0):.2f} CPU-s over "
+            f"{m['calls'].get('SPECertification._edge_mask', 0):,} calls; result {m['hash']}")
 
 
 def main() -> None:
@@ -117,13 +83,14 @@ def main() -> None:
               f"({2 * args.vehicles - 1}-D), uniform Gamma, delta 2 -> {args.delta_min:g}, certified, in-process on "
               f"2 workers; whole `scenario-farm quantify` processes")
         this = measure(here, config, os.path.join(tmp, "this"))
-        print(line("this checkout", this), flush=True)
+        print(line("this checkout", this, os.path.join(tmp, "this")), flush=True)
         if args.vs:
             other = measure(os.path.abspath(args.vs), config, os.path.join(tmp, "other"))
-            print(line(args.vs, other))
-            same = "the same result" if other["result"] == this["result"] else "DIFFERENT results"
-            print(f"{args.vs} / this checkout: wall {other['wall'] / this['wall']:.2f}x, process CPU "
-                  f"{other['cpu'] / this['cpu']:.2f}x, peak memory {other['peak_mb'] / this['peak_mb']:.2f}x; {same}")
+            print(line(args.vs, other, os.path.join(tmp, "other")))
+            same = "the same result" if other["hash"] == this["hash"] else "DIFFERENT results"
+            print(f"{args.vs} / this checkout: wall {other['wall_s'] / this['wall_s']:.2f}x, process CPU "
+                  f"{other['cpu_s'] / this['cpu_s']:.2f}x, peak memory {other['max_rss_mb'] / this['max_rss_mb']:.2f}x; "
+                  f"{same}")
 
 
 if __name__ == "__main__":

@@ -35,7 +35,8 @@ FUNCTIONS = ("coordinator.driver.campaign:Campaign.run,coordinator.driver.campai
 # the child: timers patched in before the CLI is imported, then the CLI's own entry; every
 # thread's CPU read from /proc while it runs (threads may end before the process does)
 _CHILD = r"""
-import collections, functools, importlib, json, os, sys, threading, time
+import collections, functools, importlib, json, os, resource, sys, threading, time
+started = time.monotonic()
 specs, argv = sys.argv[1].split(","), sys.argv[2:]
 main_thread = threading.main_thread()
 cpu, calls = collections.Counter(), collections.Counter()
@@ -87,14 +88,21 @@ read_threads()
 per_thread = collections.Counter()
 for name, seconds in threads.values():
     per_thread[name] += seconds
-print(json.dumps({"code": code, "cpu": cpu, "calls": calls, "threads": per_thread}))
+usage = resource.getrusage(resource.RUSAGE_SELF)
+print(json.dumps({"code": code, "cpu": cpu, "calls": calls, "threads": per_thread, "wall_s": time.monotonic() - started,
+                  "cpu_s": usage.ru_utime + usage.ru_stime, "system_s": usage.ru_stime,
+                  "max_rss_mb": usage.ru_maxrss / 1024}))
 """
 
 
-def profile(config: str, out: str, functions: str) -> dict:
+def profile(config: str, out: str, functions: str, checkout: str | None = None, who: str = "profile_driver") -> dict:
     """One profiled `quantify` of ``config`` into ``out``: per function its main-thread CPU
-    ("cpu") and calls, per thread its CPU ("threads"), and the committed runs."""
-    return quantify_child(_CHILD, config, out, "profile_driver", first_args=(functions,))
+    ("cpu") and calls, per thread its CPU ("threads"), the process's wall, CPU and peak
+    memory, and the committed runs (``checkout``: its packages first on the path)."""
+    env = dict(os.environ)
+    if checkout is not None:
+        env["PYTHONPATH"] = os.pathsep.join([checkout, *filter(None, [env.get("PYTHONPATH")])])
+    return quantify_child(_CHILD, config, out, who, first_args=(functions,), env=env, cwd=checkout)
 
 
 def main() -> None:

@@ -262,9 +262,10 @@ class PointIndex(AlivePoints):
 
     def kill(self, ids) -> None:
         ids = np.unique(np.asarray(ids, dtype=np.int64))
-        self._alive -= int(np.count_nonzero(self.alive[ids]))
+        was = self.alive[ids]
+        self._alive -= int(np.count_nonzero(was))
         if self._dense is not None:
-            dying = ids[self.alive[ids]]
+            dying = ids[was]
             centred = self._centre_cell[dying] >= 0
             cells = self._centre_cell[dying[centred]]
             np.subtract.at(self._dense, cells, 1)

@@ -59,7 +59,7 @@ class SPECertification:
                 self._edge_track = EdgeMembership(reach, radius, core)
                 if source_d is not None:
                     self._edge_reach.take_lowered()
-        mask = core if core.any() else self.vertices.alive[:count].copy()
+        mask = self._edge_or_set(core)
         if self._edge is not None and self._edge_table is not None:
             old = self._edge[1]
             changed = np.flatnonzero(mask[: len(old)] != old)
@@ -83,8 +83,11 @@ class SPECertification:
         kept by change must equal (tests/coordinator/test_closing_edge.py)."""
         count = self.vertices.count
         reach, radius = self._edge_radii()
-        core = self._edge_core(count, reach, radius, self._edge_distances(count, radius))
-        return core if core.any() else self.vertices.alive[:count].copy()
+        return self._edge_or_set(self._edge_core(count, reach, radius, self._edge_distances(count, radius)))
+
+    def _edge_or_set(self, core: np.ndarray) -> np.ndarray:
+        """The edge's mask from its membership: the whole set when the edge is empty."""
+        return core if core.any() else self.vertices.alive[: len(core)].copy()
 
     def _edge_near(self, ids, count: int, reach: float, radius: float, source_d) -> np.ndarray:
         """Are centres ``ids`` within ``reach`` of a failure facet or ``radius`` of a
