@@ -4,7 +4,8 @@ are appended (prioritized sampling, paper Sec. 4.4).
 A new failure f can lower a vertex's distance only where |v - f| < d(v). Vertices are
 grouped into coarse buckets (sorted by bucket, with the box each bucket's vertices span
 and the largest distance among them): a bucket whose box lies at least that far from f
-is skipped whole. Vertices added since the last sort are checked directly. New vertices
+is skipped whole; with a ``cap``, only the buckets whose grid cells come within it are
+looked at. Vertices added since the last sort are checked directly. New vertices
 get their distance from a KD-tree of the failures. Every distance is the same float64
 max over axes of |v - f| whichever way it is reached, so the values do not depend on
 the bookkeeping.
@@ -15,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 BUCKETS_PER_AXIS = {1: 4096, 2: 64, 3: 16, 4: 8, 5: 6}
+BUCKET_NUMBER_BITS = 40  # bucket numbers over the leading axes only, past 4^20: a bucket's box still spans every axis
+NEAR_SHARE = 0.25  # the cells a capped failure group reaches are listed if fewer than this share of the buckets
 RESORT_SHARE = 0.1  # re-sort when the unsorted tail exceeds this share of the vertices
 BRUTE_FORCE_PAIRS = 1 << 16  # vertex-failure pairs up to which new vertices skip the KD-tree
 LOWER_GROUP = 64  # new failures whose reach is worked out together (a (F, buckets) gap)
@@ -40,6 +43,10 @@ class FailureDistances:
         self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
         n = len(self.lower)
         self.per_axis = BUCKETS_PER_AXIS.get(n, 4)
+        # bucketed axes: no cost exponential in n (the buckets are the vertices' own cells, at most one per vertex)
+        self.bucket_axes = min(n, int(BUCKET_NUMBER_BITS // np.log2(self.per_axis)))
+        self._side = (self.upper - self.lower)[: self.bucket_axes] / self.per_axis
+        self._numbers = np.empty(0, dtype=np.int64)  # the used buckets' numbers, ascending
         self._buffer = np.empty(0)  # distances of vertex ids, with room to grow
         self.seen_vertices = 0
         self.lowered: list[np.ndarray] = []  # ids whose distance fell, until taken (``take_lowered``)
@@ -130,10 +137,31 @@ class FailureDistances:
         if not np.isfinite(self.cap):
             return None
         lo, hi = fs.min(axis=0) - self.cap, fs.max(axis=0) + self.cap
-        near = (self._box_hi[:, 0] >= lo[0]) & (self._box_lo[:, 0] <= hi[0])
+        listed = self._listed_cells(lo, hi)
+        box_lo, box_hi = (self._box_lo, self._box_hi) if listed is None else (self._box_lo[listed], self._box_hi[listed])
+        near = (box_hi[:, 0] >= lo[0]) & (box_lo[:, 0] <= hi[0])
         for axis in range(1, fs.shape[1]):
-            near &= (self._box_hi[:, axis] >= lo[axis]) & (self._box_lo[:, axis] <= hi[axis])
-        return np.flatnonzero(near)
+            near &= (box_hi[:, axis] >= lo[axis]) & (box_lo[:, axis] <= hi[axis])
+        return np.flatnonzero(near) if listed is None else listed[near]
+
+    def _listed_cells(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray | None:
+        """The used buckets (ascending) whose grid cells meet the box [lo, hi] on every
+        bucketed axis, or None where listing them would cost more than testing every
+        bucket. Exact: a vertex's cell is a non-decreasing function of its coordinate, so
+        a bucket whose box meets [lo, hi] has its cell between the cells of lo and hi."""
+        m, last = self.bucket_axes, self.per_axis - 1
+        first_cell = np.clip(np.floor((lo[:m] - self.lower[:m]) / self._side), 0, last).astype(np.int64)
+        last_cell = np.clip(np.floor((hi[:m] - self.lower[:m]) / self._side), 0, last).astype(np.int64)
+        widths = last_cell - first_cell + 1
+        if float(np.prod(widths.astype(float))) > NEAR_SHARE * len(self._numbers):
+            return None
+        numbers = np.zeros(1, dtype=np.int64)
+        for axis in range(m):  # ravel_multi_index's order: ascending, as the used numbers are
+            numbers = (numbers[:, None] * self.per_axis + np.arange(first_cell[axis], last_cell[axis] + 1)).ravel()
+        at = np.searchsorted(self._numbers, numbers)
+        used = at < len(self._numbers)
+        used[used] = self._numbers[at[used]] == numbers[used]
+        return at[used]
 
     def _lower(self, points, ids, fs) -> None:
         pts = points[ids]
@@ -155,17 +183,15 @@ class FailureDistances:
     def _sort(self, points: np.ndarray) -> None:
         count = self.seen_vertices
         pts = points[:count]
-        side = (self.upper - self.lower) / self.per_axis
-        cells = np.clip(np.floor((pts - self.lower) / side).astype(np.int64), 0, self.per_axis - 1)
-        bucket = np.ravel_multi_index(tuple(cells.T), (self.per_axis,) * len(side))
+        m = self.bucket_axes
+        cells = np.clip(np.floor((pts[:, :m] - self.lower[:m]) / self._side).astype(np.int64), 0, self.per_axis - 1)
+        bucket = np.ravel_multi_index(tuple(cells.T), (self.per_axis,) * m)
         self._order = np.argsort(bucket, kind="stable")
-        buckets = self.per_axis ** len(side)
-        self._starts = np.zeros(buckets + 1, dtype=np.int64)
-        np.cumsum(np.bincount(bucket, minlength=buckets), out=self._starts[1:])
-        used = np.flatnonzero(np.diff(self._starts) > 0)
         # keep only the buckets that hold vertices: the boxes they actually span
+        sorted_bucket = bucket[self._order]
+        at = np.flatnonzero(np.concatenate([[True], sorted_bucket[1:] != sorted_bucket[:-1]]))
+        self._numbers = sorted_bucket[at]
         sorted_pts = pts[self._order]
-        at = self._starts[used]
         self._box_lo = np.minimum.reduceat(sorted_pts, at, axis=0)
         self._box_hi = np.maximum.reduceat(sorted_pts, at, axis=0)
         self._bucket_max = np.maximum.reduceat(self.dist[self._order], at)

@@ -69,3 +69,45 @@ def test_a_copy_keeps_lowering_its_own_distances():
     got = twin.update(points, 400, failures, 5)  # a failure lowers, then vertices are appended
     got = twin.update(points, 500, failures, 5)
     assert np.array_equal(got, brute(points, failures))
+
+
+@pytest.mark.parametrize("n", [3, 7, 9])
+def test_a_capped_failure_group_looks_at_exactly_the_buckets_a_full_scan_finds(n):
+    """With a cap, the buckets a failure group may reach are listed from the grid cells
+    around it (not tested one by one): the same buckets, in the same order, as testing
+    every bucket's box, and the distances stay the brute force's."""
+    rng = np.random.default_rng(n)
+    lower, upper = np.zeros(n), np.full(n, 10.0)
+    points = np.concatenate([rng.uniform(-0.5, 10.5, (30_000, n)), np.round(rng.uniform(0, 10, (2_000, n)))])
+    cap = 1.0
+    fd = FailureDistances(lower, upper, cap=cap)
+    failures = rng.uniform(0, 10, (1, n))
+    fd.update(points, len(points), failures, 1)
+    assert fd._sorted == len(points)
+    listed = 0
+    for k in (1, 1, 2, 5, 64):
+        fs = rng.uniform(0, 10, (k, n))
+        if k == 2:  # the group's reach ends on a cell's face: floor's edge
+            fs[:, 0] = 2 * fd._side[0] + cap
+        lo, hi = fs.min(axis=0) - cap, fs.max(axis=0) + cap
+        full = np.flatnonzero(((fd._box_hi >= lo) & (fd._box_lo <= hi)).all(axis=1))
+        listed += fd._listed_cells(lo, hi) is not None
+        assert np.array_equal(fd._near_buckets(fs), full)
+        failures = np.concatenate([failures, fs])
+        got = fd.update(points, len(points), failures, len(failures))
+        assert np.array_equal(got, np.minimum(brute(points, failures), cap))
+    assert listed >= 2  # the listing was taken, not only the full scan
+
+
+def test_bucket_numbers_stay_within_int64_for_many_axes():
+    """No cost exponential in the dimension: 24 axes bucket their first 20, and a
+    bucket's box still spans every axis (the distances are the brute force's)."""
+    n = 24
+    rng = np.random.default_rng(5)
+    points = rng.uniform(0, 1, (5_000, n))
+    failures = rng.uniform(0, 1, (3, n))
+    fd = FailureDistances(np.zeros(n), np.ones(n), cap=0.6)
+    fd.update(points, len(points), failures[:1], 1)
+    assert fd.bucket_axes == 20 and fd._sorted == len(points)
+    got = fd.update(points, len(points), failures, 3)
+    assert np.array_equal(got, np.minimum(brute(points, failures), 0.6))
