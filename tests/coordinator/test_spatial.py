@@ -278,3 +278,57 @@ def test_the_alive_count_kept_by_insert_and_kill_is_the_flags_count(dense):
         idx.kill(np.concatenate([doomed, doomed[:5]]))  # repeats, and ids already dead
         assert idx.alive_count == np.count_nonzero(idx.alive[: idx.count])
     assert PointIndex.from_state(idx.state()).alive_count == idx.alive_count
+
+
+def _cover_cell_by_cell(index: PointIndex, q: np.ndarray, radius: float) -> np.ndarray:
+    """``cover`` without a dense grid as one ``_scan`` per cell: each query's home cell,
+    then the cells its ball reaches in ``itertools.product`` order (per axis home then
+    the side it crosses; for a query at a cell centre, offsets -1, 0, 1), the first cell
+    holding an alive point within the radius naming the witness."""
+    import itertools
+
+    from coordinator.spatial import TOLERANCE
+
+    r = radius + TOLERANCE
+    found = np.full(len(q), -1, dtype=np.int64)
+    rel = q - index.origin
+    rel *= 1.0 / index.cell
+    home = np.floor(rel).astype(np.int64)
+    lo = np.floor(rel - r / index.cell).astype(np.int64)
+    hi = np.floor(rel + r / index.cell).astype(np.int64)
+    for i in range(len(q)):
+        index._scan(q, home[i][None], np.array([i]), r, found)
+        down, up = lo[i] < home[i], hi[i] > home[i]
+        if (down & up).any():
+            cells = (home[i] + np.array(off) for off in itertools.product((-1, 0, 1), repeat=index.n)
+                     if any(off) and all((o >= 0 or d) and (o <= 0 or u) for o, d, u in zip(off, down, up)))
+        else:
+            side = np.where(down, lo[i], hi[i])
+            cells = (np.where(pat, side, home[i]) for pat in itertools.product((False, True), repeat=index.n)
+                     if any(pat) and all(not p or s != h for p, s, h in zip(pat, side, home[i])))
+        for cell in cells:
+            if found[i] >= 0:
+                break
+            index._scan(q, cell[None], np.array([i]), r, found)
+    return found
+
+
+@pytest.mark.parametrize("n", [2, 4, 6])
+def test_cover_without_a_dense_grid_names_the_witness_of_a_cell_by_cell_search(n):
+    """The cells around a query that misses its home cell are tried in blocks for every
+    query at once, yet each query's witness is the one a cell-by-cell search in product
+    order names: at dead centres (a ball reaching both neighbours of every axis), on
+    faces, and anywhere."""
+    rng = np.random.default_rng(n)
+    centres = 2.0 * rng.integers(0, 5, (1500, n)) + 1.0
+    points = np.concatenate([centres, rng.uniform(0, 10, (300, n))])
+    index = PointIndex(n, 2.0, np.zeros(n))  # no bounds: no dense grid
+    index.insert(points)
+    dead = rng.choice(len(points), len(points) // 2, replace=False)
+    index.kill(dead)
+    q = np.concatenate([points[dead[:60]], rng.uniform(-1, 11, (120, n)), np.round(rng.uniform(0, 10, (40, n))),
+                        points[dead[60:80]] + 1e-10])
+    for radius in (1.0, 0.7):
+        got = index.cover(q, radius)
+        assert np.array_equal(got, _cover_cell_by_cell(index, q, radius))
+        assert 0 < (got >= 0).sum() < len(q)
