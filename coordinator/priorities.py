@@ -70,8 +70,8 @@ class FailureDistances:
             for at in range(0, len(fresh), LOWER_GROUP):
                 self._lower_by(points, fresh[at : at + LOWER_GROUP])
         if vertex_count > self.seen_vertices:
-            d_new = np.minimum(self._nearest(points[self.seen_vertices : vertex_count], failures[:failure_count]),
-                               self.cap)
+            d_new = np.minimum(self._nearest(points[self.seen_vertices : vertex_count], failures[:failure_count],
+                                             self.cap), self.cap)
             if vertex_count > len(self._buffer):  # doubling: a copy per append cost O(vertices)
                 grown = np.empty(max(vertex_count, 2 * len(self._buffer)))
                 grown[: self.seen_vertices] = self.dist
@@ -90,16 +90,19 @@ class FailureDistances:
         return self._buffer[: self.seen_vertices]
 
     @staticmethod
-    def _nearest(vertices: np.ndarray, failures: np.ndarray) -> np.ndarray:
-        """d(v, failures) for each vertex: brute force for few pairs (between two draws a
-        campaign adds a few vertices, too few to pay for a KD-tree of every failure), a
-        KD-tree otherwise. Both are the float64 max over axes of
-        |v - f| and its min over f: the same values."""
+    def _nearest(vertices: np.ndarray, failures: np.ndarray, cap: float = np.inf) -> np.ndarray:
+        """d(v, failures) for each vertex, or anything above ``cap`` where d exceeds it:
+        brute force for few pairs (between two draws a campaign adds a few vertices, too
+        few to pay for a KD-tree of every failure), a KD-tree otherwise, searching no
+        farther than ``cap`` (in 9-D an unbounded search from each of 10 M vertices
+        visits most of the tree). Both are the float64 max over axes of |v - f| and its
+        min over f: the same values up to ``cap``."""
         if len(vertices) * len(failures) <= BRUTE_FORCE_PAIRS:
             return _linf(vertices[:, None, :], failures[None, :, :]).min(axis=1)
         from scipy.spatial import cKDTree  # here: scipy.spatial is 0.4 s of every CLI start
 
-        return cKDTree(failures).query(vertices, p=np.inf)[0]
+        bound = np.nextafter(cap, np.inf) if np.isfinite(cap) else np.inf  # (the bound is strict)
+        return cKDTree(failures).query(vertices, p=np.inf, distance_upper_bound=bound)[0]
 
     def _lower_by(self, points: np.ndarray, fs: np.ndarray) -> None:
         """Lower the known distances by failures ``fs`` (F, n), skipping buckets none of

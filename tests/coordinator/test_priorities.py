@@ -111,3 +111,18 @@ def test_bucket_numbers_stay_within_int64_for_many_axes():
     assert fd.bucket_axes == 20 and fd._sorted == len(points)
     got = fd.update(points, len(points), failures, 3)
     assert np.array_equal(got, np.minimum(brute(points, failures), 0.6))
+
+
+def test_new_vertices_past_the_cap_get_the_cap_from_a_bounded_tree_search():
+    """Many new vertices at once ask a KD-tree that searches no farther than the cap:
+    on a lattice, distances equal to the cap are kept exactly, those beyond become the
+    cap (the brute force's min(d, cap))."""
+    n, cap = 4, 1.0
+    rng = np.random.default_rng(3)
+    points = np.concatenate([0.5 * rng.integers(0, 20, (60_000, n)), rng.uniform(0, 10, (20_000, n))])
+    failures = np.concatenate([0.5 * rng.integers(0, 20, (3, n)), rng.uniform(0, 10, (2, n))])
+    fd = FailureDistances(np.zeros(n), np.full(n, 10.0), cap=cap)
+    got = fd.update(points, len(points), failures, len(failures))
+    want = np.minimum(brute(points, failures), cap)
+    assert np.array_equal(got, want)
+    assert (brute(points, failures) == cap).sum() > 100 and (want < cap).sum() > 100
