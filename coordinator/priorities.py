@@ -56,6 +56,12 @@ class FailureDistances:
         self._starts = np.zeros(1, dtype=np.int64)
         self._box_lo = self._box_hi = np.empty((0, n))
         self._bucket_max = np.empty(0)
+        self._tree = None  # a KD-tree of failures [0, _tree_count), kept while few failures follow it
+        self._tree_count = 0
+
+    def __getstate__(self) -> dict:
+        # a copy (coordinator/driver/speculation.py) builds its own tree when it needs one
+        return {**self.__dict__, "_tree": None, "_tree_count": 0}
 
     def update(self, points: np.ndarray, vertex_count: int, failures: np.ndarray, failure_count: int) -> np.ndarray:
         """The distances of vertices [0, vertex_count) to failures [0, failure_count)."""
@@ -89,20 +95,27 @@ class FailureDistances:
         ``copy.deepcopy`` copying views apart, and lose what ``_lower`` writes)."""
         return self._buffer[: self.seen_vertices]
 
-    @staticmethod
-    def _nearest(vertices: np.ndarray, failures: np.ndarray, cap: float = np.inf) -> np.ndarray:
+    def _nearest(self, vertices: np.ndarray, failures: np.ndarray, cap: float = np.inf) -> np.ndarray:
         """d(v, failures) for each vertex, or anything above ``cap`` where d exceeds it:
         brute force for few pairs (between two draws a campaign adds a few vertices, too
-        few to pay for a KD-tree of every failure), a KD-tree otherwise, searching no
-        farther than ``cap`` (in 9-D an unbounded search from each of 10 M vertices
-        visits most of the tree). Both are the float64 max over axes of |v - f| and its
-        min over f: the same values up to ``cap``."""
+        few to pay for a KD-tree of every failure), else a KD-tree of the failures, kept
+        from call to call (failures only grow: those added since it was built are brute
+        force while that is cheap; rebuilt per call, it was most of a 9-D closing round),
+        searching no farther than ``cap`` (in 9-D an unbounded search from each of 10 M
+        vertices visits most of the tree). Both are the float64 max over axes of |v - f|
+        and its min over f: the same values up to ``cap``."""
         if len(vertices) * len(failures) <= BRUTE_FORCE_PAIRS:
             return _linf(vertices[:, None, :], failures[None, :, :]).min(axis=1)
         from scipy.spatial import cKDTree  # here: scipy.spatial is 0.4 s of every CLI start
 
+        if self._tree is None or not 0 <= len(failures) - self._tree_count <= BRUTE_FORCE_PAIRS // len(vertices):
+            self._tree, self._tree_count = cKDTree(failures), len(failures)
         bound = np.nextafter(cap, np.inf) if np.isfinite(cap) else np.inf  # (the bound is strict)
-        return cKDTree(failures).query(vertices, p=np.inf, distance_upper_bound=bound)[0]
+        d = self._tree.query(vertices, p=np.inf, distance_upper_bound=bound)[0]
+        rest = failures[self._tree_count :]
+        if len(rest):
+            np.minimum(d, _linf(vertices[:, None, :], rest[None, :, :]).min(axis=1), out=d)
+        return d
 
     def _lower_by(self, points: np.ndarray, fs: np.ndarray) -> None:
         """Lower the known distances by failures ``fs`` (F, n), skipping buckets none of

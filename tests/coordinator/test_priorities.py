@@ -126,3 +126,27 @@ def test_new_vertices_past_the_cap_get_the_cap_from_a_bounded_tree_search():
     want = np.minimum(brute(points, failures), cap)
     assert np.array_equal(got, want)
     assert (brute(points, failures) == cap).sum() > 100 and (want < cap).sum() > 100
+
+
+def test_the_kept_tree_and_the_failures_after_it_give_the_brute_force_values_in_a_copy_too():
+    """New vertices ask a KD-tree of the failures kept from call to call, plus the
+    failures added since by brute force; a copy (a speculation's) builds its own."""
+    import copy
+
+    n = 3
+    rng = np.random.default_rng(9)
+    points = rng.uniform(0, 10, (40_000, n))
+    failures = rng.uniform(0, 10, (400, n))
+    fd = FailureDistances(np.zeros(n), np.full(n, 10.0))
+    count, failure_count = 1_000, 300
+    fd.update(points, count, failures, failure_count)
+    assert fd._tree is not None and fd._tree_count == 300
+    for step in range(12):
+        count += int(rng.integers(200, 400))
+        failure_count += int(rng.integers(0, 6))
+        if step == 6:
+            fd = copy.deepcopy(fd)
+            assert fd._tree is None
+        got = fd.update(points, count, failures, failure_count)
+        assert np.array_equal(got, brute(points[:count], failures[:failure_count]))
+    assert fd._tree_count < failure_count  # the last calls used the tree and the failures after it
