@@ -20,7 +20,6 @@ are chained per dense cell. The hash chains serve indices without a dense grid.
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from coordinator.alive_points import AlivePoints
@@ -53,8 +52,8 @@ TREE_QUERIES = 4096
 TREE_WORK = 4
 DENSE_LIMIT = 1 << 25  # cells; 32 Mi int32 counters = 128 MiB at most
 SMALL_PUSH = 8  # points pushed one by one: ~12 array operations cost more below this
-MISS_BLOCK = 1 << 15
-ORDERED_CELLS = 1 << 14  # query-cell pairs tried at once where each query's cells are tried in order  # queries whose touched cells are enumerated at once (2^n cells each)
+MISS_BLOCK = 1 << 15  # queries whose touched cells are enumerated at once (2^n cells each)
+ORDERED_CELLS = 1 << 14  # query-cell pairs tried at once where each query's cells are tried in order
 SMALL_ROWS = 256  # point-query pairs up to which (k, n) comparisons beat n 1-D ones
 # point ids and dense cell numbers in the chains and the dense grid: both < 2^31 (a dense
 # grid has at most DENSE_LIMIT cells; ``insert`` refuses the 2^31st point). Half of int64:
