@@ -134,7 +134,12 @@ class CampaignDir:
             if exc.errno not in (errno.EAGAIN, errno.EACCES):
                 raise
             pid, gone = _recorded_holder(fd)
+            locker = _flock_locker(fd) if gone else None
             os.close(fd)
+            if locker is not None:
+                raise CampaignError(f"{self.path}: in use by pid {locker}, which has not written its pid there yet "
+                                    "(starting, or reading its checkpoint); wait for it to finish or stop it "
+                                    "first") from None
             if gone:
                 raise CampaignError(f"{self.path}: locked, though pid {pid} that worked there has ended: a process "
                                     f"it started still holds {LOCK}; end that process, then try again") from None
@@ -166,7 +171,9 @@ class CampaignDir:
             return None  # nobody holds it
         except OSError:
             pid, gone = _recorded_holder(fd)
-            return None if gone else pid if pid is not None else -1
+            if gone:
+                return _flock_locker(fd)
+            return pid if pid is not None else -1
         finally:
             os.close(fd)
 
@@ -218,6 +225,32 @@ class CampaignDir:
                 tmp.unlink(missing_ok=True)
                 removed.append(tmp)
         return removed
+
+
+def _flock_locker(fd: int) -> int | None:
+    """The live pid of this machine that took the flock on ``fd``'s file, where it is not
+    the one the file names (a command locks before it writes its pid: a resume reading
+    a large checkpoint holds the lock for minutes unnamed), from /proc/locks; None if
+    unknown, or if that pid has ended (a process it started inherited the lock)."""
+    st = os.fstat(fd)
+    key = f"{os.major(st.st_dev):02x}:{os.minor(st.st_dev):02x}:{st.st_ino}"
+    try:
+        with open("/proc/locks") as f:
+            lines = f.read().splitlines()
+    except OSError:
+        return None
+    for line in lines:
+        fields = line.split()
+        if len(fields) > 5 and fields[1] == "FLOCK" and fields[5] == key and fields[4].isdigit():
+            pid = int(fields[4])
+            try:
+                os.kill(pid, 0)
+            except ProcessLookupError:
+                return None
+            except OSError:  # another user's: alive
+                pass
+            return pid
+    return None
 
 
 def _recorded_holder(fd: int) -> tuple[int | None, bool]:

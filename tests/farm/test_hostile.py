@@ -109,9 +109,24 @@ def test_a_second_writer_is_refused_naming_the_holder(tmp_path):
         first.wait(60)
 
 
+def _lock_left_to_a_child(path) -> tuple[int, int]:
+    """A process takes the flock on ``path``, starts a child that inherits it (it sleeps a
+    minute) and ends: (the taker's pid, the child's pid). /proc/locks names the taker."""
+    code = ("import fcntl, os, subprocess, sys\n"
+            "fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT)\nfcntl.flock(fd, fcntl.LOCK_EX)\n"
+            "c = subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(60)'], pass_fds=(fd,),\n"
+            "                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)\n"
+            "print(os.getpid(), c.pid)\n")
+    taker, child = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True,
+                                  check=True).stdout.split()
+    return int(taker), int(child)
+
+
 def test_a_lock_outliving_its_pid_is_no_running_campaign(campaign, tmp_path):
     """Issue 54: after SIGHUP `status` said "running" for a campaign process that was gone. A
-    process the campaign started and that inherited its lock holds it here (this test)."""
+    process the campaign started inherited its lock and holds it past it; and a command
+    that holds the lock before it has written its pid (a resume reading its checkpoint)
+    is named as the one in use."""
     import fcntl
     import socket
 
@@ -121,22 +136,30 @@ def test_a_lock_outliving_its_pid_is_no_running_campaign(campaign, tmp_path):
     out = copy_of(campaign, tmp_path)
     status = json.loads((out / "status.json").read_text())
     (out / "status.json").write_text(json.dumps({**status, "state": "running"}))
+    taker, child = _lock_left_to_a_child(out / ".lock")
+    try:
+        with open(out / ".lock", "w") as f:  # what the taker announced
+            f.write(f"{taker}\n{socket.gethostname()}\n")
+        assert "stopped while running (process gone; continue with `scenario-farm resume" in describe(out)
+        with pytest.raises(CampaignError, match=f"pid {taker} that worked there has ended"):
+            CampaignDir(out).lock()  # resume's refusal
+    finally:
+        os.kill(child, signal.SIGKILL)
     ended = subprocess.Popen(["true"])
     ended.wait()
     fd = os.open(out / ".lock", os.O_RDWR | os.O_CREAT)
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX)
-        for pid, says in ((ended.pid, "stopped while running (process gone; continue with `scenario-farm resume"),
-                          (os.getpid(), f"running (pid {os.getpid()}, updated")):
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, f"{pid}\n{socket.gethostname()}\n".encode(), 0)
-            assert says in describe(out)
+        fcntl.flock(fd, fcntl.LOCK_EX)  # this process, alive, holds it
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n{socket.gethostname()}\n".encode(), 0)
+        assert f"running (pid {os.getpid()}, updated" in describe(out)
         with pytest.raises(CampaignError, match=f"pid {os.getpid()} \\(a campaign runs there\\)"):
             CampaignDir(out).lock()
-        os.ftruncate(fd, 0)
+        os.ftruncate(fd, 0)  # the pid of the run before, ended; this process has not written its own yet
         os.pwrite(fd, f"{ended.pid}\n{socket.gethostname()}\n".encode(), 0)
-        with pytest.raises(CampaignError, match=f"pid {ended.pid} that worked there has ended"):
-            CampaignDir(out).lock()  # resume's refusal
+        assert f"running (pid {os.getpid()}, updated" in describe(out)
+        with pytest.raises(CampaignError, match=f"in use by pid {os.getpid()}, which has not written its pid"):
+            CampaignDir(out).lock()
     finally:
         os.close(fd)
 
