@@ -146,6 +146,7 @@ def run(name: str, delta_min: float, refine: str, truths: dict) -> dict:
             row.update(accuracy(name, out, truths))
             row["validate"] = validation(name, delta_min, out)
     row["load_average"] = round(os.getloadavg()[0], 1)
+    row["date"] = time.strftime("%Y-%m-%d")
     return row
 
 
@@ -156,15 +157,17 @@ def _key(row: dict) -> tuple:
 def study(args: list[str]) -> None:
     sys.path.insert(0, str(ROOT))
     wanted = CASES if not args else [(n, float(d), r) for n, d, r in (a.split("/") for a in args)]
-    rows = json.loads(JSON.read_text())["rows"] if JSON.exists() else []
+    data = json.loads(JSON.read_text()) if JSON.exists() else {"rows": []}
+    rows = data["rows"]
+    # a run of some cases keeps the stamp of the run they join (each row carries its own date)
+    meta = data["meta"] if args and "meta" in data else machine_stamp(truth_points=TRUTH_POINTS, truth_seed=TRUTH_SEED)
     truths: dict = {}
     for case in wanted:
         row = run(*case, truths)
         print(json.dumps(row), flush=True)
         rows = [r for r in rows if _key(r) != case] + [row]
         rows.sort(key=lambda r: (r["axes"], r["scenario"], -r["delta_min"], r["refine"]))
-        JSON.write_text(json.dumps({"meta": machine_stamp(truth_points=TRUTH_POINTS, truth_seed=TRUTH_SEED),
-                                    "rows": rows}, indent=1) + "\n")
+        JSON.write_text(json.dumps({"meta": meta, "rows": rows}, indent=1) + "\n")
     print(render())
 
 
@@ -229,6 +232,11 @@ def render() -> Path:
                        f"{_cell(v, 'runs', ',')} | {v['wall_s']:g} | {v['peak_gb']:g} |")
     loads = [r["load_average"] for r in rows]
     out += ["", f"1-minute load average {min(loads):g}-{max(loads):g} at the end of the rows."]
+    later = [r for r in rows if r.get("date", meta["date"]) != meta["date"]]
+    for date in sorted({r["date"] for r in later}):
+        cases = " ".join(f"{r['scenario']}/{r['delta_min']:g}/{r['refine']}" for r in later if r["date"] == date)
+        out += ["", f"Rows re-run on {date} (`python experiments/dimensions.py {cases}`, the same machine); the "
+                f"others are of {meta['date']}."]
     if any(r["exit"] == 130 for r in data["rows"]):
         out += ["", "Exit 130: a campaign still running after the seconds shown was stopped with SIGTERM (it "
                 "checkpointed; the table gives its runs so far), to leave the machine to the other rows."]
