@@ -54,6 +54,7 @@ DENSE_LIMIT = 1 << 25  # cells; 32 Mi int32 counters = 128 MiB at most
 SMALL_PUSH = 8  # points pushed one by one: ~12 array operations cost more below this
 MISS_BLOCK = 1 << 15  # queries whose touched cells are enumerated at once (2^n cells each)
 ORDERED_CELLS = 1 << 14  # query-cell pairs tried at once where each query's cells are tried in order
+ORDERED_QUERIES = 2048  # ... by blocks up to this many queries (blocks of 8 cells and more), cell by cell past it
 SMALL_ROWS = 256  # point-query pairs up to which (k, n) comparisons beat n 1-D ones
 # point ids and dense cell numbers in the chains and the dense grid: both < 2^31 (a dense
 # grid has at most DENSE_LIMIT cells; ``insert`` refuses the 2^31st point). Half of int64:
@@ -391,24 +392,28 @@ class PointIndex(AlivePoints):
         witness), as one ``_scan`` per cell would find them. Cell k of a query is home +
         choices[:, a, digit_a(k)] on each axis a, the digits of k in base ``choices.shape[2]``
         with axis 0 first (``itertools.product`` order), where every digit is ``allowed``;
-        the home cell itself (every offset 0) is skipped (it was scanned). Blocks of
-        cells for every query at once, not one array pass per cell: 3^n cells in 9-D are
-        19,683 passes."""
+        the home cell itself (every offset 0) is skipped (it was scanned). A few queries
+        take blocks of cells at once (one array pass per cell is 19,683 passes for 3^9
+        cells in 9-D); many take one cell index at a time, each pass spanning them all."""
         n, base = self.n, choices.shape[2]
         total = base**n
         radix = base ** np.arange(n - 1, -1, -1, dtype=np.int64)
-        axes = np.arange(n)[None, :]
         self._sync_chains()
+        if len(rows) > ORDERED_QUERIES:
+            self._scan_cell_by_cell(q, rows, home, choices, allowed, r, found, radix)
+            return
+        axes = np.arange(n)[None, None, :]
         left, k0 = np.arange(len(rows)), 0
         while k0 < total:
             left = left[found[rows[left]] < 0]
             if len(left) == 0:
                 return
             k1 = min(total, k0 + max(1, ORDERED_CELLS // len(left)))
-            digits = (np.arange(k0, k1, dtype=np.int64)[:, None] // radix) % base  # (B, n)
+            digits = ((np.arange(k0, k1, dtype=np.int64)[:, None] // radix) % base)[None]  # (1, B, n)
             k0 = k1
-            offsets = choices[left][:, axes, digits]  # (L, B, n)
-            ok = allowed[left][:, axes, digits].all(axis=2) & (offsets != 0).any(axis=2)
+            at_rows = left[:, None, None]
+            offsets = choices[at_rows, axes, digits]  # (L, B, n), gathered at once (no (L, n, base) copy per block)
+            ok = allowed[at_rows, axes, digits].all(axis=2) & (offsets != 0).any(axis=2)
             at, cell = np.nonzero(ok)  # query by query, each one's cells in order
             if len(at) == 0:
                 continue
@@ -420,6 +425,25 @@ class PointIndex(AlivePoints):
             if len(hit):
                 hit_at, first = np.unique(at[hit], return_index=True)  # each query's first cell with a witness
                 found[rows[left[hit_at]]] = pair_found[hit[first]]
+
+    def _scan_cell_by_cell(self, q, rows, home, choices, allowed, r, found, radix) -> None:
+        """``_scan_in_order`` one cell index at a time: for many queries, where a pass is
+        large anyway and blocks would only add gathers. Only the axes whose digit some
+        query does not allow are tested."""
+        n, base = self.n, choices.shape[2]
+        every = allowed.all(axis=0)  # (n, base): digits every query allows
+        still = (choices == 0).all(axis=0)  # (n, base): digits that move no query
+        axes = np.arange(n)
+        for k in range(base**n):
+            digits = (k // radix) % base
+            if still[axes, digits].all():
+                continue  # the home cell
+            live = found[rows] < 0
+            for axis in np.flatnonzero(~every[axes, digits]):
+                live &= allowed[:, axis, digits[axis]]
+            sel = np.flatnonzero(live)
+            if len(sel):
+                self._scan(q, home[sel] + choices[:, axes, digits][sel], rows[sel], r, found)
 
     def cover_away(self, queries: np.ndarray, radius: float) -> np.ndarray:
         """``cover`` of queries known to have no centre point at their home cell (a

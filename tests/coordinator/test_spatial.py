@@ -313,12 +313,18 @@ def _cover_cell_by_cell(index: PointIndex, q: np.ndarray, radius: float) -> np.n
     return found
 
 
+@pytest.mark.parametrize("by_blocks", [True, False])
 @pytest.mark.parametrize("n", [2, 4, 6])
-def test_cover_without_a_dense_grid_names_the_witness_of_a_cell_by_cell_search(n):
+def test_cover_without_a_dense_grid_names_the_witness_of_a_cell_by_cell_search(n, by_blocks, monkeypatch):
     """The cells around a query that misses its home cell are tried in blocks for every
-    query at once, yet each query's witness is the one a cell-by-cell search in product
-    order names: at dead centres (a ball reaching both neighbours of every axis), on
-    faces, and anywhere."""
+    query at once (a few queries) or one cell index at a time for all (many), yet each
+    query's witness is the one a cell-by-cell search in product order names, query by
+    query: at dead centres (a ball reaching both neighbours of every axis), on faces,
+    and anywhere."""
+    import coordinator.spatial
+
+    if not by_blocks:
+        monkeypatch.setattr(coordinator.spatial, "ORDERED_QUERIES", 0)
     rng = np.random.default_rng(n)
     centres = 2.0 * rng.integers(0, 5, (1500, n)) + 1.0
     points = np.concatenate([centres, rng.uniform(0, 10, (300, n))])
