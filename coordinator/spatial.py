@@ -54,7 +54,7 @@ DENSE_LIMIT = 1 << 25  # cells; 32 Mi int32 counters = 128 MiB at most
 SMALL_PUSH = 8  # points pushed one by one: ~12 array operations cost more below this
 MISS_BLOCK = 1 << 15  # queries whose touched cells are enumerated at once (2^n cells each)
 ORDERED_CELLS = 1 << 14  # query-cell pairs tried at once where each query's cells are tried in order
-ORDERED_QUERIES = 2048  # ... by blocks up to this many queries (blocks of 8 cells and more), cell by cell past it
+ORDERED_QUERIES = ORDERED_CELLS  # ... by blocks up to this many queries, cell by cell past it (docs/benchmarks.md)
 SMALL_ROWS = 256  # point-query pairs up to which (k, n) comparisons beat n 1-D ones
 # point ids and dense cell numbers in the chains and the dense grid: both < 2^31 (a dense
 # grid has at most DENSE_LIMIT cells; ``insert`` refuses the 2^31st point). Half of int64:
@@ -433,17 +433,19 @@ class PointIndex(AlivePoints):
         n, base = self.n, choices.shape[2]
         every = allowed.all(axis=0)  # (n, base): digits every query allows
         still = (choices == 0).all(axis=0)  # (n, base): digits that move no query
-        axes = np.arange(n)
+        axes, left = np.arange(n), np.arange(len(rows))
         for k in range(base**n):
             digits = (k // radix) % base
             if still[axes, digits].all():
                 continue  # the home cell
-            live = found[rows] < 0
+            left = left[found[rows[left]] < 0]  # a pass spans the queries still without a witness
+            if len(left) == 0:
+                return
+            sel = left
             for axis in np.flatnonzero(~every[axes, digits]):
-                live &= allowed[:, axis, digits[axis]]
-            sel = np.flatnonzero(live)
+                sel = sel[allowed[sel, axis, digits[axis]]]
             if len(sel):
-                self._scan(q, home[sel] + choices[:, axes, digits][sel], rows[sel], r, found)
+                self._scan(q, home[sel] + choices[sel[:, None], axes, digits], rows[sel], r, found)
 
     def cover_away(self, queries: np.ndarray, radius: float) -> np.ndarray:
         """``cover`` of queries known to have no centre point at their home cell (a
