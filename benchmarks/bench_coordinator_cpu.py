@@ -70,7 +70,7 @@ print(json.dumps({"code": code, "cpu_s": r.ru_utime + r.ru_stime, "wall_s": time
 def quantify_child(child: str, config: str, out: str, who: str, first_args=(), env=None, cwd=None) -> dict:
     """Run ``child`` (Python source that calls the CLI's entry on ``sys.argv[1 + len(first_args):]``
     and prints a JSON row with the exit "code" last) on ``quantify config --out out --force``:
-    its row, with the campaign's committed runs and result hash; ``who`` names the tool in
+    its row, with the campaign's committed runs, result hash and boxes; ``who`` names the tool in
     the one-line error a failed run ends with."""
     proc = subprocess.run([sys.executable, "-c", child, *first_args, "quantify", config, "--out", out, "--force"],
                           capture_output=True, text=True, env=env, cwd=cwd)
@@ -82,17 +82,22 @@ def quantify_child(child: str, config: str, out: str, who: str, first_args=(), e
         sys.exit(f"{who}: quantify {config} returned {row['code']}: {proc.stderr.strip()[-400:]}")
     with open(os.path.join(out, "summary.json")) as f:
         summary = json.load(f)
-    row.update(committed=summary["runs_committed"], hash=summary["result_hash"])
+    row.update(committed=summary["runs_committed"], hash=summary["result_hash"], boxes=summary["boxes"])
     return row
+
+
+def checkout_env(checkout: str | None) -> dict:
+    """This process's environment, with ``checkout``'s packages first on the path if given."""
+    env = dict(os.environ)
+    if checkout is not None:
+        env["PYTHONPATH"] = os.pathsep.join([checkout, *filter(None, [env.get("PYTHONPATH")])])
+    return env
 
 
 def measure(config: str, out: str, checkout: str | None = None) -> dict:
     """One `quantify` of ``config`` into ``out``: the process's CPU, wall, exit and runs
     (``checkout``: with that checkout's packages first on the path)."""
-    env = dict(os.environ)
-    if checkout is not None:
-        env["PYTHONPATH"] = os.pathsep.join([checkout, *filter(None, [env.get("PYTHONPATH")])])
-    return quantify_child(_MEASURED, config, out, "bench_coordinator_cpu", env=env, cwd=checkout)
+    return quantify_child(_MEASURED, config, out, "bench_coordinator_cpu", env=checkout_env(checkout), cwd=checkout)
 
 
 def _rate(configs: dict, work: str, checkout: str | None, label: str) -> float:

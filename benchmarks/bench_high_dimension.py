@@ -17,7 +17,6 @@ nothing else on the machine.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import tempfile
@@ -58,10 +57,8 @@ def measure(checkout: str, config: str, out: str) -> dict:
     return profile(config, out, TIMED, checkout=checkout, who="bench_high_dimension")
 
 
-def line(label: str, m: dict, out: str) -> str:
-    with open(os.path.join(out, "summary.json")) as f:
-        boxes = json.load(f)["boxes"]
-    return (f"{label}: {m['committed']:,} committed runs, {boxes:,} boxes, wall {m['wall_s']:.1f} s, process CPU "
+def line(label: str, m: dict) -> str:
+    return (f"{label}: {m['committed']:,} committed runs, {m['boxes']:,} boxes, wall {m['wall_s']:.1f} s, process CPU "
             f"{m['cpu_s']:.1f} s (system {m['system_s']:.1f}), peak {m['max_rss_mb']:,.0f} MB; round end "
             f"{m['cpu'].get('SPE.end_round', 0.0):.2f} CPU-s; closing edge "
             f"{m['cpu'].get('SPECertification._edge_mask', 0.0):.2f} CPU-s over "
@@ -83,10 +80,10 @@ def main() -> None:
               f"({2 * args.vehicles - 1}-D), uniform Gamma, delta 2 -> {args.delta_min:g}, certified, in-process on "
               f"2 workers; whole `scenario-farm quantify` processes")
         this = measure(here, config, os.path.join(tmp, "this"))
-        print(line("this checkout", this, os.path.join(tmp, "this")), flush=True)
+        print(line("this checkout", this), flush=True)
         if args.vs:
             other = measure(os.path.abspath(args.vs), config, os.path.join(tmp, "other"))
-            print(line(args.vs, other, os.path.join(tmp, "other")))
+            print(line(args.vs, other))
             same = "the same result" if other["hash"] == this["hash"] else "DIFFERENT results"
             print(f"{args.vs} / this checkout: wall {other['wall_s'] / this['wall_s']:.2f}x, process CPU "
                   f"{other['cpu_s'] / this['cpu_s']:.2f}x, peak memory {other['max_rss_mb'] / this['max_rss_mb']:.2f}x; "

@@ -21,7 +21,7 @@ import tempfile
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 
-from bench_coordinator_cpu import CASE, quantify_child  # noqa: E402
+from bench_coordinator_cpu import CASE, checkout_env, quantify_child  # noqa: E402
 
 FUNCTIONS = ("coordinator.driver.campaign:Campaign.run,coordinator.driver.campaign:Campaign._commit,"
              "coordinator.driver.campaign:Campaign._fill,coordinator.driver.campaign:Campaign._settle,"
@@ -99,10 +99,7 @@ def profile(config: str, out: str, functions: str, checkout: str | None = None, 
     """One profiled `quantify` of ``config`` into ``out``: per function its main-thread CPU
     ("cpu") and calls, per thread its CPU ("threads"), the process's wall, CPU and peak
     memory, and the committed runs (``checkout``: its packages first on the path)."""
-    env = dict(os.environ)
-    if checkout is not None:
-        env["PYTHONPATH"] = os.pathsep.join([checkout, *filter(None, [env.get("PYTHONPATH")])])
-    return quantify_child(_CHILD, config, out, who, first_args=(functions,), env=env, cwd=checkout)
+    return quantify_child(_CHILD, config, out, who, first_args=(functions,), env=checkout_env(checkout), cwd=checkout)
 
 
 def main() -> None:

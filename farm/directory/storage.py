@@ -243,14 +243,19 @@ def _flock_locker(fd: int) -> int | None:
         fields = line.split()
         if len(fields) > 5 and fields[1] == "FLOCK" and fields[5] == key and fields[4].isdigit():
             pid = int(fields[4])
-            try:
-                os.kill(pid, 0)
-            except ProcessLookupError:
-                return None
-            except OSError:  # another user's: alive
-                pass
-            return pid
+            return pid if _running(pid) else None
     return None
+
+
+def _running(pid: int) -> bool:
+    """Is ``pid`` a process of this machine now (another user's counts)?"""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's: alive
+        pass
+    return True
 
 
 def _recorded_holder(fd: int) -> tuple[int | None, bool]:
@@ -263,13 +268,7 @@ def _recorded_holder(fd: int) -> tuple[int | None, bool]:
     pid = int(pid)
     if host.strip() != socket.gethostname():
         return pid, False
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return pid, True
-    except OSError:  # another user's: alive
-        pass
-    return pid, False
+    return pid, not _running(pid)
 
 
 class Ledger:
