@@ -63,6 +63,39 @@ class FailureDistances:
         # a copy (coordinator/driver/speculation.py) builds its own tree when it needs one
         return {**self.__dict__, "_tree": None, "_tree_count": 0}
 
+    def state(self) -> dict[str, np.ndarray]:
+        """The capped distances as a checkpoint keeps them: those below the cap (a bit per
+        vertex says which) and the counts they cover. Recomputed, they are a KD-tree search
+        from every vertex: most of resuming a 9-D campaign of 10 M boxes (docs/benchmarks.md)."""
+        if not np.isfinite(self.cap):
+            raise ValueError("only capped distances are kept in a checkpoint")
+        near = self.dist < self.cap
+        return {"cap": np.array(self.cap), "seen": np.array([self.seen_vertices, self.seen_failures], dtype=np.int64),
+                "near": np.packbits(near), "values": self.dist[near]}
+
+    @classmethod
+    def from_state(cls, lower: np.ndarray, upper: np.ndarray, state: dict[str, np.ndarray],
+                   track_lowered: bool = False) -> "FailureDistances":
+        """Distances as ``state`` kept them: the same values as computed afresh from the
+        same vertices and failures (every id counts as lowered, as from infinity). Raises
+        ValueError for arrays that do not fit together."""
+        cap = float(state["cap"])
+        vertex_count, failure_count = (int(x) for x in np.asarray(state["seen"]).reshape(2))
+        near = np.unpackbits(np.asarray(state["near"], dtype=np.uint8), count=vertex_count).astype(bool) \
+            if vertex_count <= 8 * len(state["near"]) else None
+        values = np.asarray(state["values"], dtype=float)
+        if not np.isfinite(cap) or near is None or failure_count < 1 or \
+                values.shape != (int(np.count_nonzero(near)),) or not (values < cap).all():
+            raise ValueError(f"the kept distances do not fit together ({vertex_count} vertices, {len(values)} "
+                             f"values below the cap {cap})")
+        out = cls(lower, upper, track_lowered=track_lowered, cap=cap)
+        out._buffer = np.full(vertex_count, cap)
+        out._buffer[near] = values
+        out.seen_vertices, out.seen_failures = vertex_count, failure_count
+        if track_lowered:
+            out.lowered.append(np.arange(vertex_count))
+        return out
+
     def update(self, points: np.ndarray, vertex_count: int, failures: np.ndarray, failure_count: int) -> np.ndarray:
         """The distances of vertices [0, vertex_count) to failures [0, failure_count)."""
         if failure_count == 0:

@@ -440,6 +440,7 @@ class SPE(SPECertification, Algorithm):
         out.update(self._stable.state())
         if self._edge_table is not None:
             out["closing.slots"] = self._edge_table.view.copy()
+        out.update(self._edge_reach_state())
         if self.band is not None:
             out.update(self.band.state())
         return out
@@ -459,6 +460,7 @@ class SPE(SPECertification, Algorithm):
         self.checked = CheckedCentres.from_state(state)
         self.replay.load_state(state)
         self._fresh_samplers()
+        self._load_edge_reach(state)
         if self.closing:
             self._load_edge_table(state.get("closing.slots"))
         self._stable.load_state(state, self._slot_count(), self.version)

@@ -14,6 +14,8 @@ from coordinator.buffers import Appendable
 from coordinator.priorities import FailureDistances
 from coordinator.stable_sampler import TableLaw
 
+EDGE_REACH = "edge_reach"  # a checkpoint's keys of the edge's distances
+
 
 class SPECertification:
     @property
@@ -111,6 +113,28 @@ class SPECertification:
         if self._edge_reach is None or self._edge_reach.cap != cap:
             self._edge_reach = FailureDistances(self.scenario.lower, self.scenario.upper, track_lowered=True, cap=cap)
         return self._edge_reach.update(self.vertices.points, count, sources, len(sources))
+
+    def _edge_reach_state(self) -> dict[str, np.ndarray]:
+        """The edge's distances for a checkpoint, if they cover every failure and hole and
+        vertex now (a closing round's always do: every change brings them up to date)."""
+        reach = self._edge_reach
+        if reach is None or self._edge_sources_in != (self.failures.count, len(self.hole_ids.view)) or \
+                reach.seen_failures != self._edge_source_points.size or reach.seen_vertices != self.vertices.count:
+            return {}
+        return {f"{EDGE_REACH}.{key}": value for key, value in reach.state().items()}
+
+    def _load_edge_reach(self, state: dict) -> None:
+        """The edge's distances as a checkpoint kept them (not computed again from every
+        vertex: docs/benchmarks.md); the failures and holes gathered as they cover them."""
+        kept = {key[len(EDGE_REACH) + 1 :]: value for key, value in state.items() if key.startswith(EDGE_REACH + ".")}
+        if not kept:
+            return
+        reach = FailureDistances.from_state(self.scenario.lower, self.scenario.upper, kept, track_lowered=True)
+        sources = self._edge_sources()
+        if reach.seen_failures != len(sources) or reach.seen_vertices != self.vertices.count:
+            raise ValueError(f"the kept edge distances cover {reach.seen_vertices} vertices and {reach.seen_failures} "
+                             f"failures and holes, the state has {self.vertices.count} and {len(sources)}")
+        self._edge_reach = reach
 
     def _edge_sources(self) -> np.ndarray:
         """The failures' and the holes' points (both only grow), each gathered once, not

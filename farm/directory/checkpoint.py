@@ -91,7 +91,10 @@ def restore(journal: Journal, ledger: Ledger, algorithm: Algorithm, policy, stam
         if isinstance(policy, SearchActions):
             adversary = AdversarySearch(policy, stamp.seed)
             adversary.load_state(arrays)
-    except (KeyError, TypeError, ValueError) as exc:
+    except KeyError as exc:
         raise CampaignError(f"{journal.main}: checkpoint lacks {exc} (damaged?); nothing was changed") \
+            from None
+    except (TypeError, ValueError) as exc:
+        raise CampaignError(f"{journal.main}: checkpoint does not read ({exc}; damaged?); nothing was changed") \
             from None
     return Restored(driver, adversary)

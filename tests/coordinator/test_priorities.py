@@ -150,3 +150,44 @@ def test_the_kept_tree_and_the_failures_after_it_give_the_brute_force_values_in_
         got = fd.update(points, count, failures, failure_count)
         assert np.array_equal(got, brute(points[:count], failures[:failure_count]))
     assert fd._tree_count < failure_count  # the last calls used the tree and the failures after it
+
+
+@pytest.mark.parametrize("n", [3, 9])
+def test_kept_distances_read_back_go_on_as_the_brute_force_minimum(n):
+    """A checkpoint keeps the capped distances (those below the cap and a bit per vertex):
+    read back, they are the values kept, every id counts as lowered (as from infinity),
+    and later vertices and failures bring them to the brute force's values."""
+    cap = 2.5
+    rng = np.random.default_rng(n)
+    lower, upper = np.zeros(n), np.full(n, 10.0)
+    points = rng.uniform(0, 10, (30_000, n))
+    failures = rng.uniform(0, 10, (60, n))
+    fd = FailureDistances(lower, upper, track_lowered=True, cap=cap)
+    kept = fd.update(points, 20_003, failures, 40).copy()
+    state = fd.state()
+    assert 0 < len(state["values"]) < 20_003  # only those below the cap
+    back = FailureDistances.from_state(lower, upper, state, track_lowered=True)
+    assert np.array_equal(back.dist, kept)
+    assert np.array_equal(back.take_lowered(), np.arange(20_003))
+    got = back.update(points, len(points), failures, len(failures))
+    assert np.array_equal(got, np.minimum(brute(points, failures), cap))
+    assert 0 < back.take_lowered().size < 20_003
+
+
+@pytest.mark.parametrize("damage", ["values short", "values at the cap", "bits short", "no failure"])
+def test_kept_distances_that_do_not_fit_together_are_refused(damage):
+    n, cap = 3, 2.5
+    rng = np.random.default_rng(1)
+    fd = FailureDistances(np.zeros(n), np.full(n, 10.0), cap=cap)
+    fd.update(rng.uniform(0, 10, (500, n)), 500, rng.uniform(0, 10, (5, n)), 5)
+    state = fd.state()
+    if damage == "values short":
+        state["values"] = state["values"][:-1]
+    elif damage == "values at the cap":
+        state["values"][0] = cap
+    elif damage == "bits short":
+        state["near"] = state["near"][:-2]
+    else:
+        state["seen"] = np.array([500, 0])
+    with pytest.raises(ValueError, match="do not fit together"):
+        FailureDistances.from_state(np.zeros(n), np.full(n, 10.0), state)

@@ -12,6 +12,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
+from farm.directory.journal import Journal
 from small_campaign import lead_follow_toml
 
 CONFIG = lead_follow_toml(delta_min=1.0, epsilon=0.002, horizon=40, farm_extra="pipeline_depth = 2\nseed = 5\n")
@@ -133,6 +134,9 @@ def test_stopped_mid_certification_then_resumed_gives_the_uninterrupted_result(t
     with pytest.raises(Stopped):
         run(cfg, tmp_path / "out", progress=stop)
     assert stop.stopped is not None and stop.stopped[0] == phase, stop.stopped
+    # the edge's distances are kept, not computed again from every centre
+    arrays, _ = Journal(tmp_path / "out").load()
+    assert {"algo.edge_reach.near", "algo.edge_reach.values"} <= set(arrays)
     summary = run(cfg, tmp_path / "out", resume=True)
     want, indices = uninterrupted
     assert summary["result_hash"] == want["result_hash"]
