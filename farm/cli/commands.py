@@ -18,7 +18,7 @@ from typing import NoReturn
 
 from farm import lazy
 from farm.cli import exits
-from farm.cli.native_stderr import install as quiet_native_stderr, keep_standard_fds
+from farm.cli.native_stderr import install as quiet_native_stderr, keep_standard_fds, outlive_reader
 from farm.cli.parser import build_parser
 from farm.execution.memory import keep_freed_memory
 from farm.jobs.signals import STOP_SIGNALS, catch, release_stops, stops_held
@@ -58,6 +58,7 @@ def main(argv=None) -> int:
 
 def _main(argv) -> int:
     keep_standard_fds()
+    outlive_reader()  # progress lines to a reader that has gone do not end the work
     parser = build_parser()
     args = parser.parse_args(argv)
     if not os.environ.get(exits.DEBUG):

@@ -41,6 +41,58 @@ def keep_standard_fds() -> None:
             setattr(sys, name, open(os.devnull, mode))
 
 
+class OutlivingReader:
+    """``sys.stderr`` that outlives its reader: when the pipe's reader has gone (``quantify
+    ... 2>&1 | head``, a ``tee`` killed), what is written is dropped, as with ``2>&-``, and
+    the work goes on. (A BrokenPipeError out of a progress line ended a campaign at its
+    first line, before it had run anything, with exit 0.) The exit code still says how
+    the command ended."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except BrokenPipeError:
+            self._to_null()
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except BrokenPipeError:
+            self._to_null()
+
+    def _to_null(self) -> None:
+        """The stream's file descriptor is /dev/null from now on (its buffer is written there)."""
+        try:
+            fd = self._stream.fileno()
+        except (OSError, ValueError):  # no descriptor of its own: a stream of nothing
+            self._stream = open(os.devnull, "w")
+            return
+        _null(fd)
+        try:
+            self._stream.flush()
+        except OSError:
+            self._stream = open(os.devnull, "w")
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
+def outlive_reader() -> None:
+    """From now on, a stderr whose reader has gone drops what is written to it."""
+    if not isinstance(sys.stderr, OutlivingReader):
+        sys.stderr = OutlivingReader(sys.stderr)
+
+
+def _null(fd: int) -> None:
+    null = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(null, fd)
+    os.close(null)
+
+
 def install() -> None:
     """From now on, fd 2 drops Ray's log lines (POSIX; once per process)."""
     global _installed
@@ -52,8 +104,8 @@ def install() -> None:
     read, write = os.pipe()
     os.dup2(write, 2)  # what a child or C++ writes to fd 2 now goes through the filter
     os.close(write)
-    sys.stderr = open(real, "w", buffering=1, encoding=sys.stderr.encoding, errors="backslashreplace",
-                      closefd=False)
+    sys.stderr = OutlivingReader(open(real, "w", buffering=1, encoding=sys.stderr.encoding,
+                                      errors="backslashreplace", closefd=False))
     threading.Thread(target=_pump, args=(read, real), name="native-stderr", daemon=True).start()
     # at exit (after Ray's own shutdown, registered later, has run) fd 2 is the real one
     # again: nothing written then can wait on a pipe nobody reads
@@ -72,4 +124,7 @@ def _pump(read: int, real: int) -> None:
 
 def _write_all(fd: int, data: bytes) -> None:
     while data:
-        data = data[os.write(fd, data):]
+        try:
+            data = data[os.write(fd, data):]
+        except BrokenPipeError:  # the reader has gone: dropped from now on (``OutlivingReader``)
+            _null(fd)

@@ -603,3 +603,18 @@ def test_replay_of_a_counterexample_is_a_finding_and_status_describes_the_valida
     r = cli("replay", out, "--sample", sample)
     one_line_error(r, f"the replay of sample {sample} does not match the record")
     assert "DIFF trajectory" in r.stdout
+
+
+def test_a_progress_reader_that_goes_away_does_not_end_the_campaign(config, campaign, tmp_path):
+    """`quantify ... 2>&1 | head -1` ended the campaign at its second line, with nothing
+    run and exit 0: the lines a reader that has gone would get are dropped, the campaign
+    runs to its end and its result."""
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "farm", "quantify", str(config), "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    assert proc.stdout.readline().startswith("scenario-farm: ")
+    proc.stdout.close()  # the reader goes; the campaign's next lines meet a broken pipe
+    assert proc.wait(300) == 0
+    got, want = (json.loads((d / "summary.json").read_text()) for d in (out, campaign))
+    assert got["result_hash"] == want["result_hash"] and got["runs_committed"] == want["runs_committed"]
+    assert json.loads((out / "status.json").read_text())["state"] == "done"
