@@ -80,7 +80,7 @@ def run(cfg: Config, out: Path, *, resume: bool = False, force: bool = False, pr
         if resume:
             directory.lock(announce=False)
             for side in sides:  # every checkpoint is checked before anything is written
-                side.restore()
+                side.restore(progress.line)
             directory.announce()
             directory.remove_stale_temp_files()
         else:

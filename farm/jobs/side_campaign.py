@@ -31,6 +31,7 @@ from farm.directory.storage import CampaignError, Ledger
 from farm.execution.waiting import Interrupted
 from scenarios.errors import Stopped
 
+LARGE_CHECKPOINT_MB = 100  # a checkpoint from this size on gets a line before and after it is read
 HOLDOUT_FILE = "holdout.json"  # a finished campaign's holdout, so that a resume before summary.json need not run it again
 
 
@@ -56,10 +57,21 @@ class SideCampaign:
         # the directory `scenario-farm resume` takes: the total's, which holds the sides'
         self.campaign_root = self.directory if side == "total" else self.directory.parent.parent
 
-    def restore(self) -> None:
-        """Load and check this campaign's checkpoint, if it has one (nothing is written)."""
+    def restore(self, say=lambda text: None) -> None:
+        """Load and check this campaign's checkpoint, if it has one (nothing is written).
+        ``say``: a line before and after reading a large one (millions of boxes take a while;
+        a small one is read at once, and an error it ends in stays the only line)."""
         if self.journal.exists():
+            files = [self.journal.main, *self.journal.segment_dir.glob("segment-*.npz")]
+            megabytes = sum(f.stat().st_size for f in files) / 1e6
+            if megabytes < LARGE_CHECKPOINT_MB:
+                say = lambda text: None  # noqa: E731
+            prefix = "" if self.side == "total" else f"{self.side} side: "
+            say(f"{prefix}reading the checkpoint ({megabytes:,.0f} MB)")
+            t0 = time.monotonic()
             self._restored = checkpoint.restore(self.journal, self.ledger, self.algorithm, self.policy, self.stamp)
+            say(f"{prefix}checkpoint read in {time.monotonic() - t0:.1f} s: resuming at "
+                f"{self._restored.driver.counters.committed:,} committed runs")
         elif any((self.directory / "ledger").glob("segment-*.parquet")):
             raise CampaignError(f"{self.directory}: ledger segments exist but checkpoint.npz is missing; refusing "
                                 f"to restart the campaign from scratch over them")

@@ -122,8 +122,25 @@ class _StopIn(_Stopper):
         return algo.certifying and algo.closing == (self.phase == "closing") and campaign.counters.quiet > 0
 
 
+class _Lines(_Stopper):
+    """Never stops; keeps the lines said."""
+
+    def __init__(self):
+        self.lines = []
+
+    def due(self, campaign) -> bool:
+        return False
+
+    def line(self, text):
+        self.lines.append(text)
+
+    def close(self, ending=""):
+        pass
+
+
 @pytest.mark.parametrize("phase", ["closing", "check"])
-def test_stopped_mid_certification_then_resumed_gives_the_uninterrupted_result(tmp_path, uninterrupted, phase):
+def test_stopped_mid_certification_then_resumed_gives_the_uninterrupted_result(tmp_path, uninterrupted, phase,
+                                                                                monkeypatch):
     # in-process (the committed sequence does not depend on the executor): stopped in a
     # closing round or in a check, with a checkpoint, then resumed from it
     from farm import config as config_mod
@@ -137,7 +154,11 @@ def test_stopped_mid_certification_then_resumed_gives_the_uninterrupted_result(t
     # the edge's distances are kept, not computed again from every centre
     arrays, _ = Journal(tmp_path / "out").load()
     assert {"algo.edge_reach.near", "algo.edge_reach.values"} <= set(arrays)
-    summary = run(cfg, tmp_path / "out", resume=True)
+    monkeypatch.setattr("farm.jobs.side_campaign.LARGE_CHECKPOINT_MB", 0)  # a line before and after reading it
+    said = _Lines()
+    summary = run(cfg, tmp_path / "out", resume=True, progress=said)
+    assert said.lines[0].startswith("reading the checkpoint (") and \
+        said.lines[1].startswith("checkpoint read in ") and f"resuming at {stop.stopped[2]:,} committed" in said.lines[1]
     want, indices = uninterrupted
     assert summary["result_hash"] == want["result_hash"]
     assert summary["runs_committed"] == want["runs_committed"]
