@@ -27,7 +27,7 @@ def _refined(seed=0, rounds=4, n=3):
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_the_leaves_tile_sigma_and_locate_finds_the_leaf_holding_a_point(seed):
+def test_the_leaves_tile_sigma_and_locate_finds_the_leaf_holding_a_point(seed, monkeypatch):
     p, rng = _refined(seed)
     leaves = p.leaves()
     assert np.isclose(np.prod(p.hi[leaves] - p.lo[leaves], axis=1).sum(), 20 * 20 * 70)
@@ -35,6 +35,9 @@ def test_the_leaves_tile_sigma_and_locate_finds_the_leaf_holding_a_point(seed):
     box = p.locate(x)
     assert p.is_leaf(box).all()
     assert ((x >= p.lo[box]) & (x <= p.hi[box])).all()
+    # in blocks (certification locates tens of millions of states): the same leaves
+    monkeypatch.setattr("coordinator.margin.partition.LOCATE_BLOCK", 7_000)
+    assert np.array_equal(p.locate(x), box)
 
 
 def test_a_neighbour_shares_the_face_it_was_looked_for_across():
