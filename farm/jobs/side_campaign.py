@@ -63,15 +63,16 @@ class SideCampaign:
         a small one is read at once, and an error it ends in stays the only line)."""
         if self.journal.exists():
             files = [self.journal.main, *self.journal.segment_dir.glob("segment-*.npz")]
-            megabytes = sum(f.stat().st_size for f in files) / 1e6
-            if megabytes < LARGE_CHECKPOINT_MB:
-                say = lambda text: None  # noqa: E731
+            megabytes = sum(f.stat().st_size for f in files if f.is_file()) / 1e6
+            loud = megabytes >= LARGE_CHECKPOINT_MB
             prefix = "" if self.side == "total" else f"{self.side} side: "
-            say(f"{prefix}reading the checkpoint ({megabytes:,.0f} MB)")
+            if loud:
+                say(f"{prefix}reading the checkpoint ({megabytes:,.0f} MB)")
             t0 = time.monotonic()
             self._restored = checkpoint.restore(self.journal, self.ledger, self.algorithm, self.policy, self.stamp)
-            say(f"{prefix}checkpoint read in {time.monotonic() - t0:.1f} s: resuming at "
-                f"{self._restored.driver.counters.committed:,} committed runs")
+            if loud:
+                say(f"{prefix}checkpoint read in {time.monotonic() - t0:.1f} s: resuming at "
+                    f"{self._restored.driver.counters.committed:,} committed runs")
         elif any((self.directory / "ledger").glob("segment-*.parquet")):
             raise CampaignError(f"{self.directory}: ledger segments exist but checkpoint.npz is missing; refusing "
                                 f"to restart the campaign from scratch over them")
