@@ -81,11 +81,10 @@ class FailureDistances:
         ValueError for arrays that do not fit together."""
         cap = float(state["cap"])
         vertex_count, failure_count = (int(x) for x in np.asarray(state["seen"]).reshape(2))
-        near = np.unpackbits(np.asarray(state["near"], dtype=np.uint8), count=vertex_count).astype(bool) \
-            if vertex_count <= 8 * len(state["near"]) else None
-        values = np.asarray(state["values"], dtype=float)
-        if not np.isfinite(cap) or near is None or failure_count < 1 or \
-                values.shape != (int(np.count_nonzero(near)),) or not (values < cap).all():
+        bits, values = np.asarray(state["near"], dtype=np.uint8), np.asarray(state["values"], dtype=float)
+        fits = np.isfinite(cap) and failure_count >= 1 and 0 <= vertex_count <= 8 * len(bits)
+        near = np.unpackbits(bits, count=vertex_count).astype(bool) if fits else None
+        if not fits or values.shape != (int(np.count_nonzero(near)),) or not (values < cap).all():
             raise ValueError(f"the kept distances do not fit together ({vertex_count} vertices, {len(values)} "
                              f"values below the cap {cap})")
         out = cls(lower, upper, track_lowered=track_lowered, cap=cap)
@@ -109,8 +108,8 @@ class FailureDistances:
             for at in range(0, len(fresh), LOWER_GROUP):
                 self._lower_by(points, fresh[at : at + LOWER_GROUP])
         if vertex_count > self.seen_vertices:
-            d_new = np.minimum(self._nearest(points[self.seen_vertices : vertex_count], failures[:failure_count],
-                                             self.cap), self.cap)
+            d_new = np.minimum(self._nearest(points[self.seen_vertices : vertex_count], failures[:failure_count]),
+                               self.cap)
             if vertex_count > len(self._buffer):  # doubling: a copy per append cost O(vertices)
                 grown = np.empty(max(vertex_count, 2 * len(self._buffer)))
                 grown[: self.seen_vertices] = self.dist
@@ -128,22 +127,22 @@ class FailureDistances:
         ``copy.deepcopy`` copying views apart, and lose what ``_lower`` writes)."""
         return self._buffer[: self.seen_vertices]
 
-    def _nearest(self, vertices: np.ndarray, failures: np.ndarray, cap: float = np.inf) -> np.ndarray:
-        """d(v, failures) for each vertex, or anything above ``cap`` where d exceeds it:
+    def _nearest(self, vertices: np.ndarray, failures: np.ndarray) -> np.ndarray:
+        """d(v, failures) for each vertex, or anything above the cap where d exceeds it:
         brute force for few pairs (between two draws a campaign adds a few vertices, too
         few to pay for a KD-tree of every failure), else a KD-tree of the failures, kept
         from call to call (failures only grow: those added since it was built are brute
         force while that is cheap; rebuilt per call, it was most of a 9-D closing round),
-        searching no farther than ``cap`` (in 9-D an unbounded search from each of 10 M
+        searching no farther than the cap (in 9-D an unbounded search from each of 10 M
         vertices visits most of the tree). Both are the float64 max over axes of |v - f|
-        and its min over f: the same values up to ``cap``."""
+        and its min over f: the same values up to the cap."""
         if len(vertices) * len(failures) <= BRUTE_FORCE_PAIRS:
             return _linf(vertices[:, None, :], failures[None, :, :]).min(axis=1)
         from scipy.spatial import cKDTree  # here: scipy.spatial is 0.4 s of every CLI start
 
         if self._tree is None or not 0 <= len(failures) - self._tree_count <= BRUTE_FORCE_PAIRS // len(vertices):
             self._tree, self._tree_count = cKDTree(failures), len(failures)
-        bound = np.nextafter(cap, np.inf) if np.isfinite(cap) else np.inf  # (the bound is strict)
+        bound = np.nextafter(self.cap, np.inf) if np.isfinite(self.cap) else np.inf  # (the bound is strict)
         d = self._tree.query(vertices, p=np.inf, distance_upper_bound=bound)[0]
         rest = failures[self._tree_count :]
         if len(rest):

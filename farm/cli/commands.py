@@ -18,7 +18,7 @@ from typing import NoReturn
 
 from farm import lazy
 from farm.cli import exits
-from farm.cli.native_stderr import install as quiet_native_stderr, keep_standard_fds, outlive_reader
+from farm.cli.native_stderr import install as quiet_native_stderr, keep_standard_fds, outlive_reader, to_devnull
 from farm.cli.parser import build_parser
 from farm.execution.memory import keep_freed_memory
 from farm.jobs.signals import STOP_SIGNALS, catch, release_stops, stops_held
@@ -87,7 +87,7 @@ def _stdout_closed() -> bool:
     try:
         if not stat.S_ISFIFO(os.fstat(sys.stdout.fileno()).st_mode):
             return False
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        to_devnull(sys.stdout.fileno())
         return True
     except (OSError, ValueError):
         return False

@@ -30,10 +30,7 @@ def keep_standard_fds() -> None:
         try:
             os.fstat(fd)
         except OSError:
-            null = os.open(os.devnull, os.O_RDWR)
-            if null != fd:
-                os.dup2(null, fd)
-                os.close(null)
+            to_devnull(fd)
             if getattr(sys, name) is None:
                 setattr(sys, name, open(fd, mode, closefd=False))
             continue
@@ -71,7 +68,7 @@ class OutlivingReader:
         except (OSError, ValueError):  # no descriptor of its own: a stream of nothing
             self._stream = open(os.devnull, "w")
             return
-        _null(fd)
+        to_devnull(fd)
         try:
             self._stream.flush()
         except OSError:
@@ -87,10 +84,13 @@ def outlive_reader() -> None:
         sys.stderr = OutlivingReader(sys.stderr)
 
 
-def _null(fd: int) -> None:
-    null = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(null, fd)
-    os.close(null)
+def to_devnull(fd: int) -> None:
+    """File descriptor ``fd`` (open or closed) is /dev/null from now on: what is written
+    to it is dropped."""
+    null = os.open(os.devnull, os.O_RDWR)
+    if null != fd:  # (a closed fd is the lowest free one: the open may have taken it)
+        os.dup2(null, fd)
+        os.close(null)
 
 
 def install() -> None:
@@ -127,4 +127,4 @@ def _write_all(fd: int, data: bytes) -> None:
         try:
             data = data[os.write(fd, data):]
         except BrokenPipeError:  # the reader has gone: dropped from now on (``OutlivingReader``)
-            _null(fd)
+            to_devnull(fd)
