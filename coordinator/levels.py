@@ -41,6 +41,7 @@ class LeveledIndex(AlivePoints):
         self._level = np.full(capacity, -1, dtype=np.int8)
         self._local = np.full(capacity, -1, dtype=np.int64)
         self.count = 0
+        self._alive = 0  # alive points, kept by insert and kill (a sum per ask is O(points), per change)
         self._levels: list[tuple[float, PointIndex]] = []  # (half-width, index)
         # per level: local id -> global id, in a buffer grown by doubling (a level of a
         # million points takes thousands of small inserts)
@@ -125,6 +126,7 @@ class LeveledIndex(AlivePoints):
         self.points[ids] = pts
         self.alive[ids] = True
         self.count += k
+        self._alive += k
         if k == 0:
             return ids
         if half_width is None or np.ndim(half_width) == 0:
@@ -151,6 +153,11 @@ class LeveledIndex(AlivePoints):
         ids = ids[self.alive[ids]]
         self._unplace(ids)
         self.alive[ids] = False
+        self._alive -= len(ids)
+
+    @property
+    def alive_count(self) -> int:
+        return self._alive
 
     def resize(self, ids, half_width: float) -> None:
         """Alive points ``ids`` become boxes of ``half_width`` (same ids)."""
@@ -258,5 +265,6 @@ class LeveledIndex(AlivePoints):
             own = (idx._level[glob] == i) & (idx._local[glob] == np.arange(len(glob)))
             idx._levels[i][1].kill(np.flatnonzero(~own))
         idx.alive[: len(pts)] = True
+        idx._alive = len(pts)
         idx.kill(np.flatnonzero(~np.asarray(state["alive"], dtype=bool)))
         return idx
