@@ -55,6 +55,7 @@ SMALL_PUSH = 8  # points pushed one by one: ~12 array operations cost more below
 MISS_BLOCK = 1 << 15  # queries whose touched cells are enumerated at once (2^n cells each)
 ORDERED_CELLS = 1 << 14  # query-cell pairs tried at once where each query's cells are tried in order
 ORDERED_QUERIES = ORDERED_CELLS  # ... by blocks up to this many queries, cell by cell past it (docs/benchmarks.md)
+CENTRE_SLACK = 2e-9  # [cells] how far from its cell's centre a centre point may sit (1e-9), and rounding
 SMALL_ROWS = 256  # point-query pairs up to which (k, n) comparisons beat n 1-D ones
 # point ids and dense cell numbers in the chains and the dense grid: both < 2^31 (a dense
 # grid has at most DENSE_LIMIT cells; ``insert`` refuses the 2^31st point). Half of int64:
@@ -113,6 +114,7 @@ class PointIndex(AlivePoints):
         self._centre_point[centre_cells[live]] = live
         off = ids[self.alive[: self.count] & (centre_cells < 0)]
         np.add.at(self._others, flat[off], 1)
+        self._off_alive = len(off)  # alive off-centre points: without any, no chain is walked
         self._push(off, flat[off], self._off_head, self._off_next)
 
     def _flat(self, cells: np.ndarray) -> np.ndarray:
@@ -248,6 +250,7 @@ class PointIndex(AlivePoints):
             if not centred.all():
                 off = ~centred
                 np.add.at(self._others, flat[off], 1)
+                self._off_alive += int(np.count_nonzero(off))
                 self._push(ids[off], flat[off], self._off_head, self._off_next)
         if self.count > self._buckets // 2:
             self._buckets = 1 << int(np.ceil(np.log2(4 * self.count)))
@@ -275,6 +278,7 @@ class PointIndex(AlivePoints):
             orphaned = np.unique(cells[known])
             self._rename(orphaned[self._dense[orphaned] > 0])
             np.subtract.at(self._others, self._flat(self._cells(self.points[dying[~centred]])), 1)
+            self._off_alive -= int(np.count_nonzero(~centred))
         self.alive[ids] = False
 
     def _rename(self, cells: np.ndarray) -> None:
@@ -501,36 +505,56 @@ class PointIndex(AlivePoints):
         return near.any(axis=1)
 
     def _cover_cells(self, q, rel, r, found) -> None:
-        """Queries at radius = cell/2 whose home cell has no centre point: check the centre
-        point of every cell each ball touches by its true distance, and walk the
-        off-centre chains of those holding any (~20 array operations). A ball touches at
-        most two cells per axis, three for a query within the tolerance of a cell centre
-        (those are enumerated apart: 3^n cells). Cells beyond the grid are clipped into
-        its margin, whose chains hold every point beyond the bounds, so nothing is missed."""
+        """Queries at radius = cell/2 whose home cell has no centre point: check by its true
+        distance the centre point of each cell the ball touches whose centre can be near,
+        and, if the index has off-centre points, walk the chains of every cell it touches
+        (~20 array operations). A ball touches at most two cells per axis, three for a
+        query within the tolerance of a cell centre (those are enumerated apart); the
+        cells whose centre can be near are mostly one per axis, so a query costs O(n), not
+        2^n, unless off-centre points make the chains worth walking. Cells beyond the grid
+        are clipped into its margin, whose chains hold every point beyond the bounds, so
+        nothing is missed."""
         reach = r / self.cell
         lo = np.floor(rel - reach).astype(np.int64)
         hi = np.floor(rel + reach).astype(np.int64)
         centred = (hi - lo >= 2).any(axis=1)
+        # a centre point within r of a query lies in a cell whose centre is within reach on
+        # every axis (up to CENTRE_SLACK: a centre point sits within 1e-9 cells of its cell's
+        # centre): per axis a contiguous range within lo..hi, mostly the home cell alone,
+        # so not the 2^n cells the ball touches. The same cells in the same order, less those
+        # that cannot hold a witness: the same witnesses.
+        centres_at = rel - 0.5  # cell k's centre lies within reach where |k - centres_at| <= reach
+        clo = np.maximum(lo, np.ceil(centres_at - reach - CENTRE_SLACK).astype(np.int64))
+        chi = np.maximum(clo, np.minimum(hi, np.floor(centres_at + reach + CENTRE_SLACK).astype(np.int64)))
         if not centred.any():  # most calls: no query within the tolerance of a cell centre
-            self._check_cells(q, lo, hi, np.arange(len(q)), 2, r, found)
+            self._check_cells(q, lo, hi, clo, chi, np.arange(len(q)), 2, r, found)
             return
         for rows, span in (((~centred).nonzero()[0], 2), (centred.nonzero()[0], 3)):
             if len(rows):
-                self._check_cells(q, lo[rows], hi[rows], rows, span, r, found)
+                self._check_cells(q, lo[rows], hi[rows], clo[rows], chi[rows], rows, span, r, found)
 
-    def _check_cells(self, q, lo, hi, rows, span, r, found) -> None:
+    def _check_cells(self, q, lo, hi, clo, chi, rows, span, r, found) -> None:
         """Cells lo + o (o < span, lo + o <= hi per axis) of queries ``rows``, each row's
-        cells in ``itertools.product`` order of o (a later witness overwrites an earlier)."""
-        row_of, cells = box_cells(lo, hi, span)
+        cells in ``itertools.product`` order of o (a later witness overwrites an earlier):
+        their centre points among cells clo..chi (the ones that can be near), then the
+        off-centre chains of them all for queries still without a witness."""
+        row_of, cells = box_cells(clo, chi, span)
         row = rows[row_of]
-        flat = self._flat(cells)
-        centre = self._centre_point[flat]
+        centre = self._centre_point[self._flat(cells)]
         named = (centre >= 0).nonzero()[0]
         if len(named):
             points, queries = centre[named], row[named]
             near = self._within(points, q, queries, r)
             found[queries[near]] = points[near]
-        chained = ((self._others[flat] > 0) & (found[row] < 0)).nonzero()[0]
+        if self._off_alive == 0:
+            return
+        left = (found[rows] < 0).nonzero()[0]
+        if len(left) == 0:
+            return
+        row_of, cells = box_cells(lo[left], hi[left], span)
+        row = rows[left][row_of]
+        flat = self._flat(cells)
+        chained = (self._others[flat] > 0).nonzero()[0]
         if len(chained):
             self._walk(q, row[chained], self._off_head[flat[chained]], r, found, self._off_next)
 

@@ -3,6 +3,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from coordinator.cell_grid import REACH_TABLE, box_cells
+from coordinator.levels import LeveledIndex
 from coordinator.spatial import PointIndex
 
 
@@ -266,18 +267,26 @@ def test_a_large_high_dimensional_batch_asks_a_tree_and_answers_as_the_cells_do(
         np.testing.assert_array_equal(idx.cover(q, radius) >= 0, truth)  # the cells, asked directly
 
 
-@pytest.mark.parametrize("dense", [False, True])
-def test_the_alive_count_kept_by_insert_and_kill_is_the_flags_count(dense):
-    # the closing edge asks it after every change: kept, not summed over every point
+@pytest.mark.parametrize("kind", ["cells", "dense", "leveled"])
+def test_the_alive_count_kept_by_insert_and_kill_is_the_flags_count(kind):
+    # the closing edge and the quiet rule ask it after every change: kept, not summed over
+    # every point (a 9-D band campaign of 4 M boxes spent most of its head there)
     rng = np.random.default_rng(4)
     lo, hi = np.zeros(3), np.full(3, 8.0)
-    idx = PointIndex(3, 1.0, np.zeros(3), bounds=(lo, hi) if dense else None)
-    for _ in range(30):
-        idx.insert(np.round(rng.uniform(-1, 9, (int(rng.integers(1, 200)), 3)) * 2) / 2 + 0.5)
+    cls = LeveledIndex if kind == "leveled" else PointIndex
+    idx = cls(3, 1.0, np.zeros(3), bounds=(lo, hi) if kind == "dense" else None)
+    for step in range(30):
+        pts = np.round(rng.uniform(-1, 9, (int(rng.integers(1, 200)), 3)) * 2) / 2 + 0.5
+        if kind == "leveled" and step % 3 == 1:
+            idx.insert(pts, half_width=rng.choice([0.25, 0.5], len(pts)))  # mixed sizes, levels of their own
+        else:
+            idx.insert(pts)
         doomed = rng.integers(0, idx.count, int(rng.integers(0, 80)))
         idx.kill(np.concatenate([doomed, doomed[:5]]))  # repeats, and ids already dead
+        if kind == "leveled":
+            idx.resize(rng.integers(0, idx.count, 20), 0.25)  # a resize keeps a box alive or dead
         assert idx.alive_count == np.count_nonzero(idx.alive[: idx.count])
-    assert PointIndex.from_state(idx.state()).alive_count == idx.alive_count
+    assert cls.from_state(idx.state()).alive_count == idx.alive_count
 
 
 def _cover_cell_by_cell(index: PointIndex, q: np.ndarray, radius: float) -> np.ndarray:
@@ -338,3 +347,35 @@ def test_cover_without_a_dense_grid_names_the_witness_of_a_cell_by_cell_search(n
         got = index.cover(q, radius)
         assert np.array_equal(got, _cover_cell_by_cell(index, q, radius))
         assert 0 < (got >= 0).sum() < len(q)
+
+
+@pytest.mark.parametrize("n", [3, 5, 7])
+@pytest.mark.parametrize("off_centre", [False, True])
+def test_a_miss_asks_only_the_cells_whose_centre_can_be_near_and_names_the_same_witness(n, off_centre, monkeypatch):
+    """A query whose home cell holds no centre point: its witness, asked only of the cells
+    whose centre lies within reach (mostly the home cell alone), is the one every cell its
+    ball touches (2^n, 3^n near a centre) names, with centre points a hair off their
+    centres, queries on faces, near centres and a hair off them, and off-centre points
+    or none."""
+    import coordinator.spatial as spatial
+
+    rng = np.random.default_rng(n + 10 * off_centre)
+    lo, hi = np.zeros(n), np.full(n, 4.0)
+    cells = rng.integers(0, 4, (600, n))
+    centres = lo + cells + 0.5 + rng.choice([0.0, 4e-10, -4e-10], (600, n))  # within 1e-9 cells: centre points
+    index = PointIndex(n, 1.0, lo, bounds=(lo, hi))
+    index.insert(centres)
+    if off_centre:
+        index.insert(rng.uniform(-0.5, 4.5, (200, n)))
+    index.kill(rng.choice(index.count, index.count // 3, replace=False))
+    assert (index._off_alive > 0) == off_centre
+    q = np.concatenate([rng.uniform(-0.7, 4.7, (3000, n)),
+                        np.round(rng.uniform(0, 4, (1500, n)) * 2) / 2 + rng.choice([0.0, 1e-9, -1e-9, 3e-9], (1500, n)),
+                        centres[:500] + rng.choice([0.0, 0.5, -0.5, 0.5 + 1e-9, 1.0], (500, n))])
+    q = q[index.home_cover(q) < 0]
+    assert len(q) > 1000
+    got = index.cover(q, 0.5)
+    monkeypatch.setattr(spatial, "CENTRE_SLACK", 1e6)  # every touched cell asked, as before
+    want = index.cover(q, 0.5)
+    assert (want >= 0).sum() > 100
+    np.testing.assert_array_equal(got, want)
