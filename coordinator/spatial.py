@@ -536,16 +536,18 @@ class PointIndex(AlivePoints):
     def _check_cells(self, q, lo, hi, clo, chi, rows, span, r, found) -> None:
         """Cells lo + o (o < span, lo + o <= hi per axis) of queries ``rows``, each row's
         cells in ``itertools.product`` order of o (a later witness overwrites an earlier):
-        their centre points among cells clo..chi (the ones that can be near), then the
-        off-centre chains of them all for queries still without a witness."""
-        row_of, cells = box_cells(clo, chi, span)
-        row = rows[row_of]
-        centre = self._centre_point[self._flat(cells)]
-        named = (centre >= 0).nonzero()[0]
-        if len(named):
-            points, queries = centre[named], row[named]
-            near = self._within(points, q, queries, r)
-            found[queries[near]] = points[near]
+        their centre points, of which only cells clo..chi can name a witness, then, if the
+        index has off-centre points, the chains of every cell for queries still without
+        a witness."""
+        if self._alive > self._off_alive:  # some centre point is alive
+            row_of, cells = box_cells(clo, chi, span)
+            row = rows[row_of]
+            centre = self._centre_point[self._flat(cells)]
+            named = (centre >= 0).nonzero()[0]
+            if len(named):
+                points, queries = centre[named], row[named]
+                near = self._within(points, q, queries, r)
+                found[queries[near]] = points[near]
         if self._off_alive == 0:
             return
         left = (found[rows] < 0).nonzero()[0]

@@ -356,7 +356,7 @@ def test_a_miss_asks_only_the_cells_whose_centre_can_be_near_and_names_the_same_
     whose centre lies within reach (mostly the home cell alone), is the one every cell its
     ball touches (2^n, 3^n near a centre) names, with centre points a hair off their
     centres, queries on faces, near centres and a hair off them, and off-centre points
-    or none."""
+    (whose chains every cell is asked for) or none."""
     import coordinator.spatial as spatial
 
     rng = np.random.default_rng(n + 10 * off_centre)
