@@ -6,7 +6,10 @@ wall time, CPU and peak memory, the round end's CPU (the children of 2,000 boxes
 checked against the failures) and the closing edge's (``SPECertification._edge_mask``,
 once per change of a closing round), and the result hash.
 
-    python benchmarks/bench_high_dimension.py [--vehicles 4] [--delta-min 1] [--vs CHECKOUT]
+    python benchmarks/bench_high_dimension.py [--vehicles 4] [--delta-min 1] [--refine all|band] [--vs CHECKOUT]
+
+``--refine band``: boundary refinement (mixed box sizes, the leveled index) instead of
+"all", what ``refine = "auto"`` resolves to for this stochastic system.
 
 ``--vs CHECKOUT``: another checkout of this repository (``git worktree add /tmp/before
 <commit>``), run the same way after this one: the before/after of a change, with the
@@ -37,6 +40,7 @@ gamma = 0.5
 delta_min = {delta_min}
 horizon = 50
 sides = false
+refine = "{refine}"
 budget = 4000000
 [farm]
 executor = "local"
@@ -69,15 +73,17 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--vehicles", type=int, default=4, help="platoon size: 2 + 1 + followers; 4 is 7-D")
     ap.add_argument("--delta-min", type=float, default=1.0)
+    ap.add_argument("--refine", choices=("all", "band"), default="all", help="quantify.refine")
     ap.add_argument("--vs", help="another checkout, run the same way after this one")
     args = ap.parse_args()
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     with tempfile.TemporaryDirectory() as tmp:
         config = os.path.join(tmp, "case.toml")
         with open(config, "w") as f:
-            f.write(CONFIG.format(vehicles=args.vehicles, delta_min=args.delta_min))
+            f.write(CONFIG.format(vehicles=args.vehicles, delta_min=args.delta_min, refine=args.refine))
         print(f"machine: {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}; platoon of {args.vehicles} "
-              f"({2 * args.vehicles - 1}-D), uniform Gamma, delta 2 -> {args.delta_min:g}, certified, in-process on "
+              f"({2 * args.vehicles - 1}-D), uniform Gamma, delta 2 -> {args.delta_min:g}, refine {args.refine}, "
+              f"certified, in-process on "
               f"2 workers; whole `scenario-farm quantify` processes")
         this = measure(here, config, os.path.join(tmp, "this"))
         print(line("this checkout", this), flush=True)
