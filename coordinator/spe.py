@@ -105,6 +105,7 @@ class SPE(SPECertification, Algorithm):
         self._edge: tuple[int, np.ndarray] | None = None  # (version, mask): the closing law's candidates
         self._edge_table: Appendable | None = None  # a closing round's slots: per slot, its edge id
         self._edge_slot: np.ndarray | None = None  # per vertex id, its slot in the table (-1: none)
+        self._edge_free: list[int] = []  # the table's free slots (-1 there), a heap
         self._edge_track: EdgeMembership | None = None  # a closing round's edge, kept by change
         # min(d(vertex, failure or hole), cap), and those points: ``SPECertification._edge_distances``
         self._edge_reach: FailureDistances | None = None
