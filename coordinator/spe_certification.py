@@ -175,8 +175,7 @@ class SPECertification:
         listed = np.flatnonzero(view >= 0)
         self._edge_slot = np.full(len(mask), -1, dtype=np.int64)
         self._edge_slot[view[listed]] = listed
-        # the free slots as a heap, lowest first: a search of the table per change was
-        # O(edge) (a 9-D edge of a million ids)
+        # the free slots as a heap, lowest first: a search of the table per change is O(edge)
         self._edge_free = np.flatnonzero(view < 0).tolist()  # ascending: a heap already
 
     def _edge_after_change(self) -> None:
