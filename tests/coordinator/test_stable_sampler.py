@@ -309,6 +309,7 @@ def test_the_edge_table_lists_each_edge_id_once_and_reuses_freed_slots():
             self._edge_table = Appendable(np.int64, np.flatnonzero(mask))
             self._edge_slot = np.full(len(mask), -1, dtype=np.int64)
             self._edge_slot[self._edge_table.view] = np.arange(self._edge_table.size)
+            self._edge_free = []  # no free slot yet (the loader lists those of a table read back)
             self._stable, self.version = StableSampler(), 0
 
     rng = np.random.default_rng(8)  # test data only
