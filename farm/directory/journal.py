@@ -98,6 +98,12 @@ class Journal:
     def exists(self) -> bool:
         return self.main.exists()
 
+    def size_bytes(self) -> int:
+        """Bytes on disk: checkpoint.npz and its segments (what a restore reads, about)."""
+        files = [self.main, *(p for p in self.segment_dir.glob("*") if SEGMENT.search(p.name))] \
+            if self.segment_dir.is_dir() else [self.main]
+        return sum(f.stat().st_size for f in files if f.is_file())
+
     def load(self) -> tuple[dict[str, np.ndarray], dict]:
         """The saved arrays (append-only ones reassembled) and the metadata, for the
         campaign that owns the checkpoint and goes on writing it: checks every segment's

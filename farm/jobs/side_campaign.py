@@ -62,8 +62,7 @@ class SideCampaign:
         ``say``: a line before and after reading a large one (millions of boxes take a while;
         a small one is read at once, and an error it ends in stays the only line)."""
         if self.journal.exists():
-            files = [self.journal.main, *self.journal.segment_dir.glob("segment-*.npz")]
-            megabytes = sum(f.stat().st_size for f in files if f.is_file()) / 1e6
+            megabytes = self.journal.size_bytes() / 1e6
             loud = megabytes >= LARGE_CHECKPOINT_MB
             prefix = "" if self.side == "total" else f"{self.side} side: "
             if loud:

@@ -31,6 +31,15 @@ def test_read_returns_what_load_returns_and_only_the_names_asked(tmp_path):
     assert meta["append_only"] == ["a", "b"]
 
 
+def test_its_size_is_the_checkpoint_and_its_segments(tmp_path):
+    assert Journal(tmp_path).size_bytes() == 0  # none yet
+    _saved(tmp_path)
+    segments = sorted((tmp_path / "checkpoint").glob("segment-*.npz"))
+    (tmp_path / "checkpoint" / "notes.txt").write_text("x" * 1000)  # not the journal's: not counted
+    want = (tmp_path / "checkpoint.npz").stat().st_size + sum(f.stat().st_size for f in segments)
+    assert len(segments) == 2 and Journal(tmp_path).size_bytes() == want
+
+
 def test_read_skips_segments_without_the_names_asked_and_checks_the_others(tmp_path):
     _saved(tmp_path)
     second = sorted((tmp_path / "checkpoint").glob("segment-*.npz"))[1]
