@@ -13,7 +13,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 BENCHMARKS = [["bench_numpy.py"], ["bench_coordinator.py"], ["bench_campaign.py"],
               ["bench_campaign.py", "--delta-min", "0.125", "--no-certify"], ["bench_ray.py"],
               ["bench_coordinator_cpu.py"], ["bench_scaling.py", "--no-write"], ["bench_virtual.py", "--no-write"],
-              ["bench_sumo.py"], ["bench_sumo_ray.py"], ["bench_validate_set.py"], ["bench_high_dimension.py"]]
+              ["bench_sumo.py"], ["bench_sumo_ray.py"], ["bench_validate_set.py"], ["bench_high_dimension.py"],
+              ["bench_result_phase.py"]]
 
 if __name__ == "__main__":
     if sys.argv[1:] == ["--list"]:

@@ -19,7 +19,7 @@ from typing import Iterator
 import numpy as np
 
 from coordinator.box_index import BoxIndex
-from coordinator.spatial import PointIndex
+from coordinator.spatial import TREE_DIMENSION, TREE_QUERIES, PointIndex, point_tree, tree_within
 from coordinator.volume import corner_hull_volume, hull_volume, union_volume
 from coordinator.volume_estimate import VolumeEstimate, disjoint_volume, hull_volume_estimate, union_volume_estimate
 from scenarios.errors import DataError
@@ -175,9 +175,21 @@ class SafeSet:
         if self.anisotropic:
             return self._box_index.contains(states)
         inside = np.zeros(len(states), dtype=bool)
+        if self.n >= TREE_DIMENSION and len(states) >= TREE_QUERIES:
+            # many queries in a high dimension (a volume estimate's points): one KD-tree per
+            # half-width, built once for the set; the cell index's misses check 2^n cells
+            for width, tree in self._trees:
+                outside = np.flatnonzero(~inside)
+                inside[outside] = tree_within(tree, states[outside], width, workers=-1)
+            return inside
         for width, index in self._indexes:
             inside |= index.any_within(states, width)
         return inside
+
+    @cached_property
+    def _trees(self) -> list:
+        """One KD-tree of the centres per half-width (``contains`` in a high dimension)."""
+        return [(width, point_tree(centres)) for width, centres in self.by_width()]
 
     @cached_property
     def _box_index(self) -> BoxIndex:

@@ -24,11 +24,12 @@ from dataclasses import dataclass
 import numpy as np
 
 # uniform points per estimate: a share's 95 % interval is ~0.5 % wide at 1/2. Each point
-# costs a lookup among the boxes (the union) or DIRECTIONS half-spaces (the hull): 2^20 of
-# them took ~70 s of a 9-D set's 76 s result phase, for an interval 0.2 % wide
+# costs a lookup among the boxes (the union) or DIRECTIONS half-spaces (the hull), so 8x
+# the points for an interval 0.2 % wide would cost most of a 9-D set's result phase
 SAMPLES = 1 << 17
 DIRECTIONS = 1024  # half-spaces of the outer polytope of the hull
 BLOCK = 1 << 16  # points tested at once
+SUPPORT_BLOCK = 1024  # boxes whose support is computed at once (docs/benchmarks.md)
 DIRECTION_BLOCK = 128  # half-spaces tested at once: (BLOCK, 128) floats, 64 MB, whatever DIRECTIONS is
 Z95 = 1.959963984540054
 
@@ -106,11 +107,13 @@ def hull_volume_estimate(lo: np.ndarray, hi: np.ndarray, bounds=None, seed: int 
     axes = np.concatenate([np.eye(n), -np.eye(n)])
     random = rng.normal(size=(max(directions - len(axes), 0), n))
     u = np.concatenate([axes, random / np.linalg.norm(random, axis=1, keepdims=True)])
-    centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+    # h(u) = max over boxes of u . c + |u| . h: no corners; one product of (c, h) rows with
+    # (u, |u|) columns, in blocks whose (SUPPORT_BLOCK, directions) product stays in cache
+    both = np.ascontiguousarray(np.concatenate([u, np.abs(u)], axis=1).T)
     support = np.full(len(u), -np.inf)
-    for at in range(0, len(lo), BLOCK):  # h(u) = max over boxes of u . c + |u| . h: no corners
-        c, h = centre[at : at + BLOCK], half[at : at + BLOCK]
-        support = np.maximum(support, (c @ u.T + h @ np.abs(u).T).max(axis=0))
+    for at in range(0, len(lo), SUPPORT_BLOCK):
+        l, h = lo[at : at + SUPPORT_BLOCK], hi[at : at + SUPPORT_BLOCK]
+        np.maximum(support, (np.concatenate([0.5 * (l + h), 0.5 * (h - l)], axis=1) @ both).max(axis=0), out=support)
 
     def inside(points: np.ndarray) -> np.ndarray:
         # a block of half-spaces at a time, on the points still inside: most points of the

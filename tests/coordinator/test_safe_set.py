@@ -43,7 +43,7 @@ def mixed_set(rng, n=3, boxes=80, aligned=True) -> SafeSet:
         centres = (rng.integers(0, 10, (boxes, n)) * 2 + 1) * widths[:, None]
     else:
         centres = rng.integers(0, 80, (boxes, n)) / 8.0
-    return SafeSet(centres, widths, NAMES[:n])
+    return SafeSet(centres, widths, NAMES[:n] if n <= len(NAMES) else tuple(f"x{a}" for a in range(n)))
 
 
 def raster_volume(safe_set: SafeSet, lo, hi, cell=1 / 8) -> float:
@@ -139,14 +139,22 @@ def test_hull_volume_clipped_to_bounds_is_the_hull_of_every_clipped_box_corner()
     assert s.volume_hull(bounds) == pytest.approx(ConvexHull(corners).volume, rel=1e-12)
 
 
-def test_contains_is_membership_in_some_box_of_its_own_size():
+@pytest.mark.parametrize("n, boxes", [(3, 200), (7, 4000)])
+def test_contains_is_membership_in_some_box_of_its_own_size(n, boxes):
+    # in 7-D, 20,000 points are asked of a KD-tree per half-width (the volume estimates' way)
     rng = np.random.default_rng(4)
-    s = mixed_set(rng, boxes=200, aligned=False)
-    points = rng.uniform(-1, 11, (20_000, 3))
-    points[:200] = s.centres + s.half_widths[:, None] * rng.choice([-1.0, 1.0], (200, 3))  # on corners: closed
-    brute = (np.abs(points[:, None, :] - s.centres[None]) <= s.half_widths[None, :, None]).all(axis=2).any(axis=1)
-    assert np.array_equal(s.contains(points), brute) and brute[:200].all() and 0.05 < brute.mean() < 0.95
-    with pytest.raises(SafeSetError, match="states need 3 columns"):
+    s = mixed_set(rng, n=n, boxes=boxes, aligned=False)
+    points = rng.uniform(-1, 11, (20_000, n))
+    corners = s.centres[:200] + s.half_widths[:200, None] * rng.choice([-1.0, 1.0], (200, n))
+    points[:200] = corners  # on corners: closed
+    points[200:400] = corners + np.sign(corners - s.centres[:200]) * 5e-10  # within the tolerance: inside
+    near = rng.integers(0, boxes, 4000)  # around boxes: in and out across their faces
+    points[400:4400] = s.centres[near] + s.half_widths[near, None] * rng.uniform(-1.3, 1.3, (4000, n))
+    brute = np.concatenate([(np.abs(block[:, None, :] - s.centres[None]) <= s.half_widths[None, :, None] + 1e-9)
+                            .all(axis=2).any(axis=1) for block in np.array_split(points, 20)])
+    assert np.array_equal(s.contains(points), brute) and brute[:400].all() and 0.05 < brute.mean() < 0.95
+    assert ("_trees" in s.__dict__) == (n == 7)
+    with pytest.raises(SafeSetError, match=f"states need {n} columns"):
         s.contains(np.zeros((2, 2)))
 
 

@@ -394,6 +394,31 @@ def test_membership_on_a_grid_decides_samples_an_ulp_from_a_face_as_the_spatial_
         assert np.array_equal(Boxes(box, h, 1).grid({0: xs[::-1]}, {}), _indexed(box, h, 1, xs[::-1, None]))
 
 
+def test_the_failures_figures_core_is_where_every_hidden_sample_is_in_the_set():
+    """failures.png's dark core, cut by cut over the hidden samples, against the set's own
+    membership of every (pixel, hidden sample) point: fleet3 (3 hidden axes, 3 samples
+    each, Sigma's ends among them, where the boxes' faces lie) with mixed box sizes."""
+    from farm.reports.plots.failures import _core
+    from farm.reports.plots.membership import _samples
+
+    sc, safe_set = fleet3_set()
+    mixed = SafeSet(safe_set.centres, np.where(np.arange(len(safe_set)) % 3 == 0, 2.0, 1.0) * safe_set.finest,
+                    sc.state_names)
+    cores = shadows_only = 0
+    for s in (safe_set, mixed):
+        for x, y in ((0, 3), (2, 4)):
+            xs = _samples(sc.lower[x], sc.upper[x], 40)
+            ys = _samples(sc.lower[y], sc.upper[y], 30)
+            hidden = [a for a in range(sc.n) if a not in (x, y)]
+            grids = {x: xs, y: ys, **{a: np.linspace(sc.lower[a], sc.upper[a], 3) for a in hidden}}
+            inside = s.contains(_grid_points(grids, {}, sc.n)).reshape(40, 30, -1)
+            core = _core(sc, s, x, y, xs, ys)
+            assert np.array_equal(core, inside.all(axis=2))
+            cores += int(core.sum())
+            shadows_only += int((inside.any(axis=2) & ~core).sum())
+    assert cores > 0 and shadows_only > 0  # safe everywhere somewhere, and only for some hidden values elsewhere
+
+
 def test_held_values_chosen_by_the_user_set_the_cuts_and_views_and_wrong_ones_are_named():
     sc, safe_set = fleet3_set()
     slices = plots.slices_figure(sc, safe_set, hold={"v2": 1.0, "p20": -20.0})

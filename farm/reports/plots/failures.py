@@ -43,9 +43,23 @@ def _core(scenario, safe_set, x, y, xs, ys, samples: int = HIDDEN_SAMPLES):
     if not hidden:
         return None
     per_axis = max(2, int(round(samples ** (1 / len(hidden)))))
-    grids = {x: xs, y: ys, **{a: np.linspace(scenario.lower[a], scenario.upper[a], per_axis) for a in hidden}}
-    member = _set_member(scenario, safe_set)
-    return member.grid(grids, {}).reshape(len(xs), len(ys), -1).all(axis=2)
+    values = [np.linspace(scenario.lower[a], scenario.upper[a], per_axis) for a in hidden]
+
+    # one 2-D cut per sampled value of the hidden coordinates, each painted from the boxes
+    # that hold it: the boxes are narrowed one hidden axis at a time, shared by the cuts
+    # below (a grid over every axis at once paints each box at its 2^n corners)
+    def safe_everywhere(boxes: Boxes, depth: int, held: dict) -> np.ndarray:
+        if depth == len(hidden):
+            return boxes.grid({x: xs, y: ys}, held)
+        out = np.ones((len(xs), len(ys)), dtype=bool)
+        for value in values[depth]:
+            at = {**held, hidden[depth]: value}
+            out &= safe_everywhere(boxes.near({hidden[depth]: value}), depth + 1, at)
+            if not out.any():
+                break  # (nothing left to be safe everywhere)
+        return out
+
+    return safe_everywhere(_set_member(scenario, safe_set), 0, {})
 
 
 def _draw_runs(ax, trajectories, labels, x, y) -> list:

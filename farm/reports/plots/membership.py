@@ -22,7 +22,23 @@ class Boxes:
             widths = widths[:, None]
         widths = np.broadcast_to(widths, (len(centres), n))
         keep = (widths > 0).all(axis=1)
-        self.centres, self.half_widths = centres[keep], widths[keep]
+        if keep.all():  # (no copy of a large set's boxes)
+            self.centres, self.half_widths = centres, widths
+        else:
+            self.centres, self.half_widths = centres[keep], widths[keep]
+
+    def near(self, fixed: dict[int, float]) -> "Boxes":
+        """The boxes that hold the values ``fixed`` (axis -> value) on their axes, by
+        ``grid``'s test: a cut meets only these."""
+        centres, widths = self.centres, self.half_widths
+        rows = np.arange(len(centres))
+        for axis, value in fixed.items():
+            # each axis asks only the boxes the ones before left: most of a large set is
+            # cut away by the first
+            rows = rows[np.abs(centres[rows, axis] - float(value)) <= widths[rows, axis] + TOLERANCE]
+        near = Boxes.__new__(Boxes)
+        near.centres, near.half_widths = centres[rows], widths[rows]
+        return near
 
     def grid(self, grids: dict[int, np.ndarray], fixed: dict[int, float]) -> np.ndarray:
         """Membership at every combination of ``grids`` (axis -> monotone values), the
@@ -35,14 +51,10 @@ class Boxes:
         coordinator/spatial.py's point indexes decide it: ``|x - c| <= h + TOLERANCE`` per
         axis, in the same floating-point operations (closed boxes)."""
         shape = tuple(len(values) for values in grids.values())
-        centres = self.centres
-        if set(grids) | set(fixed) != set(range(centres.shape[1])) or 0 in shape:
+        if set(grids) | set(fixed) != set(range(self.centres.shape[1])) or 0 in shape:
             return np.zeros(shape, dtype=bool)  # an unset coordinate is in no box
-        radii = self.half_widths + TOLERANCE
-        near = np.ones(len(centres), dtype=bool)
-        for axis, value in fixed.items():  # a cut meets only the boxes near its held values
-            near &= np.abs(centres[:, axis] - float(value)) <= radii[:, axis]
-        centres, radii = centres[near], radii[near]
+        near = self.near(fixed)
+        centres, radii = near.centres, near.half_widths + TOLERANCE
         keep = np.ones(len(centres), dtype=bool)
         bounds = []
         for axis, values in grids.items():

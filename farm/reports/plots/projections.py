@@ -35,10 +35,12 @@ def projected_share(scenario, safe_set, x: int, y: int, res: int = RESOLUTION):
     x0, x1 = _covered(xs, centres[:, x], widths[:, x])
     y0, y1 = _covered(ys, centres[:, y], widths[:, y])
     keep = (x0 < x1) & (y0 < y1) & (weight > 0)
-    acc = np.zeros((res + 1, res + 1))
+    x0, x1, y0, y1, weight = x0[keep], x1[keep], y0[keep], y1[keep], weight[keep]
+    size = (res + 1) * (res + 1)
+    acc = np.zeros(size)
     for xi, yi, sign in ((x0, y0, 1), (x1, y0, -1), (x0, y1, -1), (x1, y1, 1)):
-        np.add.at(acc, (xi[keep], yi[keep]), sign * weight[keep])
-    share = acc.cumsum(axis=0).cumsum(axis=1)[:res, :res]
+        acc += sign * np.bincount(xi * (res + 1) + yi, weights=weight, minlength=size)
+    share = acc.reshape(res + 1, res + 1).cumsum(axis=0).cumsum(axis=1)[:res, :res]
     return xs, ys, np.clip(share, 0.0, 1.0)
 
 
