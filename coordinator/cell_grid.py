@@ -36,6 +36,11 @@ def box_cells(lo: np.ndarray, hi: np.ndarray, span: int) -> tuple[np.ndarray, np
     return row_of, lo[row_of] + offsets[cell_of]
 
 
+def box_offsets(span: int, n: int) -> np.ndarray:
+    """(span^n, n) int64, read-only: the offsets 0..span-1 per axis in ``box_cells``' order."""
+    return _offset_tables(span, n)[0]
+
+
 @functools.lru_cache(maxsize=64)
 def _offset_tables(span: int, n: int) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """The offsets 0..span-1 per axis, (span^n, n) int64 in ``itertools.product`` order;

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from coordinator.alive_points import AlivePoints
-from coordinator.cell_grid import SMALL_MATMUL, box_cells, flat_index
+from coordinator.cell_grid import SMALL_MATMUL, box_cells, box_offsets, flat_index
 
 _P = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
                0xD6E8FEB86659FD93, 0xFF51AFD7ED558CCD, 0xC4CEB9FE1A85EC53,
@@ -569,12 +569,41 @@ class PointIndex(AlivePoints):
         left = (found[rows] < 0).nonzero()[0]
         if len(left) == 0:
             return
-        row_of, cells = box_cells(lo[left], hi[left], span)
+        row_of, flat = self._touched(lo[left], hi[left], span)
         row = rows[left][row_of]
-        flat = self._flat(cells)
         chained = (self._others[flat] > 0).nonzero()[0]
         if len(chained):
             self._walk(q, row[chained], self._off_head[flat[chained]], r, found, self._off_next)
+
+    def _touched(self, lo: np.ndarray, hi: np.ndarray, span: int) -> tuple[np.ndarray, np.ndarray]:
+        """The cells lo..hi of each row (hi - lo < span per axis) as flat dense indexes,
+        clipped into the margin as ``_flat`` clips them, each row's in ``box_cells``' order:
+        (m,) the row of each, (m,) the cells. Rows inside the grid are grouped by their
+        extent hi - lo (a few kinds): each is its first cell's index plus the flat steps of
+        the offsets its extent allows, one (rows, cells) sum instead of (rows, span^n, n)
+        arrays. Each row's cells stay together and in order, so a chain walk over them
+        names the same witnesses."""
+        extent = hi - lo
+        inside = (lo >= -1).all(axis=1) & (hi + 1 <= self._last_cell).all(axis=1)  # nothing clipped
+        rows, flats = [], []
+        offsets = box_offsets(span, self.n)
+        kinds = extent @ (span ** np.arange(self.n - 1, -1, -1, dtype=np.int64))
+        inner = inside.nonzero()[0]
+        for kind in np.unique(kinds[inner]):
+            group = inner[kinds[inner] == kind]
+            steps = offsets[(offsets <= extent[group[0]]).all(axis=1)] @ self._strides
+            rows.append(np.repeat(group, len(steps)))
+            flats.append((self._flat(lo[group])[:, None] + steps[None, :]).ravel())
+        rest = (~inside).nonzero()[0]
+        if len(rest):
+            row_of, cells = box_cells(lo[rest], hi[rest], span)
+            rows.append(rest[row_of])
+            flats.append(self._flat(cells))
+        if len(rows) == 1:
+            return rows[0], flats[0]
+        if not rows:
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        return np.concatenate(rows), np.concatenate(flats)
 
     def _within(self, ids, q, sel, r) -> np.ndarray:
         """(k,) bool: point ``ids[i]`` lies within l-inf ``r`` of query ``q[sel[i]]``. A few

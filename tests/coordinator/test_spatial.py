@@ -379,3 +379,41 @@ def test_a_miss_asks_only_the_cells_whose_centre_can_be_near_and_names_the_same_
     want = index.cover(q, 0.5)
     assert (want >= 0).sum() > 100
     np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("n", [3, 5, 7])
+def test_the_cells_a_chain_walk_asks_are_those_of_the_enumeration_in_its_order(n, monkeypatch):
+    """``_touched``: rows spanning every axis inside the grid are summed from their first
+    cell, the others enumerated; each row's flat cells, clipped into the margin, are the
+    enumeration's in its order, for spans 2 and 3 and rows partly or wholly beyond the
+    grid. And ``cover`` names the same witnesses as walking the enumerated cells, with
+    off-centre points in and beyond the grid (dense enough that chains tie)."""
+    from coordinator.cell_grid import box_cells
+
+    rng = np.random.default_rng(n)
+    lo, hi = np.zeros(n), np.full(n, 4.0)
+    index = PointIndex(n, 1.0, lo, bounds=(lo, hi))
+    index.insert(lo + rng.integers(0, 4, (300, n)) + 0.5)
+    index.insert(rng.uniform(-0.6, 4.6, ({3: 40, 5: 800, 7: 6000}[n], n)))
+    index.kill(rng.choice(index.count, index.count // 4, replace=False))
+    for span in (2, 3):
+        first = rng.integers(-3, 5, (400, n))
+        first[:200] = rng.integers(-1, 5 - span + 1 + 1, (200, n))  # most inside the grid
+        extent = np.where(rng.random((400, n)) < 0.9, span - 1, rng.integers(0, span, (400, n)))
+        row_of, flat = index._touched(first, first + extent, span)
+        want_rows, cells = box_cells(first, first + extent, span)
+        want = index._flat(cells)
+        for row in range(400):
+            np.testing.assert_array_equal(flat[row_of == row], want[want_rows == row])
+    q = np.concatenate([rng.uniform(-0.7, 4.7, (2000, n)),
+                        np.floor(rng.uniform(0, 4, (1000, n))) + 0.5 + rng.choice([0.0, 1e-10, -1e-10], (1000, n))])
+    got = index.cover(q, 0.5)
+
+    def enumerated(self, lo_, hi_, span_):
+        rows_, cells_ = box_cells(lo_, hi_, span_)
+        return rows_, self._flat(cells_)
+
+    monkeypatch.setattr(PointIndex, "_touched", enumerated)
+    want = index.cover(q, 0.5)
+    assert (want >= 0).sum() > 100 and (want < 0).sum() > 0
+    np.testing.assert_array_equal(got, want)
