@@ -36,9 +36,7 @@ class Boxes:
             # each axis asks only the boxes the ones before left: most of a large set is
             # cut away by the first
             rows = rows[np.abs(centres[rows, axis] - float(value)) <= widths[rows, axis] + TOLERANCE]
-        near = Boxes.__new__(Boxes)
-        near.centres, near.half_widths = centres[rows], widths[rows]
-        return near
+        return Boxes(centres[rows], widths[rows], centres.shape[1])
 
     def grid(self, grids: dict[int, np.ndarray], fixed: dict[int, float]) -> np.ndarray:
         """Membership at every combination of ``grids`` (axis -> monotone values), the
