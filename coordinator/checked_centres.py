@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from coordinator.buffers import Appendable
+from coordinator.unique import unique_ints
 
 
 class CheckedCentres:
@@ -88,12 +89,12 @@ class CheckedCentres:
         killed = np.asarray(killed, dtype=np.int64)
         if len(killed) == 0 or self._witness.size == 0:
             return np.zeros(0, dtype=np.int64)
-        entries = np.unique(self._index().find(np.unique(killed)))
+        entries = unique_ints(self._index().find(unique_ints(killed)))
         entries = entries[self._valid.view[entries]]
         self._valid.view[entries] = False
         vertices = self._vertex.view[entries]
         np.subtract.at(self._count, vertices, 1)
-        vertices = np.unique(vertices)
+        vertices = unique_ints(vertices)
         return vertices[self._count[vertices] == 0]
 
     def _index(self) -> "_SortedRuns":

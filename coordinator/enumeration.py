@@ -22,6 +22,7 @@ import numpy as np
 from coordinator.algorithm import EmptySetError
 from coordinator.checked_centres import CheckedCentres
 from coordinator.spatial import PointIndex
+from coordinator.unique import unique_ints
 
 SCAN_WINDOW = 4096  # centres looked at per step of the cursor (at least 4 x the runs wanted)
 
@@ -63,7 +64,7 @@ class Enumeration:
     def _pending_reopened(self, vertices: PointIndex, checked: CheckedCentres) -> np.ndarray:
         if not self._reopened:
             return np.zeros(0, dtype=np.int64)
-        ids = np.unique(np.concatenate(self._reopened))
+        ids = unique_ints(np.concatenate(self._reopened))
         # the others are dead, certified again or drawn; losing a certificate again tells us anew
         return ids[vertices.alive[ids] & ~checked.certified_at(ids) & ~self.drawn[ids]]
 
@@ -89,7 +90,7 @@ class Enumeration:
     def before_prune(self, vertices: PointIndex, checked: CheckedCentres, ids: np.ndarray) -> None:
         """Centres ``ids`` are about to be killed: the uncertified alive ones leave the count."""
         if self._missing_bound is not None and len(ids):
-            ids = np.unique(ids)
+            ids = unique_ints(ids)
             self._missing_bound -= int(np.count_nonzero(vertices.alive[ids] & ~checked.certified_at(ids)))
 
     def record(self, vertices: PointIndex, checked: CheckedCentres, starts: np.ndarray, offsets: np.ndarray,

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from coordinator.unique import unique_rows
+
 
 @dataclass(frozen=True)
 class Lattice:
@@ -57,21 +59,3 @@ class Lattice:
         out = self.anchor + delta + 2 * delta * ks
         out = out[((out + delta > self.lo + 1e-12) & (out - delta < self.hi - 1e-12)).all(axis=1)]
         return np.clip(out, self.lo, self.hi)
-
-
-def unique_rows(rows: np.ndarray) -> np.ndarray:
-    """``np.unique(rows, axis=0)`` of integer rows: the same rows in the same (lexicographic)
-    order, sorted as one int64 key per row where the rows' ranges allow it (a 9-D round
-    end's children: millions of rows, which ``np.unique`` sorts as row views)."""
-    if len(rows) == 0:
-        return np.unique(rows, axis=0)
-    low = rows.min(axis=0)
-    span = rows.max(axis=0) - low + 1
-    if float(np.prod(span.astype(float))) >= 2.0**62:
-        return np.unique(rows, axis=0)
-    strides = np.concatenate([np.cumprod(span[::-1])[::-1][1:], [1]]).astype(np.int64)
-    keys = (rows[:, 0] - low[0]) * strides[0]
-    for axis in range(1, rows.shape[1]):  # axis 0 the most significant digit: lexicographic order
-        keys += (rows[:, axis] - low[axis]) * strides[axis]
-    keys = np.unique(keys)
-    return np.stack([keys // strides[axis] % span[axis] + low[axis] for axis in range(rows.shape[1])], axis=1)

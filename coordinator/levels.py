@@ -22,6 +22,7 @@ import numpy as np
 from coordinator.level_grid import NestedGrid
 from coordinator.spatial import PointIndex
 from coordinator.alive_points import AlivePoints
+from coordinator.unique import unique_ints
 
 
 class LeveledIndex(AlivePoints):
@@ -149,7 +150,7 @@ class LeveledIndex(AlivePoints):
                 self._grid.centres_changed(level, cells[cells >= 0])
 
     def kill(self, ids) -> None:
-        ids = np.unique(np.asarray(ids, dtype=np.int64))
+        ids = unique_ints(np.asarray(ids, dtype=np.int64))
         ids = ids[self.alive[ids]]
         self._unplace(ids)
         self.alive[ids] = False
@@ -161,7 +162,7 @@ class LeveledIndex(AlivePoints):
 
     def resize(self, ids, half_width: float) -> None:
         """Alive points ``ids`` become boxes of ``half_width`` (same ids)."""
-        ids = np.unique(np.asarray(ids, dtype=np.int64))
+        ids = unique_ints(np.asarray(ids, dtype=np.int64))
         ids = ids[self.alive[ids]]
         self._unplace(ids)
         if len(ids):

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from coordinator.spatial import PointIndex
+from coordinator.unique import unique_ints
 from scenarios.base import Scenario
 
 
@@ -36,7 +37,7 @@ class Band:
 
     def coarse(self, spe, ids: np.ndarray) -> np.ndarray:
         """The alive centres among ``ids`` whose boxes are coarser than delta."""
-        ids = np.unique(np.asarray(ids, dtype=np.int64))
+        ids = unique_ints(np.asarray(ids, dtype=np.int64))
         ids = ids[spe.vertices.alive[ids]]
         return ids[spe.coverage.half_widths(ids) > spe.delta * (1 + 1e-9)]
 

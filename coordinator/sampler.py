@@ -26,6 +26,8 @@ from typing import Callable
 
 import numpy as np
 
+from coordinator.unique import unique_ints
+
 BLOCK = 256  # ids per block: a draw reads one row of BLOCK sums per run
 
 
@@ -64,8 +66,8 @@ class PrioritySampler:
             dirty = np.arange(blocks)
         else:
             parts = [np.arange(self.count // BLOCK, blocks)]  # blocks with new ids
-            parts += [np.unique(ids // BLOCK) for ids in self._touched]
-            dirty = np.unique(np.concatenate(parts))
+            parts += [unique_ints(ids // BLOCK) for ids in self._touched]
+            dirty = unique_ints(np.concatenate(parts))
         self._touched = []
         self._grow(blocks)
         self.count, self.blocks = count, blocks

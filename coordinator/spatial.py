@@ -24,6 +24,7 @@ import numpy as np
 
 from coordinator.alive_points import AlivePoints
 from coordinator.cell_grid import SMALL_MATMUL, box_cells, box_offsets, flat_index
+from coordinator.unique import unique_ints
 
 _P = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9,
                0xD6E8FEB86659FD93, 0xFF51AFD7ED558CCD, 0xC4CEB9FE1A85EC53,
@@ -284,7 +285,7 @@ class PointIndex(AlivePoints):
         return self._alive
 
     def kill(self, ids) -> None:
-        ids = np.unique(np.asarray(ids, dtype=np.int64))
+        ids = unique_ints(np.asarray(ids, dtype=np.int64))
         was = self.alive[ids]
         self._alive -= int(np.count_nonzero(was))
         if self._dense is not None:
@@ -295,7 +296,7 @@ class PointIndex(AlivePoints):
             known = self._centre_point[cells] == dying[centred]
             self._centre_point[cells[known]] = -1
             self.alive[ids] = False
-            orphaned = np.unique(cells[known])
+            orphaned = unique_ints(cells[known])
             self._rename(orphaned[self._dense[orphaned] > 0])
             np.subtract.at(self._others, self._flat(self._cells(self.points[dying[~centred]])), 1)
             self._off_alive -= int(np.count_nonzero(~centred))

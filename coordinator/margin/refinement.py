@@ -41,6 +41,7 @@ from coordinator.margin.partition import Partition
 from coordinator.margin.split_rule import KAPPA, Neighbourhood, choose, first_order_change, spans_sigma, wanted_axes
 from coordinator.margin.visits import Visits
 from coordinator.safe_set import COVERING_MARGIN, SafeSet
+from coordinator.unique import unique_ints
 from scenarios.base import FAILURE, Scenario
 
 DECIDE_BLOCK = 1 << 16  # boxes decided at once (their neighbourhoods held together)
@@ -139,7 +140,7 @@ class MarginRefinement:
             for side in (-1, 1):
                 nb = p.neighbours(boxes, axis, side)
                 found.append(nb[nb >= 0])
-        return np.unique(np.concatenate(found))
+        return unique_ints(np.concatenate(found))
 
     def _decide(self, boxes: np.ndarray) -> np.ndarray:
         """Split the boxes that want it and may; -> the children (the next wave). Every

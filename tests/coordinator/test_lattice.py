@@ -21,18 +21,3 @@ def test_halving_delta_splits_each_box_into_its_2n_children():
     kids = lat.children(parent, 2.0, 1.0)
     assert len(kids) == 8
     assert np.abs(kids - parent).max() == pytest.approx(1.0)
-
-
-def test_unique_rows_are_numpys_rows_in_numpys_order():
-    """The children's deduplication: one int64 key per row, the same rows and order as
-    ``np.unique(axis=0)``; negative indices; a range too wide for one key falls back."""
-    from coordinator.lattice import unique_rows
-
-    rng = np.random.default_rng(3)
-    for n, low, high in ((1, -5, 5), (3, -3, 4), (9, -2, 9), (4, -(2**40), 2**40)):
-        rows = rng.integers(low, high, (5000, n))
-        rows = np.concatenate([rows, rows[:1000]])  # duplicates
-        got = unique_rows(rows)
-        np.testing.assert_array_equal(got, np.unique(rows, axis=0))
-        assert got.dtype == np.int64 and len(got) < len(rows)
-    assert unique_rows(np.zeros((0, 3), dtype=np.int64)).shape == (0, 3)
