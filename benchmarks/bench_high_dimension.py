@@ -41,7 +41,7 @@ delta_min = {delta_min}
 horizon = 50
 sides = false
 refine = "{refine}"
-budget = 4000000
+budget = {budget}
 [farm]
 executor = "local"
 workers = 2
@@ -80,7 +80,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         config = os.path.join(tmp, "case.toml")
         with open(config, "w") as f:
-            f.write(CONFIG.format(vehicles=args.vehicles, delta_min=args.delta_min, refine=args.refine))
+            f.write(CONFIG.format(vehicles=args.vehicles, delta_min=args.delta_min, refine=args.refine, budget=4000000))
         print(f"machine: {os.cpu_count()} cores, load {os.getloadavg()[0]:.1f}; platoon of {args.vehicles} "
               f"({2 * args.vehicles - 1}-D), uniform Gamma, delta 2 -> {args.delta_min:g}, refine {args.refine}, "
               f"certified, in-process on "

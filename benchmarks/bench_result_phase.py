@@ -25,29 +25,12 @@ import sys
 import tempfile
 import time
 
-CONFIG = """[scenario]
-name = "platoon"
-vehicles = 5
-followers = 1
-sv_policy = "idm"
-[actions]
-mode = "uniform"
-[quantify]
-algorithm = "spe"
-epsilon = 0.001
-beta = 0.1
-delta0 = 2.0
-gamma = 0.5
-delta_min = 1.0
-horizon = 50
-sides = false
-refine = "band"
-budget = 120000
-[farm]
-executor = "local"
-workers = 2
-seed = 0
-"""
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+
+from bench_coordinator_cpu import checkout_env  # noqa: E402
+from bench_high_dimension import CONFIG  # noqa: E402
 
 # the child: the set from the campaign's files, then each estimate timed (the set's hash,
 # which seeds them, is computed first and apart: it is the summary's result_hash anyway)
@@ -69,16 +52,9 @@ print(json.dumps({"boxes": len(safe_set), "read_s": t1 - t0, "hash_s": t2 - t1, 
 """
 
 
-def _child_env(checkout: str | None) -> dict:
-    env = dict(os.environ)
-    if checkout is not None:
-        env["PYTHONPATH"] = os.pathsep.join([checkout, *filter(None, [env.get("PYTHONPATH")])])
-    return env
-
-
 def measure(campaign: str, checkout: str | None) -> dict:
     """The volumes' and the figures' times for ``campaign`` (with ``checkout``'s packages first)."""
-    env = _child_env(checkout)
+    env = checkout_env(checkout)
     proc = subprocess.run([sys.executable, "-c", _VOLUMES, campaign], capture_output=True, text=True, env=env,
                           cwd=checkout)
     if proc.returncode != 0:
@@ -111,7 +87,7 @@ def main() -> None:
         work = tempfile.mkdtemp(prefix="bench_result_")
         config, campaign = os.path.join(work, "platoon5_band.toml"), os.path.join(work, "campaign")
         with open(config, "w") as f:
-            f.write(CONFIG)
+            f.write(CONFIG.format(vehicles=5, delta_min=1.0, refine="band", budget=120000))
         print("making the set: platoon of five, band refinement, budget 120,000 runs (~3 min)", flush=True)
         t0 = time.perf_counter()
         proc = subprocess.run([sys.executable, "-m", "farm", "quantify", config, "--out", campaign, "--quiet"],
